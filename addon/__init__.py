@@ -1,0 +1,24 @@
+"""VPL GI: a Blender render engine for global illumination with virtual point lights.
+
+Importing this package does not import Blender; ``register()`` does.
+"""
+
+from __future__ import annotations
+
+
+def register() -> None:
+    """Register the engine, its properties and its panels with Blender."""
+    from . import engine, properties, ui
+
+    properties.register()
+    ui.register()
+    engine.register()
+
+
+def unregister() -> None:
+    """Undo register(); a bpy process must call this before it exits, or it hangs."""
+    from . import engine, properties, ui
+
+    engine.unregister()
+    ui.unregister()
+    properties.unregister()

@@ -1,0 +1,7 @@
+"""``python -m addon ...``: the command-line entry (see cli.py)."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,229 @@
+"""Command line: ``python -m addon render SCENE.blend -o OUT`` renders like
+``blender -b SCENE.blend -E VPL_GI -o OUT -f N``, with a progress bar and clear errors."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import time
+from dataclasses import fields, replace
+from pathlib import Path
+
+from .core.settings import SettingsError
+
+FORMATS = {".png": "PNG", ".exr": "OPEN_EXR"}
+
+
+class CliError(Exception):
+    """A problem with the command line's input; printed as one line, exit code 2."""
+
+
+def parse_frames(text: str) -> list[int]:
+    """'5' -> [5]; '1..10' or '1-10' -> 1..10 inclusive; '1,4,7' -> those frames."""
+    frames: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        sep = ".." if ".." in part else ("-" if "-" in part.lstrip("-") else None)
+        try:
+            if sep:
+                start_text, end_text = part.lstrip("-").split(sep, 1) if part.startswith("-") \
+                    else part.split(sep, 1)
+                start = -int(start_text) if part.startswith("-") else int(start_text)
+                end = int(end_text)
+                if end < start:
+                    raise CliError(f"frame range '{part}' ends before it starts")
+                frames.extend(range(start, end + 1))
+            else:
+                frames.append(int(part))
+        except ValueError:
+            raise CliError(f"cannot read frames '{text}' (use 5, 1..10 or 1,4,7)") from None
+    return frames
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise CliError(f"cannot read resolution '{text}' (use WIDTHxHEIGHT, e.g. 640x480)") \
+            from None
+    if not (1 <= width <= 65536 and 1 <= height <= 65536):
+        raise CliError(f"resolution {width}x{height} is outside 1..65536")
+    return width, height
+
+
+def output_path(pattern: str, frame: int, many: bool) -> Path:
+    """Blender's rule: '#'s become the zero-padded frame; otherwise several frames get
+    _NNNN before the extension. A path without extension gets .png."""
+    path = Path(pattern).expanduser()
+    if path.suffix.lower() not in FORMATS:
+        path = path.with_name(path.name + ".png")
+    name = path.stem
+    if "#" in name:
+        width = name.count("#")
+        first = name.index("#")
+        name = name[:first] + f"{frame:0{width}d}" + name[first:].replace("#", "")
+    elif many:
+        name = f"{name}_{frame:04d}"
+    return path.with_name(name + path.suffix)
+
+
+def check_output(path: Path, scene_file: Path) -> None:
+    """Refuse outputs that would overwrite the scene or cannot be written."""
+    if path.resolve() == scene_file.resolve():
+        raise CliError(f"refusing to write the image over the scene file: {path}")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CliError(f"cannot create output folder {path.parent}: {exc.strerror}") from None
+    if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise CliError(f"output is not writable: {path}")
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr for frames and the stages within a frame."""
+
+    def __init__(self, frames: int, stream=sys.stderr) -> None:
+        self.frames, self.frame_index, self.stream = frames, 0, stream
+        self.interactive = stream.isatty()
+
+    def update(self, fraction: float, message: str) -> None:
+        total = (self.frame_index + max(0.0, min(1.0, fraction))) / self.frames
+        filled = int(total * 30)
+        line = (f"\r[{'#' * filled}{'.' * (30 - filled)}] {total * 100:5.1f}% "
+                f"frame {self.frame_index + 1}/{self.frames} {message[:40]:<40}")
+        if self.interactive or fraction >= 1.0:
+            self.stream.write(line + ("" if self.interactive else "\n"))
+            self.stream.flush()
+
+    def finish_frame(self) -> None:
+        self.frame_index += 1
+        if self.interactive:
+            self.stream.write("\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m addon", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    render = sub.add_parser("render", help="render frames of a .blend file with VPL GI")
+    render.add_argument("scene", type=Path, help="the .blend file (never modified)")
+    render.add_argument("-o", "--output", required=True,
+                        help="image path; '#' marks the frame number; .png (view transform "
+                             "applied) or .exr (linear)")
+    render.add_argument("-f", "--frames", help="frames: 5, 1..10 or 1,4,7 (default: current)")
+    render.add_argument("-r", "--resolution", help="override resolution, WIDTHxHEIGHT")
+    render.add_argument("-p", "--percentage", type=int, help="override resolution percentage")
+    render.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="override a VPL GI setting, e.g. --set light_samples=64 "
+                             "(repeatable; names as in core/settings.py)")
+    return parser
+
+
+def parse_overrides(pairs: list[str]) -> dict[str, int | float]:
+    """'name=value' pairs checked against the Settings fields and converted to their types."""
+    from .core.settings import Settings
+
+    types = {f.name: f.type for f in fields(Settings)}
+    overrides: dict[str, int | float] = {}
+    for pair in pairs:
+        name, sep, text = pair.partition("=")
+        if not sep or name not in types:
+            raise CliError(f"unknown setting '{name}' (choose from {', '.join(sorted(types))})")
+        try:
+            overrides[name] = float(text) if types[name] in (float, "float") else int(text)
+        except ValueError:
+            raise CliError(f"setting {name}: '{text}' is not a number") from None
+    try:
+        replace(Settings(), **overrides).validate()
+    except SettingsError as exc:
+        raise CliError(str(exc)) from None
+    return overrides
+
+
+def run_render(args: argparse.Namespace) -> int:
+    scene_file: Path = args.scene
+    if not scene_file.is_file():
+        raise CliError(f"scene file not found: {scene_file}")
+    if scene_file.suffix.lower() != ".blend":
+        raise CliError(f"not a .blend file: {scene_file}")
+    resolution = parse_resolution(args.resolution) if args.resolution else None
+    if args.percentage is not None and not 1 <= args.percentage <= 1000:
+        raise CliError(f"percentage {args.percentage} is outside 1..1000")
+    overrides = parse_overrides(args.set)
+    if Path(args.output).suffix.lower() == ".blend":
+        raise CliError(f"refusing to write an image to a .blend path: {args.output}")
+
+    import bpy  # imported late: argument errors are reported without starting Blender
+
+    from . import register, unregister
+    from .engine import monitor
+
+    register()
+    previous_handler = signal.getsignal(signal.SIGINT)
+    try:
+        try:
+            bpy.ops.wm.open_mainfile(filepath=str(scene_file.resolve()), load_ui=False)
+        except RuntimeError as exc:
+            raise CliError(f"cannot open {scene_file}: {str(exc).strip()}") from None
+        scene = bpy.context.scene
+        if scene.camera is None:
+            raise CliError(f"scene '{scene.name}' in {scene_file} has no active camera")
+        frames = parse_frames(args.frames) if args.frames else [scene.frame_current]
+        paths = [output_path(args.output, f, len(frames) > 1) for f in frames]
+        for path in paths:
+            check_output(path, scene_file)
+        render = scene.render
+        render.engine = "VPL_GI"
+        if resolution:
+            render.resolution_x, render.resolution_y = resolution
+        if args.percentage is not None:
+            render.resolution_percentage = args.percentage
+        for name, value in overrides.items():
+            setattr(scene.vpl_gi, name, value)
+
+        def request_cancel(_signum, _frame) -> None:
+            monitor.cancel_requested = True
+
+        signal.signal(signal.SIGINT, request_cancel)
+        bar = ProgressBar(len(frames))
+        monitor.progress_listeners.append(bar.update)
+        for frame, path in zip(frames, paths, strict=True):
+            scene.frame_set(frame)
+            settings = render.image_settings
+            settings.file_format = FORMATS[path.suffix.lower()]
+            if settings.file_format == "OPEN_EXR":
+                settings.color_depth = "32"
+            start = time.perf_counter()
+            try:
+                bpy.ops.render.render()
+            except RuntimeError as exc:  # Blender's own refusal, or the engine's reported error
+                monitor.last_error = monitor.last_error or str(exc).strip()
+            bar.finish_frame()
+            if monitor.cancel_requested:
+                print("cancelled: no image written for this frame", file=sys.stderr)
+                return 130
+            if monitor.last_error:
+                print(f"error: frame {frame}: {monitor.last_error}", file=sys.stderr)
+                return 1
+            for warning in monitor.last_warnings:
+                print(f"warning: {warning}", file=sys.stderr)
+            # Written only after a finished render, with the scene's colour management for
+            # PNG (as Blender's -o does) and linear float for EXR.
+            bpy.data.images["Render Result"].save_render(filepath=str(path.resolve()),
+                                                         scene=scene)
+            print(f"Saved {path} ({time.perf_counter() - start:.2f} s)")
+        return 0
+    finally:
+        signal.signal(signal.SIGINT, previous_handler)
+        monitor.progress_listeners.clear()
+        unregister()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return run_render(args)
+    except CliError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2

@@ -1,0 +1,48 @@
+"""What a render returns: named float32 passes and the statistics of how they were made."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+
+PASS_CHANNELS = {
+    "Combined": 4, "Depth": 1, "Normal": 3, "DiffDir": 3, "DiffInd": 3, "DiffCol": 3, "Emit": 3,
+}
+"""Blender's pass names and channel counts, in the order the engine registers them."""
+
+
+@dataclass
+class Frame:
+    """Render passes, each (height, width, channels) float32, row 0 at the bottom (as Blender
+    and OpenGL store images)."""
+
+    width: int
+    height: int
+    passes: dict[str, np.ndarray]
+
+
+@dataclass
+class Stats:
+    """Wall time of each stage, counts of the work done, and warnings for the user."""
+
+    timings: dict[str, float] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    @contextmanager
+    def timed(self, stage: str) -> Iterator[None]:
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - start
+
+    def summary(self) -> str:
+        """One line for Blender's stats bar and the CLI."""
+        counts = ", ".join(f"{k} {v}" for k, v in self.counts.items())
+        times = ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in self.timings.items())
+        return f"{counts} | {times}"

@@ -1,0 +1,240 @@
+"""Turn the scene's lights, world and emissive surfaces into light samples: point-like emitters
+the shaders evaluate with one shadow map each (the seed's "area lights as many point lights").
+
+Units follow Cycles (each factor was checked against Cycles renders):
+- point/spot of power P: intensity P / (4 pi) W/sr in every direction (spot: masked);
+- sun of strength S: irradiance S W/m² on a surface facing it;
+- area light of power P: a one-sided Lambertian emitter of total flux P, peak intensity P / pi;
+- world of radiance L: irradiance pi L on an unoccluded surface;
+- emission of radiance L: a two-sided Lambertian emitter of peak intensity L·A per triangle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import WorldGeometry
+from .scene import Light, LightKind, Scene
+from .settings import Settings
+
+KIND_OMNI, KIND_COSINE, KIND_COSINE2, KIND_DIRECTIONAL = 0, 1, 2, 3
+NO_SPOT = -2.0
+
+
+@dataclass
+class LightSamples:
+    """Parallel arrays, one row per sample."""
+
+    position: np.ndarray  # (n, 3)
+    axis: np.ndarray  # (n, 3) direction of travel (spot/sun/world) or emitter normal
+    kind: np.ndarray  # (n,) int
+    intensity: np.ndarray  # (n, 3) W/sr, or W/m² for directional samples
+    spot_cos: np.ndarray  # (n,) cosine of half cone angle, NO_SPOT without a mask
+    spot_smooth: np.ndarray  # (n,) 1 / ((1 - spot_cos) * blend), 0 for a hard edge
+    casts_shadow: np.ndarray  # (n,) bool
+    resolution: np.ndarray  # (n,) int shadow-map edge in texels
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+    @property
+    def tiles_per_sample(self) -> np.ndarray:
+        """Atlas tiles each sample's shadow map needs (6 cube faces, 1 directional map)."""
+        tiles = np.where(self.kind == KIND_DIRECTIONAL, 1, 6)
+        return np.where(self.casts_shadow, tiles, 0)
+
+    def table(self, first_tile: np.ndarray, near: np.ndarray, far: np.ndarray) -> np.ndarray:
+        """The (n, 4, 4) float32 table the shaders read (see lights_lib.glsl)."""
+        n = len(self)
+        t = np.zeros((n, 4, 4), dtype=np.float32)
+        t[:, 0, :3], t[:, 0, 3] = self.position, self.kind
+        t[:, 1, :3], t[:, 1, 3] = self.axis, self.spot_cos
+        t[:, 2, :3], t[:, 2, 3] = self.intensity, self.spot_smooth
+        t[:, 3, 0] = np.where(self.casts_shadow, first_tile, -1)
+        t[:, 3, 1], t[:, 3, 2], t[:, 3, 3] = self.resolution, near, far
+        return t
+
+    def subset(self, index: np.ndarray) -> LightSamples:
+        return LightSamples(*(getattr(self, f)[index] for f in self.__dataclass_fields__))
+
+
+def _normalized(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
+
+
+def fibonacci_sphere(n: int, rng: np.random.Generator) -> np.ndarray:
+    """n stratified unit vectors (spherical Fibonacci lattice, randomly rotated)."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = np.pi * (1.0 + 5**0.5) * i + rng.uniform(0, 2 * np.pi)
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    points = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    return points @ q.T
+
+
+def stratified_square(n: int, rng: np.random.Generator) -> np.ndarray:
+    """n points in [0,1)² from a jittered grid of ceil(sqrt(n))² cells (n cells used, spread)."""
+    side = int(np.ceil(np.sqrt(n)))
+    cells = rng.permutation(side * side)[:n]
+    jitter = rng.uniform(size=(n, 2))
+    return (np.stack([cells % side, cells // side], axis=1) + jitter) / side
+
+
+def concentric_disk(u: np.ndarray) -> np.ndarray:
+    """Shirley-Chiu map of [0,1)² to the unit disk, preserving stratification."""
+    a, b = 2 * u[:, 0] - 1, 2 * u[:, 1] - 1
+    use_a = np.abs(a) > np.abs(b)
+    safe_a = np.where(a == 0, 1, a)
+    safe_b = np.where(b == 0, 1, b)
+    r = np.where(use_a, a, b)
+    phi = np.where(use_a, np.pi / 4 * (b / safe_a), np.pi / 2 - np.pi / 4 * (a / safe_b))
+    return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
+
+
+class _Builder:
+    def __init__(self) -> None:
+        self.rows: list[dict] = []
+
+    def add(self, *, position, axis, kind, intensity, shadow, resolution,
+            spot_cos=NO_SPOT, spot_smooth=0.0) -> None:
+        position = np.atleast_2d(position)
+        n = len(position)
+        self.rows.append({
+            "position": position,
+            "axis": np.broadcast_to(axis, (n, 3)),
+            "kind": np.full(n, kind),
+            "intensity": np.broadcast_to(intensity, (n, 3)),
+            "spot_cos": np.full(n, spot_cos),
+            "spot_smooth": np.full(n, spot_smooth),
+            "casts_shadow": np.full(n, shadow),
+            "resolution": np.full(n, resolution),
+        })
+
+    def build(self) -> LightSamples:
+        if not self.rows:
+            return LightSamples(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int),
+                                np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, bool),
+                                np.zeros(0, int))
+        keys = self.rows[0].keys()
+        return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
+
+
+def _spot_parameters(light: Light) -> tuple[float, float]:
+    if light.kind is not LightKind.SPOT:
+        return NO_SPOT, 0.0
+    cos_half = float(np.cos(min(light.spot_size, np.pi) / 2))
+    blend = float(np.clip(light.spot_blend, 0.0, 1.0))
+    smooth = 1.0 / ((1.0 - cos_half) * blend) if blend > 0 and cos_half < 1 else 0.0
+    return cos_half, smooth
+
+
+def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator) -> None:
+    color = np.asarray(light.color, dtype=np.float64) * light.power
+    m = light.matrix
+    position, travel = m[:3, 3], _normalized(-m[:3, 2])
+    if light.kind in (LightKind.POINT, LightKind.SPOT):
+        spot_cos, spot_smooth = _spot_parameters(light)
+        if light.radius <= 0:
+            b.add(position=position, axis=travel, kind=KIND_OMNI, intensity=color / (4 * np.pi),
+                  shadow=light.cast_shadow, resolution=s.shadow_resolution,
+                  spot_cos=spot_cos, spot_smooth=spot_smooth)
+            return
+        # A sphere of uniform radiance: one-sided cosine emitters on its surface.
+        n = s.light_samples
+        normals = fibonacci_sphere(n, rng)
+        b.add(position=position + light.radius * normals, axis=normals, kind=KIND_COSINE,
+              intensity=color / (np.pi * n), shadow=light.cast_shadow,
+              resolution=s.sample_shadow_resolution, spot_cos=spot_cos, spot_smooth=spot_smooth)
+    elif light.kind is LightKind.SUN:
+        half = 0.5 * min(light.sun_angle, np.pi)
+        if half <= 0:
+            b.add(position=position, axis=travel, kind=KIND_DIRECTIONAL, intensity=color,
+                  shadow=light.cast_shadow, resolution=s.shadow_resolution)
+            return
+        n = s.light_samples
+        u = stratified_square(n, rng)
+        cos_t = 1.0 - u[:, 0] * (1.0 - np.cos(half))
+        sin_t, phi = np.sqrt(np.maximum(0.0, 1 - cos_t**2)), 2 * np.pi * u[:, 1]
+        local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), -cos_t], axis=1)
+        b.add(position=np.repeat(position[None], n, 0), axis=_normalized(local @ m[:3, :3].T),
+              kind=KIND_DIRECTIONAL, intensity=color / n, shadow=light.cast_shadow,
+              resolution=s.sample_shadow_resolution)
+    elif light.kind is LightKind.AREA:
+        n = s.light_samples
+        u = stratified_square(n, rng)
+        unit = 0.5 * concentric_disk(u) if light.is_round else u - 0.5
+        local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
+        b.add(position=local @ m[:3, :3].T + position, axis=travel, kind=KIND_COSINE,
+              intensity=color / (np.pi * n), shadow=light.cast_shadow,
+              resolution=s.sample_shadow_resolution)
+
+
+def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator) -> None:
+    radiance = scene.world.radiance
+    if not np.any(radiance > 0):
+        return
+    n = s.world_samples
+    sky = fibonacci_sphere(n, rng)
+    b.add(position=np.zeros((n, 3)), axis=-sky, kind=KIND_DIRECTIONAL,
+          intensity=radiance * 4 * np.pi / n, shadow=True, resolution=s.sample_shadow_resolution)
+
+
+def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
+                  rng: np.random.Generator) -> None:
+    emission = geometry.emission.reshape(-1, 3, 3)[:, 0]
+    emitting = np.flatnonzero(emission.max(axis=1) > 0)
+    if len(emitting) == 0:
+        return
+    tri = geometry.positions.reshape(-1, 3, 3)[emitting].astype(np.float64)
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    power = area * emission[emitting].mean(axis=1)
+    if power.sum() <= 0:
+        return
+    n = s.emission_samples
+    cdf = np.cumsum(power) / power.sum()
+    pick = np.minimum(np.searchsorted(cdf, (np.arange(n) + rng.uniform()) / n), len(cdf) - 1)
+    u = rng.uniform(size=(n, 2))
+    flip = u.sum(axis=1) > 1
+    u[flip] = 1 - u[flip]
+    t = tri[pick]
+    points = t[:, 0] + u[:, :1] * (t[:, 1] - t[:, 0]) + u[:, 1:] * (t[:, 2] - t[:, 0])
+    probability = power[pick] / power.sum()
+    intensity = emission[emitting][pick] * (area[pick] / (n * probability))[:, None]
+    b.add(position=points, axis=_normalized(cross[pick]), kind=KIND_COSINE2,
+          intensity=intensity, shadow=True, resolution=s.sample_shadow_resolution)
+
+
+def _light_problem(light: Light) -> str | None:
+    """Why a light cannot be used as it is, or None."""
+    values = [light.power, *light.color, light.radius, light.spot_size, light.spot_blend,
+              light.sun_angle, light.size_x, light.size_y]
+    if not np.isfinite(light.matrix).all() or not all(np.isfinite(values)):
+        return "has NaN/Inf settings or transform and was left out"
+    if abs(np.linalg.det(light.matrix[:3, :3])) < 1e-300:
+        return "has a zero-scale transform and was left out"
+    return None
+
+
+def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Settings,
+                        warnings: list[str]) -> LightSamples:
+    """All direct-light samples of the scene, deterministic for ``settings.seed``."""
+    rng = np.random.default_rng(settings.seed)
+    b = _Builder()
+    for light in scene.lights:
+        problem = _light_problem(light)
+        if problem:
+            warnings.append(f"light '{light.name}' {problem}")
+            continue
+        if light.kind is LightKind.AREA and min(light.area_size) <= 0:
+            warnings.append(f"area light '{light.name}' has zero or negative size: lit as a "
+                            f"point emitter of the same power")
+        if light.power != 0 and any(c != 0 for c in light.color):
+            _add_light(b, light, settings, rng)
+    _add_world(b, scene, settings, rng)
+    _add_emission(b, geometry, settings, rng)
+    return b.build()

@@ -1,0 +1,140 @@
+"""Plain scene description handed from the Blender export to the renderer.
+
+Everything here is numpy arrays and small dataclasses: no Blender types, so the renderer can be
+tested and benchmarked without Blender. Units follow Blender/Cycles: metres, watts, W/m² for the
+sun, radiance for emission and the world.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+
+Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
+
+
+@dataclass
+class Material:
+    """A diffuse material: base colour (albedo) and emitted radiance (colour × strength)."""
+
+    name: str
+    base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
+    emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass
+class Mesh:
+    """Triangle soup in object space: 3 corners per triangle, corner normals, slot per triangle."""
+
+    name: str
+    positions: np.ndarray  # (T*3, 3) float32
+    normals: np.ndarray  # (T*3, 3) float32, corner normals (smooth/flat, as Blender has them)
+    material_slots: np.ndarray  # (T,) int32, index into the instance's material list
+
+    @property
+    def triangle_count(self) -> int:
+        return len(self.material_slots)
+
+
+@dataclass
+class Instance:
+    """One placement of a mesh in the world with its resolved materials (one per slot)."""
+
+    mesh: Mesh
+    matrix: Matrix4
+    materials: list[Material]
+
+
+class LightKind(StrEnum):
+    POINT = "POINT"
+    SPOT = "SPOT"
+    SUN = "SUN"
+    AREA = "AREA"
+
+
+class AreaShape(StrEnum):
+    SQUARE = "SQUARE"
+    RECTANGLE = "RECTANGLE"
+    DISK = "DISK"
+    ELLIPSE = "ELLIPSE"
+
+
+@dataclass
+class Light:
+    """A Blender light. ``power`` is watts (point/spot/area) or W/m² (sun strength).
+
+    The light emits along its local -Z axis (spot, sun, area), as in Blender.
+    """
+
+    name: str
+    kind: LightKind
+    matrix: Matrix4
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    power: float = 10.0
+    radius: float = 0.0  # point/spot sphere radius
+    spot_size: float = np.pi / 4  # full cone angle, radians
+    spot_blend: float = 0.15
+    sun_angle: float = 0.0  # angular diameter, radians
+    area_shape: AreaShape = AreaShape.SQUARE
+    size_x: float = 1.0
+    size_y: float = 1.0
+    cast_shadow: bool = True
+    visible_to_camera: bool = True  # area lights: the shape shows in the image (Cycles' default)
+
+    @property
+    def area_size(self) -> tuple[float, float]:
+        """Width and height of an area light's shape (square and disk use size_x for both)."""
+        square = self.area_shape in (AreaShape.SQUARE, AreaShape.DISK)
+        return self.size_x, self.size_x if square else self.size_y
+
+    @property
+    def is_round(self) -> bool:
+        return self.area_shape in (AreaShape.DISK, AreaShape.ELLIPSE)
+
+    @property
+    def local_area(self) -> float:
+        """Area of the shape in the light's own (unscaled) plane."""
+        width, height = self.area_size
+        return (np.pi / 4 if self.is_round else 1.0) * width * height
+
+
+@dataclass
+class World:
+    """A constant-colour environment: background radiance = colour × strength."""
+
+    color: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    strength: float = 1.0
+
+    @property
+    def radiance(self) -> np.ndarray:
+        return np.asarray(self.color, dtype=np.float64) * self.strength
+
+
+@dataclass
+class Camera:
+    """A camera as OpenGL matrices (Blender computes the projection, including sensor fit and
+    shift), plus the output resolution in pixels."""
+
+    view_matrix: Matrix4  # world -> camera (camera looks along -Z)
+    projection_matrix: Matrix4  # camera -> clip, OpenGL convention
+    width: int
+    height: int
+    is_orthographic: bool = False
+
+    @property
+    def position(self) -> np.ndarray:
+        return np.linalg.inv(self.view_matrix)[:3, 3]
+
+
+@dataclass
+class Scene:
+    """Everything one frame needs."""
+
+    instances: list[Instance] = field(default_factory=list)
+    lights: list[Light] = field(default_factory=list)
+    world: World = field(default_factory=World)
+    camera: Camera | None = None
+    film_transparent: bool = False
+    warnings: list[str] = field(default_factory=list)

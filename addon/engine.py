@@ -1,0 +1,134 @@
+"""The "VPL GI" RenderEngine: final renders (F12, background, command line) and pass setup."""
+
+from __future__ import annotations
+
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from .core.frame import Frame, Stats
+from .core.gl import GLUnavailableError
+from .core.pipeline import RenderCancelled, Renderer, RenderError
+from .core.settings import SettingsError
+from .export import export_scene
+from .ui import ENGINE_ID
+
+# Pass name -> (channels, channel ids, type, view-layer toggle that enables it).
+OPTIONAL_PASSES = {
+    "Depth": (1, "Z", "VALUE", "use_pass_z"),
+    "Normal": (3, "XYZ", "VECTOR", "use_pass_normal"),
+    "DiffDir": (3, "RGB", "COLOR", "use_pass_diffuse_direct"),
+    "DiffInd": (3, "RGB", "COLOR", "use_pass_diffuse_indirect"),
+    "DiffCol": (3, "RGB", "COLOR", "use_pass_diffuse_color"),
+    "Emit": (3, "RGB", "COLOR", "use_pass_emit"),
+}
+
+
+@dataclass
+class RenderMonitor:
+    """Lets a host (the command line) follow and stop renders the engine runs."""
+
+    progress_listeners: list[Callable[[float, str], None]] = field(default_factory=list)
+    cancel_requested: bool = False
+    last_error: str | None = None
+    last_stats: Stats | None = None
+    last_warnings: list[str] = field(default_factory=list)
+
+
+monitor = RenderMonitor()
+_renderer: Renderer | None = None
+
+
+def shared_renderer() -> Renderer:
+    """One Renderer (and GL context) per Blender process, created on first render."""
+    global _renderer
+    if _renderer is None:
+        _renderer = Renderer()
+    return _renderer
+
+
+def release_renderer() -> None:
+    global _renderer
+    if _renderer is not None:
+        _renderer.release()
+        _renderer = None
+
+
+class VPLGIRenderEngine(bpy.types.RenderEngine):
+    """Global illumination with virtual point lights (this release: direct light)."""
+
+    bl_idname = ENGINE_ID
+    bl_label = "VPL GI"
+    bl_use_preview = False
+    bl_use_eevee_viewport = True
+    bl_use_shading_nodes_custom = False
+
+    def render(self, depsgraph: bpy.types.Depsgraph) -> None:
+        monitor.last_error, monitor.last_stats, monitor.last_warnings = None, None, []
+        try:
+            self._render(depsgraph)
+        except RenderCancelled:
+            self.update_stats("", "Cancelled")
+        except (RenderError, SettingsError, GLUnavailableError) as exc:
+            self._fail(str(exc))
+        except Exception as exc:  # never let an engine bug take Blender down
+            traceback.print_exc()
+            self._fail(f"internal error: {exc!r} (details in the console)")
+
+    def _fail(self, message: str) -> None:
+        monitor.last_error = message
+        self.report({"ERROR"}, f"VPL GI: {message}")
+        self.error_set(f"VPL GI: {message}")
+
+    def _render(self, depsgraph: bpy.types.Depsgraph) -> None:
+        scene = depsgraph.scene
+        settings = scene.vpl_gi.to_settings()
+        self.update_stats("", "VPL GI | Exporting scene")
+        exported = export_scene(depsgraph)
+        if exported.camera is None:
+            raise RenderError("the scene has no active camera")
+
+        def progress(fraction: float, message: str) -> None:
+            self.update_progress(fraction)
+            self.update_stats("", f"VPL GI | {message}")
+            for listener in monitor.progress_listeners:
+                listener(fraction, message)
+
+        def cancelled() -> bool:
+            return monitor.cancel_requested or self.test_break()
+
+        frame, stats = shared_renderer().render(exported, settings, progress, cancelled)
+        self._write_result(frame)
+        monitor.last_stats, monitor.last_warnings = stats, list(stats.warnings)
+        for warning in stats.warnings:
+            self.report({"WARNING"}, f"VPL GI: {warning}")
+        self.update_stats("", f"VPL GI | {stats.summary()}")
+
+    def _write_result(self, frame: Frame) -> None:
+        result = self.begin_result(0, 0, frame.width, frame.height)
+        layer = result.layers[0]
+        for render_pass in layer.passes:
+            data = frame.passes.get(render_pass.name)
+            if data is not None and data.shape[2] == render_pass.channels:
+                render_pass.rect.foreach_set(np.ascontiguousarray(data, np.float32).ravel())
+        self.end_result(result)
+
+    def update_render_passes(self, scene: bpy.types.Scene | None = None,
+                             renderlayer: bpy.types.ViewLayer | None = None) -> None:
+        """Declare the passes this engine fills, under Blender's own names."""
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        for name, (channels, ids, kind, toggle) in OPTIONAL_PASSES.items():
+            if getattr(renderlayer, toggle, False):
+                self.register_pass(scene, renderlayer, name, channels, ids, kind)
+
+
+def register() -> None:
+    bpy.utils.register_class(VPLGIRenderEngine)
+
+
+def unregister() -> None:
+    release_renderer()
+    bpy.utils.unregister_class(VPLGIRenderEngine)

@@ -1,0 +1,108 @@
+// The light-sample table (a RGBA32F texture, 4 texels per sample) and the shadow-map lookup.
+#ifndef LIGHTS_LIB_GLSL
+#define LIGHTS_LIB_GLSL
+#include "common_lib.glsl"
+
+struct LightSample {
+    vec3 position;      // world position; for directional samples unused
+    int kind;
+    vec3 axis;          // direction of travel (spot, sun, world) or emitter normal
+    float spot_cos;     // cosine of the half cone angle; <= -1 means no spot mask
+    vec3 intensity;     // W/sr (omni, peak of cosine emitters) or W/m^2 (directional)
+    float spot_smooth;  // 1 / ((1 - spot_cos) * blend); 0 means a hard edge
+    int tile;           // first atlas tile of its shadow map, -1 for no shadow
+    float resolution;   // texels per tile edge
+    float near;
+    float far;
+};
+
+uniform sampler2D u_light_table;
+
+LightSample light_sample(int index) {
+    vec4 t0 = texelFetch(u_light_table, ivec2(0, index), 0);
+    vec4 t1 = texelFetch(u_light_table, ivec2(1, index), 0);
+    vec4 t2 = texelFetch(u_light_table, ivec2(2, index), 0);
+    vec4 t3 = texelFetch(u_light_table, ivec2(3, index), 0);
+    return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
+                       t3.w);
+}
+
+// Cycles' spot mask: smoothstep of the cosine past the cone edge, scaled by the blend.
+float spot_mask(LightSample s, vec3 from_light) {
+    if (s.spot_cos <= -1.0) return 1.0;
+    float c = dot(from_light, s.axis);
+    if (s.spot_smooth <= 0.0) return c > s.spot_cos ? 1.0 : 0.0;
+    float x = clamp((c - s.spot_cos) * s.spot_smooth, 0.0, 1.0);
+    return x * x * (3.0 - 2.0 * x);
+}
+
+// Radiant intensity (W/sr) of a non-directional sample towards a unit direction.
+vec3 emitted_intensity(LightSample s, vec3 from_light) {
+    float falloff = 1.0;
+    if (s.kind == KIND_COSINE) falloff = max(dot(from_light, s.axis), 0.0);
+    else if (s.kind == KIND_COSINE2) falloff = abs(dot(from_light, s.axis));
+    return s.intensity * falloff * spot_mask(s, from_light);
+}
+
+uniform sampler2D u_shadow_atlas;
+uniform int u_atlas_columns;
+uniform vec3 u_scene_centre;
+uniform float u_scene_radius;
+uniform float u_shadow_bias;   // receiver offset in texels
+
+// Percentage-closer lookup (2x2 bilinear taps) of one tile at texel coordinates `texel`.
+float shadow_taps(int tile, float resolution, vec2 texel, float receiver, float tolerance) {
+    ivec2 origin = ivec2(tile % u_atlas_columns, tile / u_atlas_columns) * int(resolution);
+    vec2 p = texel - 0.5;
+    vec2 f = fract(p);
+    ivec2 base = ivec2(floor(p));
+    float lit = 0.0;
+    for (int j = 0; j < 2; ++j) {
+        for (int i = 0; i < 2; ++i) {
+            ivec2 q = clamp(base + ivec2(i, j), ivec2(0), ivec2(int(resolution) - 1));
+            float occluder = texelFetch(u_shadow_atlas, origin + q, 0).r;
+            float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
+            lit += w * (receiver <= occluder + tolerance ? 1.0 : 0.0);
+        }
+    }
+    return lit;
+}
+
+// Fraction of the sample's light reaching `world` (normal offset by `bias` texels).
+float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+    if (s.tile < 0) return 1.0;
+    if (s.kind == KIND_DIRECTIONAL) {
+        float texel_size = 2.0 * u_scene_radius / s.resolution;
+        vec3 p = world + geometric_normal * (u_shadow_bias * texel_size);
+        vec4 clip = directional_clip(p, s.axis, u_scene_centre, u_scene_radius);
+        vec2 texel = (clip.xy * 0.5 + 0.5) * s.resolution;
+        float receiver = directional_depth(p, s.axis, u_scene_centre, u_scene_radius);
+        return shadow_taps(s.tile, s.resolution, texel, receiver, 0.5 * texel_size);
+    }
+    float distance = length(world - s.position);
+    float texel_size = 2.0 * distance / s.resolution;
+    vec3 p = world + geometric_normal * (u_shadow_bias * texel_size);
+    vec3 v = p - s.position;
+    int face = cube_face_of(v);
+    vec3 local = CUBE_FACE_ROTATION[face] * v;
+    vec2 texel = (local.xy / -local.z * 0.5 + 0.5) * s.resolution;
+    return shadow_taps(s.tile + face, s.resolution, texel, length(v), 0.5 * texel_size);
+}
+
+// Irradiance (W/m^2) at a surface point from one sample, shadowed.
+vec3 sample_irradiance(LightSample s, vec3 world, vec3 normal, vec3 geometric_normal) {
+    if (s.kind == KIND_DIRECTIONAL) {
+        float cos_receiver = dot(normal, -s.axis);
+        if (cos_receiver <= 0.0) return vec3(0.0);
+        return s.intensity * cos_receiver * shadow_visibility(s, world, geometric_normal);
+    }
+    vec3 to_light = s.position - world;
+    float distance2 = dot(to_light, to_light);
+    vec3 dir = to_light * inversesqrt(distance2);
+    float cos_receiver = dot(normal, dir);
+    if (cos_receiver <= 0.0) return vec3(0.0);
+    vec3 intensity = emitted_intensity(s, -dir);
+    if (all(equal(intensity, vec3(0.0)))) return vec3(0.0);
+    return intensity * cos_receiver / distance2 * shadow_visibility(s, world, geometric_normal);
+}
+#endif

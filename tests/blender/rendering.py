@@ -1,0 +1,56 @@
+"""Rendering helpers shared by the Blender tests: open a sample scene, render it with an engine,
+get the linear image back as numpy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+SAMPLE_SCENES = Path(__file__).resolve().parents[2] / "sample_scenes"
+
+
+def open_scene(name: str, size: int) -> bpy.types.Scene:
+    """Load sample_scenes/<name>.blend at size × size pixels."""
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLE_SCENES / f"{name}.blend"), load_ui=False)
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    return scene
+
+
+def configure_cycles(scene: bpy.types.Scene, samples: int, bounces: int = 0, seed: int = 0
+                     ) -> None:
+    """Cycles set up for a like-for-like diffuse reference: CPU, no denoiser, no clamping,
+    a one-pixel box filter (the same pixel footprint as VPL GI's supersampling)."""
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = samples
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.max_bounces = c.diffuse_bounces = bounces
+    c.glossy_bounces = c.transmission_bounces = c.volume_bounces = 0
+    c.transparent_max_bounces = 0
+    c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    c.pixel_filter_type = "BOX"
+    c.filter_width = 1.0
+    c.seed = seed
+
+
+def render_linear(scene: bpy.types.Scene, engine: str, path: Path) -> np.ndarray:
+    """Render with ``engine`` to a 32-bit EXR at ``path`` and return it (rows bottom-up)."""
+    scene.render.engine = engine
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(str(path))
+    try:
+        width, height = image.size
+        pixels = np.empty(width * height * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        return pixels.reshape(height, width, 4)
+    finally:
+        bpy.data.images.remove(image)

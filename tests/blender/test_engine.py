@@ -1,0 +1,107 @@
+"""The engine inside Blender: registration, passes, export of the sample scenes, panels."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.frame import PASS_CHANNELS
+from addon.core.pipeline import Renderer
+from addon.core.scene import LightKind
+from addon.core.settings import Settings
+from addon.export import export_scene
+from tests.blender.rendering import open_scene, render_linear
+
+PASS_TOGGLES = ("use_pass_z", "use_pass_normal", "use_pass_diffuse_direct",
+                "use_pass_diffuse_indirect", "use_pass_diffuse_color", "use_pass_emit")
+
+
+def test_engine_is_listed_and_its_panels_show(blender):
+    bpy = blender
+    scene = bpy.context.scene
+    scene.render.engine = "VPL_GI"
+    assert scene.render.engine == "VPL_GI"
+    assert "VPL_GI" in bpy.types.RENDER_PT_format.COMPAT_ENGINES
+    assert "VPL_GI" in bpy.types.RENDER_PT_color_management.COMPAT_ENGINES
+    assert "VPL_GI" in bpy.types.EEVEE_MATERIAL_PT_surface.COMPAT_ENGINES
+    assert "VPL_GI" in bpy.types.DATA_PT_EEVEE_light.COMPAT_ENGINES
+    assert bpy.types.RENDER_PT_vpl_gi.poll(bpy.context)
+
+
+def test_passes_are_registered_under_blender_names(blender):
+    scene = open_scene("cornell_box", 16)
+    layer = scene.view_layers[0]
+    for toggle in PASS_TOGGLES:
+        setattr(layer, toggle, True)
+    scene.use_nodes = True
+    node = scene.node_tree.nodes.new("CompositorNodeRLayers")
+    outputs = {socket.name for socket in node.outputs if socket.enabled}
+    expected = {"Image", "Alpha", "Depth", "Normal", "DiffDir", "DiffInd", "DiffCol", "Emit"}
+    assert expected <= outputs
+
+
+def test_sample_scene_exports_lights_camera_and_materials(blender):
+    bpy = blender
+    open_scene("multi_light", 32)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    scene = export_scene(depsgraph)
+    kinds = sorted(light.kind for light in scene.lights)
+    assert kinds == sorted([LightKind.POINT, LightKind.SPOT, LightKind.SUN, LightKind.AREA])
+    assert scene.camera is not None and (scene.camera.width, scene.camera.height) == (32, 32)
+    blender_camera = bpy.context.scene.camera
+    np.testing.assert_allclose(np.linalg.inv(scene.camera.view_matrix),
+                               np.array(blender_camera.matrix_world), atol=1e-6)
+    colours = {m.name: m.base_color for inst in scene.instances for m in inst.materials}
+    assert colours["Orange"] == pytest.approx((0.8, 0.4, 0.1))
+    assert scene.world.radiance == pytest.approx([0.05, 0.06, 0.08])
+    assert sum(inst.mesh.triangle_count for inst in scene.instances) > 500
+
+
+def test_passes_compose_into_combined(blender):
+    """Combined = DiffDir × DiffCol + Emit where there is a surface (Blender's pass algebra)."""
+    bpy = blender
+    open_scene("light_area", 32)
+    exported = export_scene(bpy.context.evaluated_depsgraph_get())
+    frame, _ = Renderer().render(exported, Settings(antialiasing=1))
+    assert set(frame.passes) == set(PASS_CHANNELS)
+    p = frame.passes
+    covered = p["Depth"][..., 0] < 1e10
+    rebuilt = p["DiffDir"] * p["DiffCol"] + p["Emit"]
+    np.testing.assert_allclose(p["Combined"][covered][:, :3], rebuilt[covered], rtol=1e-5,
+                               atol=1e-6)
+    normals = np.linalg.norm(p["Normal"][covered], axis=-1)
+    np.testing.assert_allclose(normals, 1.0, atol=1e-4)
+    assert covered.mean() > 0.5 and np.all(p["Depth"][covered] > 0)
+    np.testing.assert_allclose(p["Combined"][..., 3], 1.0)  # opaque film: background too
+
+
+def test_render_without_camera_is_refused(blender):
+    scene = open_scene("light_point", 16)
+    scene.camera = None
+    scene.render.engine = "VPL_GI"
+    with pytest.raises(RuntimeError, match="no camera"):
+        blender.ops.render.render(write_still=False)
+
+
+def test_engine_failure_is_reported_not_raised_into_blender(blender, monkeypatch):
+    from addon import engine
+    from addon.core.gl import GLUnavailableError
+
+    def no_gl():
+        raise GLUnavailableError("could not create an OpenGL 4.1 context (test)")
+
+    monkeypatch.setattr(engine, "shared_renderer", no_gl)
+    scene = open_scene("light_point", 16)
+    scene.render.engine = "VPL_GI"
+    try:
+        blender.ops.render.render(write_still=False)
+    except RuntimeError as exc:  # Blender turns the engine's error report into an exception
+        assert "OpenGL" in str(exc)
+    assert engine.monitor.last_error and "OpenGL 4.1" in engine.monitor.last_error
+
+
+def test_final_render_writes_an_image(blender, tmp_path):
+    scene = open_scene("light_point", 24)
+    image = render_linear(scene, "VPL_GI", tmp_path / "out.exr")
+    assert image.shape == (24, 24, 4)
+    assert np.isfinite(image).all() and image[..., :3].max() > 0

@@ -1,0 +1,143 @@
+"""Direct light of each light type against closed-form or quadrature irradiance.
+
+DiffDir is irradiance / pi (Blender's pass unit), so every check compares DiffDir * pi with the
+irradiance E a physically exact renderer would compute at the pixel centre.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core import pipeline
+from addon.core.scene import AreaShape, Instance, LightKind, Material, World
+from addon.core.settings import Settings
+from tests.core.builders import floor_scene, light, pixel_centres, quad, rotation_x, translation
+
+SIZE = 64
+
+
+def irradiance(frame) -> np.ndarray:
+    return frame.passes["DiffDir"][..., 0] * np.pi
+
+
+def rectangle_irradiance(x: np.ndarray, y: np.ndarray, height: float, half: float,
+                         radiance: float, steps: int = 200) -> np.ndarray:
+    """E at floor points from a downward-facing Lambertian square (midpoint quadrature)."""
+    u = (np.arange(steps) + 0.5) / steps * 2 * half - half
+    lx, ly = np.meshgrid(u, u)
+    dx = x[..., None, None] - lx
+    dy = y[..., None, None] - ly
+    r2 = dx**2 + dy**2 + height**2
+    cos2 = height**2 / r2
+    return radiance * (cos2 / r2).sum(axis=(-1, -2)) * (2 * half / steps) ** 2
+
+
+def test_point_light_inverse_square_and_cosine(renderer):
+    power, height = 100.0, 2.0
+    scene = floor_scene([light(LightKind.POINT, translation(0, 0, height), power=power)])
+    frame, _ = renderer.render(scene, Settings(antialiasing=1))
+    x, y = pixel_centres()
+    expected = power / (4 * np.pi) * height / (x**2 + y**2 + height**2) ** 1.5
+    np.testing.assert_allclose(irradiance(frame), expected, rtol=2e-3)
+
+
+def test_spot_light_cone_and_blend_follow_cycles(renderer):
+    power, height, size, blend = 500.0, 3.0, np.radians(60), 0.4
+    spot = light(LightKind.SPOT, translation(0, 0, height), power=power, spot_size=size,
+                 spot_blend=blend)
+    frame, _ = renderer.render(floor_scene([spot]), Settings(antialiasing=1))
+    x, y = pixel_centres()
+    d2 = x**2 + y**2 + height**2
+    cos_axis = height / np.sqrt(d2)
+    cos_half = np.cos(size / 2)
+    t = np.clip((cos_axis - cos_half) / ((1 - cos_half) * blend), 0, 1)
+    expected = power / (4 * np.pi) * cos_axis / d2 * t * t * (3 - 2 * t)
+    np.testing.assert_allclose(irradiance(frame), expected, rtol=2e-3, atol=1e-3 * expected.max())
+
+
+def test_sun_irradiance_is_strength_times_cosine(renderer):
+    angle = np.radians(35)
+    sun = light(LightKind.SUN, rotation_x(angle), power=3.0)
+    frame, _ = renderer.render(floor_scene([sun]), Settings(antialiasing=1))
+    np.testing.assert_allclose(irradiance(frame), 3.0 * np.cos(angle), rtol=1e-4)
+
+
+def test_area_light_is_lambertian_with_total_power(renderer):
+    power, height, side = 80.0, 1.5, 0.6
+    area = light(LightKind.AREA, translation(0, 0, height), power=power,
+                 area_shape=AreaShape.SQUARE, size_x=side)
+    frame, _ = renderer.render(floor_scene([area]), Settings(antialiasing=1, light_samples=256))
+    x, y = pixel_centres()
+    expected = rectangle_irradiance(x, y, height, side / 2, power / (np.pi * side * side))
+    np.testing.assert_allclose(irradiance(frame), expected, rtol=1e-2)
+
+
+def test_emissive_surface_lights_both_sides(renderer):
+    radiance, height, half = 20.0, 1.5, 0.3
+    emitter = Instance(quad(half, half, z=height), np.eye(4),
+                       [Material("lamp", (0.0, 0.0, 0.0), (radiance,) * 3)])
+    scene = floor_scene([], extra=[emitter])
+    frame, _ = renderer.render(scene, Settings(antialiasing=1, emission_samples=1024))
+    x, y = pixel_centres()
+    expected = rectangle_irradiance(x, y, height, half, radiance)
+    visible = (np.abs(x) > half + 0.1) | (np.abs(y) > half + 0.1)  # not hidden by the emitter
+    np.testing.assert_allclose(irradiance(frame)[visible], expected[visible], rtol=2e-2)
+
+
+def test_world_lights_an_open_floor_with_pi_times_radiance(renderer):
+    scene = floor_scene([], world=World((0.2, 0.4, 0.6), 2.0))
+    frame, _ = renderer.render(scene, Settings(antialiasing=1, world_samples=512))
+    diff_dir = frame.passes["DiffDir"]
+    np.testing.assert_allclose(diff_dir.mean(axis=(0, 1)), [0.4, 0.8, 1.2], rtol=1e-2)
+
+
+def test_point_light_shadow_of_an_occluder(renderer):
+    power, height = 100.0, 3.0
+    blocker = Instance(quad(0.5, 0.5, z=1.5), np.eye(4), [Material("blocker")])
+    scene = floor_scene([light(LightKind.POINT, translation(0, 0, height), power=power)],
+                        extra=[blocker])
+    frame, _ = renderer.render(scene, Settings(antialiasing=1))
+    x, y = pixel_centres()
+    hidden_by_blocker = (np.abs(x) < 0.6) & (np.abs(y) < 0.6)  # the blocker covers the view
+    umbra = (np.maximum(np.abs(x), np.abs(y)) < 0.9) & ~hidden_by_blocker
+    lit = np.maximum(np.abs(x), np.abs(y)) > 1.1
+    expected = power / (4 * np.pi) * height / (x**2 + y**2 + height**2) ** 1.5
+    e = irradiance(frame)
+    assert umbra.sum() > 20 and np.all(e[umbra] == 0.0)
+    np.testing.assert_allclose(e[lit], expected[lit], rtol=2e-3)
+
+
+def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch):
+    lights = [light(LightKind.POINT, translation(x, 0.5, 2.0), power=50.0) for x in (-1, 0, 1)]
+    blocker = Instance(quad(0.4, 0.4, z=1.0), np.eye(4), [Material("blocker")])
+    scene = floor_scene(lights, extra=[blocker])
+    settings = Settings(antialiasing=2, shadow_resolution=256)
+    whole, _ = renderer.render(scene, settings)
+    monkeypatch.setattr(pipeline, "MAX_TILE", 48)
+    monkeypatch.setattr(pipeline, "ATLAS_TEXELS", 6 * 256 * 256)
+    split, _ = renderer.render(scene, settings)
+    for name, image in whole.passes.items():
+        np.testing.assert_allclose(split.passes[name], image, rtol=1e-5, atol=1e-6, err_msg=name)
+
+
+def test_render_is_deterministic_for_a_seed(renderer):
+    area = light(LightKind.AREA, translation(0, 0, 1.0), power=40.0, size_x=1.0)
+    scene = floor_scene([area])
+    a, _ = renderer.render(scene, Settings(seed=3))
+    b, _ = renderer.render(scene, Settings(seed=3))
+    c, _ = renderer.render(scene, Settings(seed=4))
+    np.testing.assert_array_equal(a.passes["Combined"], b.passes["Combined"])
+    assert not np.array_equal(a.passes["Combined"], c.passes["Combined"])
+
+
+@pytest.mark.parametrize("shape", list(AreaShape))
+def test_every_area_shape_emits_its_full_power(renderer, shape):
+    """Far from a small light, irradiance tends to P / (pi d²) whatever the shape."""
+    area = light(LightKind.AREA, translation(0, 0, 4.0), power=100.0, area_shape=shape,
+                 size_x=0.2, size_y=0.1)
+    frame, _ = renderer.render(floor_scene([area], size=8), Settings(antialiasing=1))
+    centre = irradiance(frame)[3:5, 3:5].mean()
+    x = (4 + 0.5) / 8 * 6 - 3  # the four pixel centres nearest the axis are 0.375 m off
+    d2 = 2 * x * x + 16
+    assert centre == pytest.approx(100.0 / np.pi * 16 / d2**2, rel=5e-3)
