@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import fields
+
 import bpy
 
 from .core.settings import Settings
@@ -40,15 +42,46 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
     seed: bpy.props.IntProperty(
         name="Seed", default=_DEFAULTS.seed, min=0,
         description="Seed of the light sampling pattern")
+    bounces: bpy.props.IntProperty(
+        name="Bounces", default=_DEFAULTS.bounces, min=0, max=64, soft_max=16,
+        description="Diffuse bounces, counted as Cycles does: 0 renders direct light only")
+    vpl_count: bpy.props.IntProperty(
+        name="Light Paths", default=_DEFAULTS.vpl_count, min=1, max=1 << 16, soft_max=4096,
+        description="Light paths traced per frame; each leaves a virtual point light at "
+                    "every bounce")
+    termination: bpy.props.EnumProperty(
+        name="Path Termination", default=_DEFAULTS.termination,
+        items=[("fractional", "Fractional Absorption",
+                "N paths start, ρ̄N continue, ρ̄²N after that (ρ̄: average reflectance): "
+                "VPLs stay stratified; best for scenes of similar albedos"),
+               ("roulette", "Russian Roulette",
+                "Each path continues with its surface's albedo: better when albedos vary "
+                "widely (dark and bright surfaces)")])
+    visibility: bpy.props.EnumProperty(
+        name="Visibility", default=_DEFAULTS.visibility,
+        items=[("classic", "Shadow Maps", "One shadow map per VPL (Instant Radiosity)"),
+               ("exact", "Ray Traced", "Exact visibility of every pixel/VPL pair (slow; "
+                                       "a reference)")])
+    vpl_shadow_resolution: bpy.props.IntProperty(
+        name="VPL Shadow Resolution", default=_DEFAULTS.vpl_shadow_resolution, min=16,
+        max=2048, soft_max=1024, description="Texels per cube-face edge of each VPL shadow map")
+    clamp_distance: bpy.props.FloatProperty(
+        name="Clamp Distance", default=_DEFAULTS.clamp_distance, min=0.0, max=1.0,
+        subtype="FACTOR",
+        description="VPL distances below this fraction of the scene radius are clamped, "
+                    "removing bright splotches near VPLs at the cost of some energy "
+                    "(0 = no clamping)")
+    bias_compensation: bpy.props.BoolProperty(
+        name="Bias Compensation", default=_DEFAULTS.bias_compensation,
+        description="Restore the energy removed by clamping with ray-traced gathering "
+                    "(Kollig & Keller)")
+    bias_samples: bpy.props.IntProperty(
+        name="Compensation Rays", default=_DEFAULTS.bias_samples, min=1, max=1024,
+        soft_max=128, description="Rays per pixel for bias compensation")
 
     def to_settings(self) -> Settings:
         """The core Settings for these values (validated)."""
-        return Settings(light_samples=self.light_samples, emission_samples=self.emission_samples,
-                        world_samples=self.world_samples,
-                        shadow_resolution=self.shadow_resolution,
-                        sample_shadow_resolution=self.sample_shadow_resolution,
-                        shadow_bias=self.shadow_bias, antialiasing=self.antialiasing,
-                        seed=self.seed).validate()
+        return Settings(**{f.name: getattr(self, f.name) for f in fields(Settings)}).validate()
 
 
 def register() -> None:

@@ -46,6 +46,17 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         settings = context.scene.vpl_gi
+        col = layout.column(heading="Indirect Light")
+        col.prop(settings, "bounces")
+        col.prop(settings, "vpl_count")
+        col.prop(settings, "termination")
+        col.prop(settings, "visibility")
+        col.prop(settings, "vpl_shadow_resolution")
+        col.prop(settings, "clamp_distance")
+        col.prop(settings, "bias_compensation")
+        sub = col.column()
+        sub.active = settings.bias_compensation
+        sub.prop(settings, "bias_samples")
         col = layout.column(heading="Direct Light")
         col.prop(settings, "light_samples")
         col.prop(settings, "emission_samples")

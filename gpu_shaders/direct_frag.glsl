@@ -1,5 +1,9 @@
-// Direct light of one batch of light samples, added (blending) to the DiffDir accumulator in
-// Blender's pass unit: irradiance / pi (the pass times DiffCol is the diffuse radiance).
+// Light of one batch of light samples, added (blending) to an accumulator in Blender's pass
+// unit: irradiance / pi (the pass times DiffCol is the diffuse radiance).
+// With BIAS_COMPENSATION it adds instead the light the VPL clamp removed (Kollig & Keller
+// 2004): short cosine-distributed rays from the pixel find surfaces y closer than the clamp
+// distance, whose outgoing radiance (this batch's light, gathered at y) arrives with weight
+// 1 - d²/clamp².
 #include "lights_lib.glsl"
 
 in vec2 v_uv;
@@ -12,15 +16,82 @@ uniform int u_count;
 
 out vec4 out_light;
 
+vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation) {
+    vec3 irradiance = vec3(0.0);
+    for (int i = 0; i < u_count; ++i) {
+        LightSample s = light_sample(u_first + i);
+        if (s.generation <= max_generation) {
+            irradiance += sample_irradiance(s, world, normal, geometric);
+        }
+    }
+    return irradiance;
+}
+
+#ifdef BIAS_COMPENSATION
+#include "raytrace_lib.glsl"
+// Per triangle, in the scene's order (the ray tracer returns those indices).
+layout(std430, binding = SURFACE_ALBEDO_BINDING) readonly buffer TriangleAlbedo {
+    vec4 triangle_albedo[];
+};
+layout(std430, binding = SURFACE_VERTICES_BINDING) readonly buffer TriangleVertices {
+    vec4 triangle_vertices[];  // 3 per triangle
+};
+uniform float u_clamp_distance;
+uniform int u_bias_samples;
+uniform uint u_seed;
+uniform int u_max_generation;  // light that may bounce once more at y
+
+uint pcg(uint v) {
+    uint state = v * 747796405u + 2891336453u;
+    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+vec2 random2(uvec2 pixel, uint k) {
+    uint h = pcg(pixel.x + pcg(pixel.y + pcg(k + pcg(u_seed))));
+    return vec2(float(h & 0xffffu), float(h >> 16u)) / 65536.0;
+}
+
+vec3 cosine_direction(vec3 n, vec2 u) {
+    vec3 t, b;
+    basis_of(n, t, b);
+    float r = sqrt(u.x);
+    float phi = 2.0 * PI * u.y;
+    return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u.x)) * n);
+}
+
+vec3 compensation(vec3 world, vec3 normal, vec3 geometric) {
+    vec3 sum = vec3(0.0);
+    vec3 origin = world + geometric * u_ray_offset;
+    for (int k = 0; k < u_bias_samples; ++k) {
+        vec3 dir = cosine_direction(normal, random2(uvec2(gl_FragCoord.xy), uint(k)));
+        float t;
+        int triangle;
+        vec2 uv;
+        if (!rt_closest_hit(origin, dir, 0.0, u_clamp_distance, t, triangle, uv)) continue;
+        vec3 a = triangle_vertices[3 * triangle].xyz;
+        vec3 n_y = normalize(cross(triangle_vertices[3 * triangle + 1].xyz - a,
+                                   triangle_vertices[3 * triangle + 2].xyz - a));
+        if (dot(n_y, dir) > 0.0) n_y = -n_y;
+        float weight = 1.0 - (t * t) / (u_clamp_distance * u_clamp_distance);
+        vec3 y = origin + dir * t;
+        vec3 radiance = triangle_albedo[triangle].rgb / PI
+                        * gather(y, n_y, n_y, u_max_generation);
+        sum += weight * radiance;
+    }
+    return sum / float(u_bias_samples);
+}
+#endif
+
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec4 normal = texelFetch(u_normal, px, 0);
     if (normal.w == 0.0) discard;
     vec3 world = texelFetch(u_position, px, 0).xyz;
     vec3 geometric = texelFetch(u_geometric, px, 0).xyz;
-    vec3 irradiance = vec3(0.0);
-    for (int i = 0; i < u_count; ++i) {
-        irradiance += sample_irradiance(light_sample(u_first + i), world, normal.xyz, geometric);
-    }
-    out_light = vec4(irradiance / PI, 0.0);
+#ifdef BIAS_COMPENSATION
+    out_light = vec4(compensation(world, normal.xyz, geometric), 0.0);
+#else
+    out_light = vec4(gather(world, normal.xyz, geometric, 1 << 30) / PI, 0.0);
+#endif
 }

@@ -1,4 +1,4 @@
-// The light-sample table (a RGBA32F texture, 4 texels per sample) and the shadow-map lookup.
+// The light-sample table (a RGBA32F texture, 5 texels per sample) and the shadow-map lookup.
 #ifndef LIGHTS_LIB_GLSL
 #define LIGHTS_LIB_GLSL
 #include "common_lib.glsl"
@@ -14,6 +14,7 @@ struct LightSample {
     float resolution;   // texels per tile edge
     float near;
     float far;
+    int generation;     // bounces the light has made: 0 for lights, k for k-th bounce VPLs
 };
 
 uniform sampler2D u_light_table;
@@ -23,8 +24,9 @@ LightSample light_sample(int index) {
     vec4 t1 = texelFetch(u_light_table, ivec2(1, index), 0);
     vec4 t2 = texelFetch(u_light_table, ivec2(2, index), 0);
     vec4 t3 = texelFetch(u_light_table, ivec2(3, index), 0);
+    vec4 t4 = texelFetch(u_light_table, ivec2(4, index), 0);
     return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
-                       t3.w);
+                       t3.w, int(t4.x));
 }
 
 // Cycles' spot mask: smoothstep of the cosine past the cone edge, scaled by the blend.
@@ -68,6 +70,24 @@ float shadow_taps(int tile, float resolution, vec2 texel, float receiver, float 
     return lit;
 }
 
+uniform float u_ray_offset;  // ray-origin offset along the normal, scene-relative
+
+#ifdef EXACT_VISIBILITY
+#include "raytrace_lib.glsl"
+
+// Ray-traced visibility: 1 if nothing blocks the segment to the sample (or its direction).
+float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+    vec3 origin = world + geometric_normal * u_ray_offset;
+    if (s.kind == KIND_DIRECTIONAL) {
+        return rt_occluded(origin, -s.axis, 0.0, 3.0e38) ? 0.0 : 1.0;
+    }
+    vec3 to_light = s.position - origin;
+    float distance = length(to_light);
+    float t_max = distance * (1.0 - 1e-4) - u_ray_offset;
+    if (t_max <= 0.0) return 1.0;
+    return rt_occluded(origin, to_light / distance, 0.0, t_max) ? 0.0 : 1.0;
+}
+#else
 // Fraction of the sample's light reaching `world` (normal offset by `bias` texels).
 float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     if (s.tile < 0) return 1.0;
@@ -88,6 +108,11 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     vec2 texel = (local.xy / -local.z * 0.5 + 0.5) * s.resolution;
     return shadow_taps(s.tile + face, s.resolution, texel, length(v), 0.5 * texel_size);
 }
+#endif
+
+// Squared distances below this are clamped: bounds the 1/d² singularity of VPLs (the clamp
+// setting) and keeps any sample lying on a surface finite.
+uniform float u_min_distance2;
 
 // Irradiance (W/m^2) at a surface point from one sample, shadowed.
 vec3 sample_irradiance(LightSample s, vec3 world, vec3 normal, vec3 geometric_normal) {
@@ -98,11 +123,13 @@ vec3 sample_irradiance(LightSample s, vec3 world, vec3 normal, vec3 geometric_no
     }
     vec3 to_light = s.position - world;
     float distance2 = dot(to_light, to_light);
+    if (distance2 <= 0.0) return vec3(0.0);
     vec3 dir = to_light * inversesqrt(distance2);
     float cos_receiver = dot(normal, dir);
     if (cos_receiver <= 0.0) return vec3(0.0);
     vec3 intensity = emitted_intensity(s, -dir);
     if (all(equal(intensity, vec3(0.0)))) return vec3(0.0);
-    return intensity * cos_receiver / distance2 * shadow_visibility(s, world, geometric_normal);
+    return intensity * cos_receiver / max(distance2, u_min_distance2)
+        * shadow_visibility(s, world, geometric_normal);
 }
 #endif

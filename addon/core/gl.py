@@ -11,39 +11,48 @@ import moderngl
 
 SHADER_DIR = Path(__file__).resolve().parents[2] / "gpu_shaders"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
-GLSL_VERSION = "#version 410 core\n"
 
 
 class GLUnavailableError(RuntimeError):
-    """No OpenGL 4.1 context could be created on this machine."""
+    """No OpenGL 4.1 context, or no OpenGL feature a step needs, is available on this machine."""
 
 
 @cache
 def shared_context() -> moderngl.Context:
     """One standalone context per process, created on first use (EGL first, then the platform
-    default), so Blender's own context is never touched."""
+    default; OpenGL 4.3 where there is one, else 4.1, as on macOS), so Blender's own context is
+    never touched."""
     errors = []
-    for kwargs in ({"backend": "egl"}, {}):
-        try:
-            return moderngl.create_standalone_context(require=410, **kwargs)
-        except Exception as exc:  # glcontext raises plain Exceptions per backend
-            errors.append(f"{kwargs.get('backend', 'default')}: {exc}")
+    for require in (430, 410):
+        for kwargs in ({"backend": "egl"}, {}):
+            try:
+                return moderngl.create_standalone_context(require=require, **kwargs)
+            except Exception as exc:  # glcontext raises plain Exceptions per backend
+                errors.append(f"{kwargs.get('backend', 'default')} {require}: {exc}")
     raise GLUnavailableError("could not create an OpenGL 4.1 context (" + "; ".join(errors) + ")")
 
 
-def load_source(name: str, defines: dict[str, object] | None = None) -> str:
-    """Read ``gpu_shaders/<name>``, expand ``#include "file"`` once per file, prepend defines."""
-    seen: set[str] = set()
+def require_compute(ctx: moderngl.Context) -> None:
+    """Raise GLUnavailableError unless ``ctx`` has OpenGL 4.3 (compute shaders, SSBOs)."""
+    if ctx.version_code < 430:
+        major, minor = divmod(ctx.version_code // 10, 10)
+        raise GLUnavailableError("ray tracing needs OpenGL 4.3 compute shaders; this context has "
+                                 f"{major}.{minor}")
 
-    def expand(file_name: str) -> str:
-        if file_name in seen:
-            return ""
-        seen.add(file_name)
+
+def load_source(name: str, defines: dict[str, object] | None = None, version: int = 410) -> str:
+    """Read ``gpu_shaders/<name>``, expand every ``#include "file"`` (lib files carry include
+    guards, so an include inside an inactive ``#ifdef`` does not hide a later one), prepend
+    ``#version <version> core`` and the defines."""
+
+    def expand(file_name: str, stack: tuple[str, ...]) -> str:
+        if file_name in stack:
+            raise ValueError(f"circular #include of {file_name}: {' -> '.join(stack)}")
         text = (SHADER_DIR / file_name).read_text(encoding="utf-8")
-        return _INCLUDE.sub(lambda m: expand(m.group(1)), text)
+        return _INCLUDE.sub(lambda m: expand(m.group(1), (*stack, file_name)), text)
 
     header = "".join(f"#define {k} {v}\n" for k, v in sorted((defines or {}).items()))
-    return GLSL_VERSION + header + expand(name)
+    return f"#version {version} core\n" + header + expand(name, ())
 
 
 class ProgramCache:
@@ -51,15 +60,25 @@ class ProgramCache:
 
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
-        self._programs: dict[tuple, moderngl.Program] = {}
+        self._programs: dict[tuple, moderngl.Program | moderngl.ComputeShader] = {}
 
-    def get(self, vertex: str, fragment: str, defines: dict[str, object] | None = None
-            ) -> moderngl.Program:
-        key = (vertex, fragment, tuple(sorted((defines or {}).items())))
+    def get(self, vertex: str, fragment: str, defines: dict[str, object] | None = None,
+            version: int = 410) -> moderngl.Program:
+        """The program of two ``gpu_shaders/`` files; ``version=430`` for shaders that include
+        raytrace_lib.glsl (storage buffers)."""
+        key = (vertex, fragment, tuple(sorted((defines or {}).items())), version)
         if key not in self._programs:
             self._programs[key] = self.ctx.program(
-                vertex_shader=load_source(vertex, defines),
-                fragment_shader=load_source(fragment, defines))
+                vertex_shader=load_source(vertex, defines, version),
+                fragment_shader=load_source(fragment, defines, version))
+        return self._programs[key]
+
+    def compute(self, name: str, defines: dict[str, object] | None = None
+                ) -> moderngl.ComputeShader:
+        """The compute shader ``gpu_shaders/<name>``, compiled as GLSL 4.30."""
+        key = ("compute", name, tuple(sorted((defines or {}).items())))
+        if key not in self._programs:
+            self._programs[key] = self.ctx.compute_shader(load_source(name, defines, 430))
         return self._programs[key]
 
     def release(self) -> None:

@@ -35,6 +35,7 @@ class LightSamples:
     spot_smooth: np.ndarray  # (n,) 1 / ((1 - spot_cos) * blend), 0 for a hard edge
     casts_shadow: np.ndarray  # (n,) bool
     resolution: np.ndarray  # (n,) int shadow-map edge in texels
+    generation: np.ndarray  # (n,) int bounces the light has made (0 = emitted light)
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -46,14 +47,15 @@ class LightSamples:
         return np.where(self.casts_shadow, tiles, 0)
 
     def table(self, first_tile: np.ndarray, near: np.ndarray, far: np.ndarray) -> np.ndarray:
-        """The (n, 4, 4) float32 table the shaders read (see lights_lib.glsl)."""
+        """The (n, 5, 4) float32 table the shaders read (see lights_lib.glsl)."""
         n = len(self)
-        t = np.zeros((n, 4, 4), dtype=np.float32)
+        t = np.zeros((n, 5, 4), dtype=np.float32)
         t[:, 0, :3], t[:, 0, 3] = self.position, self.kind
         t[:, 1, :3], t[:, 1, 3] = self.axis, self.spot_cos
         t[:, 2, :3], t[:, 2, 3] = self.intensity, self.spot_smooth
         t[:, 3, 0] = np.where(self.casts_shadow, first_tile, -1)
         t[:, 3, 1], t[:, 3, 2], t[:, 3, 3] = self.resolution, near, far
+        t[:, 4, 0] = self.generation
         return t
 
     def subset(self, index: np.ndarray) -> LightSamples:
@@ -112,13 +114,14 @@ class _Builder:
             "spot_smooth": np.full(n, spot_smooth),
             "casts_shadow": np.full(n, shadow),
             "resolution": np.full(n, resolution),
+            "generation": np.zeros(n, dtype=int),
         })
 
     def build(self) -> LightSamples:
         if not self.rows:
             return LightSamples(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int),
                                 np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, bool),
-                                np.zeros(0, int))
+                                np.zeros(0, int), np.zeros(0, int))
         keys = self.rows[0].keys()
         return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
 

@@ -9,18 +9,23 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from .frame import Frame, Stats
+from .frame import PASS_CHANNELS, Frame, Stats
 from .geometry import WorldGeometry, bounding_sphere, flatten_instances, light_shapes
-from .gl import ProgramCache, shared_context
-from .lights import LightSamples, build_light_samples
+from .gl import GLUnavailableError, ProgramCache, shared_context
+from .lights import KIND_DIRECTIONAL, LightSamples, build_light_samples
+from .raytrace import RayTracer
 from .scene import Camera, Scene
 from .settings import Settings
+from .vpl import VPLs, generate_vpls
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
 MAX_TILE = 1024  # supersampled pixels per image tile edge
 ATLAS_TEXELS = 1 << 25  # texels per shadow atlas batch (128 MiB of float32)
+MAX_BATCH = 8192  # samples or tiles per batch (rows of a table texture)
 VERTEX_FORMAT = "3f 3f 3f 3f"
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_albedo", "in_emission")
+GL_CLIP_DISTANCE0 = 0x3000
+SURFACE_VERTICES_BINDING, SURFACE_ALBEDO_BINDING = 4, 5  # SSBOs of direct_frag.glsl
 
 
 class RenderError(RuntimeError):
@@ -33,6 +38,26 @@ class RenderCancelled(RuntimeError):
 
 ProgressCallback = Callable[[float, str], None]
 CancelCallback = Callable[[], bool]
+
+
+@dataclass
+class _LightPass:
+    """One batch of light samples to gather, with its distance clamp and visibility mode."""
+
+    name: str
+    batch: _Batch
+    min_distance: float
+    exact: bool
+
+
+@dataclass
+class _Compensation:
+    """Parameters of the bias-compensation pass."""
+
+    clamp_distance: float
+    samples: int
+    seed: int
+    max_generation: int
 
 
 @dataclass
@@ -49,13 +74,14 @@ def _plan_batches(samples: LightSamples, max_texture: int) -> list[_Batch]:
     batches: list[_Batch] = []
     tiles = samples.tiles_per_sample
     shadowless = np.flatnonzero(tiles == 0)
-    if len(shadowless):
-        batches.append(_Batch(samples.subset(shadowless), 1, np.zeros(len(shadowless), int), 1, 1))
+    for start in range(0, len(shadowless), MAX_BATCH):
+        chunk = shadowless[start:start + MAX_BATCH]
+        batches.append(_Batch(samples.subset(chunk), 1, np.zeros(len(chunk), int), 1, 1))
     for resolution in np.unique(samples.resolution[tiles > 0]):
         res = int(resolution)
         index = np.flatnonzero((tiles > 0) & (samples.resolution == res))
         per_edge = max(1, max_texture // res)
-        capacity = min(per_edge * per_edge, max(6, ATLAS_TEXELS // (res * res)))
+        capacity = min(per_edge * per_edge, max(6, ATLAS_TEXELS // (res * res)), MAX_BATCH)
         start = 0
         while start < len(index):
             used, stop = 0, start
@@ -69,6 +95,16 @@ def _plan_batches(samples: LightSamples, max_texture: int) -> list[_Batch]:
                                   -(-used // columns)))
             start = stop
     return batches
+
+
+def _samples_per_draw(exact: bool, compensation: _Compensation | None) -> int:
+    """Light samples one full-screen draw may loop over. Software OpenGL (Mesa llvmpipe) stops
+    a shader invocation's loops after 65535 iterations in all; a ray's BVH traversal takes a
+    few hundred, so ray-traced passes are split into draws of few samples."""
+    rays_per_sample = 1 if exact else 0
+    if compensation is not None:
+        rays_per_sample = compensation.samples * (1 + rays_per_sample)
+    return 4096 if rays_per_sample == 0 else max(1, 48 // rays_per_sample)
 
 
 def _tile_projection(projection: np.ndarray, x0: int, x1: int, y0: int, y1: int,
@@ -102,8 +138,12 @@ class Renderer:
         self.ctx = ctx or shared_context()
         self.programs = ProgramCache(self.ctx)
         self.max_texture = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
+        self._tracer: RayTracer | None = None
 
     def release(self) -> None:
+        if self._tracer is not None:
+            self._tracer.release()
+            self._tracer = None
         self.programs.release()
 
     # -- one frame ------------------------------------------------------------------------
@@ -126,61 +166,109 @@ class Renderer:
             centre, radius = bounding_sphere(geometry.positions)
         with stats.timed("light samples"):
             samples = build_light_samples(scene, geometry, settings, stats.warnings)
-        batches = _plan_batches(samples, self.max_texture)
+        vpls = self._virtual_point_lights(scene, geometry, settings, centre, radius, stats)
+        vpl_samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
+        exact = settings.visibility == "exact" and len(vpls) > 0
+        if exact:
+            vpl_samples.casts_shadow[:] = False
+        work = [_LightPass("direct light", b, radius * 1e-6, exact=False)
+                for b in _plan_batches(samples, self.max_texture)]
+        clamp = max(settings.clamp_distance * radius, radius * 1e-6)
+        work += [_LightPass("indirect light", b, clamp, exact=exact)
+                 for b in _plan_batches(vpl_samples, self.max_texture)]
+        compensation = None
+        if settings.bias_compensation and len(vpls) and settings.clamp_distance > 0:
+            compensation = _Compensation(settings.clamp_distance * radius, settings.bias_samples,
+                                         settings.seed, settings.bounces - 1)
         stats.counts.update(triangles=geometry.vertex_count // 3, light_samples=len(samples),
-                            shadow_maps=int(samples.tiles_per_sample.sum()))
+                            vpls=len(vpls),
+                            shadow_maps=int(samples.tiles_per_sample.sum()
+                                            + vpl_samples.tiles_per_sample.sum()))
 
         aa = settings.antialiasing
         width, height = camera.width * aa, camera.height * aa
         tiles = [(x, min(x + MAX_TILE, width), y, min(y + MAX_TILE, height))
                  for y in range(0, height, MAX_TILE) for x in range(0, width, MAX_TILE)]
         output = {name: np.zeros((camera.height, camera.width, c), np.float32)
-                  for name, c in (("Combined", 4), ("Depth", 1), ("Normal", 3), ("DiffDir", 3),
-                                  ("DiffInd", 3), ("DiffCol", 3), ("Emit", 3))}
+                  for name, c in PASS_CHANNELS.items()}
         resources = _FrameResources(self.ctx, geometry, shapes, self.programs)
+        if exact or compensation is not None:
+            self.tracer.bind()
         try:
-            steps, done = len(tiles) * max(1, len(batches)), 0
-            keep_atlas = len(batches) == 1
+            steps, done = len(tiles) * max(1, len(work)), 0
+            keep_atlas = len(work) == 1
             for (x0, x1, y0, y1) in tiles:
                 with stats.timed("g-buffer"):
                     gbuffer = resources.gbuffer(camera, x0, x1, y0, y1, width, height)
-                accumulator = resources.accumulator(x1 - x0, y1 - y0)
-                for batch in batches:
+                direct = resources.accumulator(x1 - x0, y1 - y0)
+                indirect = resources.accumulator(x1 - x0, y1 - y0)
+                for light_pass in work:
                     if check():
                         raise RenderCancelled("render cancelled")
                     with stats.timed("shadow maps"):
-                        atlas = resources.atlas(batch, centre, radius, reuse=keep_atlas)
+                        atlas = resources.atlas(light_pass.batch, centre, radius,
+                                                reuse=keep_atlas)
                         self.ctx.finish()
-                    with stats.timed("direct light"):
-                        resources.shade(batch, atlas, gbuffer, accumulator, centre, radius,
+                    with stats.timed(light_pass.name):
+                        target = indirect if light_pass.name == "indirect light" else direct
+                        resources.shade(light_pass, atlas, target, centre, radius,
                                         settings.shadow_bias)
                         self.ctx.finish()
+                    if compensation is not None:
+                        with stats.timed("bias compensation"):
+                            resources.shade(light_pass, atlas, indirect, centre, radius,
+                                            settings.shadow_bias, compensation)
+                            self.ctx.finish()
                     done += 1
-                    report(done / steps, f"direct light {done}/{steps}")
+                    report(done / steps, f"{light_pass.name} {done}/{steps}")
                 with stats.timed("compose"):
-                    light = resources.read_accumulator(accumulator)
-                    self._compose(output, gbuffer, light, scene, aa, x0, y0)
+                    self._compose(output, gbuffer, resources.read_accumulator(direct),
+                                  resources.read_accumulator(indirect), scene, aa, x0, y0)
         finally:
             resources.release()
         self._sanitize(output, stats)
         return Frame(camera.width, camera.height, output), stats
 
+    def _virtual_point_lights(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
+                              centre: np.ndarray, radius: float, stats: Stats) -> VPLs:
+        """Trace light paths for the indirect light (none when bounces = 0)."""
+        if settings.bounces == 0 or geometry.vertex_count == 0:
+            return VPLs.empty()
+        try:
+            tracer = self.tracer
+        except GLUnavailableError as exc:
+            stats.warnings.append(f"indirect light skipped: {exc}")
+            return VPLs.empty()
+        with stats.timed("ray tracing setup"):
+            tracer.upload(geometry.positions.reshape(-1, 3, 3))
+        with stats.timed("vpl generation"):
+            return generate_vpls(scene, geometry, settings, tracer, centre, radius)
+
+    @property
+    def tracer(self) -> RayTracer:
+        """The GPU ray tracer, created on first use (needs OpenGL 4.3)."""
+        if self._tracer is None:
+            self._tracer = RayTracer(self.ctx, self.programs)
+        return self._tracer
+
     @staticmethod
     def _compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray],
-                 light: np.ndarray, scene: Scene, aa: int, x0: int, y0: int) -> None:
+                 direct: np.ndarray, indirect: np.ndarray, scene: Scene, aa: int, x0: int,
+                 y0: int) -> None:
         """Turn one supersampled tile's buffers into Blender's passes at output resolution."""
         covered = gbuffer["normal"][..., 3:4]
         albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
-        diff_dir = light[..., :3]
+        diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
         background = np.zeros(4) if scene.film_transparent else \
             np.append(scene.world.radiance, 1.0)
-        combined = np.concatenate([diff_dir * albedo + emission, covered], axis=-1)
+        combined = np.concatenate([(diff_dir + diff_ind) * albedo + emission, covered], axis=-1)
         combined += (1.0 - covered) * background
         depth = np.where(covered > 0, gbuffer["position"][..., 3:4], BACKGROUND_DEPTH)
         h, w = covered.shape[0] // aa, covered.shape[1] // aa
         region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
         output["Combined"][region] = _downsample(combined, aa)
         output["DiffDir"][region] = _downsample(diff_dir, aa)
+        output["DiffInd"][region] = _downsample(diff_ind, aa)
         output["DiffCol"][region] = _downsample(albedo, aa)
         output["Emit"][region] = _downsample(emission, aa)
         output["Normal"][region] = _downsample(gbuffer["normal"][..., :3], aa)
@@ -210,6 +298,8 @@ class _FrameResources:
         self.scene_vertices = geometry.vertex_count
         self.shape_vbo = self._buffer(shapes)
         self.shape_vertices = shapes.vertex_count
+        self.geometry = geometry
+        self._surfaces: tuple[moderngl.Buffer, moderngl.Buffer] | None = None
         self._atlas: tuple[moderngl.Texture, _Batch] | None = None
         self._light_table: moderngl.Texture | None = None
 
@@ -304,28 +394,42 @@ class _FrameResources:
         s = batch.samples
         if self.scene_vbo is None or not s.casts_shadow.any():
             return texture
-        self.ctx.enable(moderngl.DEPTH_TEST)
-        self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+        tiles = self._tile_table(batch, centre, radius)
+        keep(tiles)
+        tiles.use(0)
         program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl")
         vao = self.ctx.vertex_array(program, [(self.scene_vbo, "3f 36x", "in_position")])
         keep(vao)
-        _set_uniforms(program, u_scene_centre=tuple(centre), u_scene_radius=radius)
-        near, far = self.near_far(s, centre, radius)
-        for i in range(len(s)):
-            directional = s.kind[i] == 3
-            origin = s.axis[i] if directional else s.position[i]
-            faces = (-1,) if directional else range(6)
-            for k, face in enumerate(faces):
-                tile = int(batch.first_tile[i]) + k
-                x, y = (tile % batch.columns) * res, (tile // batch.columns) * res
-                fbo.viewport = (x, y, res, res)
-                fbo.scissor = (x, y, res, res)
-                _set_uniforms(program, u_origin=tuple(origin), u_face=face,
-                              u_near=float(near[i]), u_far=float(far[i]))
-                vao.render(moderngl.TRIANGLES, vertices=self.scene_vertices)
-        fbo.scissor = None
+        _set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
+                      u_scene_centre=tuple(centre), u_scene_radius=radius)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+        for plane in range(4):
+            self.ctx.enable_direct(GL_CLIP_DISTANCE0 + plane)
+        vao.render(moderngl.TRIANGLES, vertices=self.scene_vertices, instances=tiles.height)
+        for plane in range(4):
+            self.ctx.disable_direct(GL_CLIP_DISTANCE0 + plane)
         self.ctx.disable(moderngl.DEPTH_TEST)
         return texture
+
+    def _tile_table(self, batch: _Batch, centre: np.ndarray, radius: float
+                    ) -> moderngl.Texture:
+        """Per atlas tile: its light's origin (or axis) and face, clip range and position."""
+        s = batch.samples
+        near, far = self.near_far(s, centre, radius)
+        shadowed = np.flatnonzero(s.casts_shadow)
+        directional = s.kind[shadowed] == KIND_DIRECTIONAL
+        faces = np.where(directional, 1, 6)
+        sample = np.repeat(shadowed, faces)
+        face = np.concatenate([[-1] if d else range(6) for d in directional]).astype(float)
+        tile = np.repeat(batch.first_tile[shadowed], faces) + np.where(face < 0, 0, face)
+        table = np.zeros((len(sample), 2, 4), np.float32)
+        table[:, 0, :3] = np.where(directional.repeat(faces)[:, None], s.axis[sample],
+                                   s.position[sample])
+        table[:, 0, 3] = face
+        table[:, 1, 0], table[:, 1, 1] = near[sample], far[sample]
+        table[:, 1, 2], table[:, 1, 3] = tile % batch.columns, tile // batch.columns
+        return self.ctx.texture((2, len(sample)), 4, table.tobytes(), dtype="f4")
 
     @staticmethod
     def near_far(samples: LightSamples, centre: np.ndarray, radius: float
@@ -336,32 +440,61 @@ class _FrameResources:
         return near, far
 
     # -- shading --------------------------------------------------------------------------
-    def shade(self, batch: _Batch, atlas: moderngl.Texture, gbuffer: dict[str, np.ndarray],
+    def shade(self, light_pass: _LightPass, atlas: moderngl.Texture,
               accumulator: moderngl.Framebuffer, centre: np.ndarray, radius: float,
-              bias: float) -> None:
-        """Add the batch's direct light to the accumulator (additive blending)."""
+              bias: float, compensation: _Compensation | None = None) -> None:
+        """Add one batch's light to the accumulator (additive blending); with
+        ``compensation``, add the light its distance clamp removed instead."""
+        batch = light_pass.batch
         s = batch.samples
         near, far = self.near_far(s, centre, radius)
         table = s.table(batch.first_tile, near, far)
-        light_table = self.ctx.texture((4, len(s)), 4, table.tobytes(), dtype="f4")
+        light_table = self.ctx.texture((table.shape[1], len(s)), 4, table.tobytes(), dtype="f4")
         textures = self._gbuffer_textures
         for unit, name in enumerate(("position", "normal", "geometric")):
             textures[name].use(unit)
         light_table.use(3)
         atlas.use(4)
-        program = self.programs.get("fullscreen_vert.glsl", "direct_frag.glsl")
+        defines: dict[str, object] = {"EXACT_VISIBILITY": 1} if light_pass.exact else {}
+        uniforms: dict[str, object] = {}
+        if compensation is not None:
+            defines.update(BIAS_COMPENSATION=1, SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING,
+                           SURFACE_ALBEDO_BINDING=SURFACE_ALBEDO_BINDING)
+            uniforms.update(u_clamp_distance=compensation.clamp_distance,
+                            u_bias_samples=compensation.samples, u_seed=compensation.seed,
+                            u_max_generation=compensation.max_generation)
+            self._bind_surfaces()
+        program = self.programs.get("fullscreen_vert.glsl", "direct_frag.glsl", defines,
+                                    version=430 if defines else 410)
         _set_uniforms(program, u_position=0, u_normal=1, u_geometric=2, u_light_table=3,
                       u_shadow_atlas=4, u_atlas_columns=batch.columns,
                       u_scene_centre=tuple(centre), u_scene_radius=radius, u_shadow_bias=bias,
-                      u_first=0, u_count=len(s))
+                      u_min_distance2=light_pass.min_distance**2, u_ray_offset=1e-4 * radius,
+                      **uniforms)
         accumulator.use()
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE
         vao = self.ctx.vertex_array(program, [])
-        vao.render(moderngl.TRIANGLES, vertices=3)
+        chunk = _samples_per_draw(light_pass.exact, compensation)
+        for first in range(0, len(s), chunk):
+            _set_uniforms(program, u_first=first, u_count=min(chunk, len(s) - first))
+            vao.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.disable(moderngl.BLEND)
         vao.release()
         light_table.release()
+
+    def _bind_surfaces(self) -> None:
+        """Per-triangle vertices and albedo for shaders that follow rays to surfaces."""
+        if self._surfaces is None:
+            g = self.geometry
+            vertices = np.zeros((g.vertex_count, 4), np.float32)
+            vertices[:, :3] = g.positions
+            albedo = np.zeros((g.vertex_count // 3, 4), np.float32)
+            albedo[:, :3] = g.albedo[::3]
+            self._surfaces = (self._own(self.ctx.buffer(vertices.tobytes())),
+                              self._own(self.ctx.buffer(albedo.tobytes())))
+        self._surfaces[0].bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
+        self._surfaces[1].bind_to_storage_buffer(SURFACE_ALBEDO_BINDING)
 
     def read_accumulator(self, accumulator: moderngl.Framebuffer) -> np.ndarray:
         w, h = accumulator.size

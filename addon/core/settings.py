@@ -30,6 +30,24 @@ class Settings:
     """Supersampling factor per axis (1 = one sample per pixel)."""
     seed: int = 0
     """Seed of every stochastic choice; a render is deterministic for (scene, settings)."""
+    bounces: int = 4
+    """Diffuse bounces, as Cycles counts them: 0 = direct light only."""
+    vpl_count: int = 256
+    """Light paths started per frame; each leaves a VPL at every bounce it survives."""
+    termination: str = "fractional"
+    """How light paths end: 'fractional' absorption by the average reflectance (the seed's
+    scheme: N paths start, ρ̄N continue, ...) or per-path 'roulette'."""
+    visibility: str = "classic"
+    """VPL visibility: 'classic' (a shadow map per VPL) or 'exact' (ray traced per pixel)."""
+    vpl_shadow_resolution: int = 256
+    """Texels per cube-face edge of each VPL's shadow map (classic visibility)."""
+    clamp_distance: float = 0.05
+    """VPL distances below this fraction of the scene's radius are clamped (0 = no clamp):
+    bounds the 1/d² singularity of the geometry term."""
+    bias_compensation: bool = False
+    """Restore the energy the clamp removes (Kollig & Keller 2004: ray traced)."""
+    bias_samples: int = 16
+    """Rays per pixel for bias compensation."""
 
     _RANGES: ClassVar[dict[str, tuple[float, float]]] = {
         "light_samples": (1, 1024),
@@ -40,14 +58,31 @@ class Settings:
         "shadow_bias": (0.0, 64.0),
         "antialiasing": (1, 8),
         "seed": (0, 2**31 - 1),
+        "bounces": (0, 64),
+        "vpl_count": (1, 1 << 16),
+        "vpl_shadow_resolution": (16, 2048),
+        "clamp_distance": (0.0, 1.0),
+        "bias_samples": (1, 1024),
+    }
+    _CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
+        "termination": ("fractional", "roulette"),
+        "visibility": ("classic", "exact"),
     }
 
     def validate(self) -> Settings:
         """Return self, or raise SettingsError naming the first setting out of range."""
         for f in fields(self):
-            low, high = self._RANGES[f.name]
             value = getattr(self, f.name)
-            if not isinstance(value, int | float) or not (low <= value <= high):
-                raise SettingsError(f"{f.name} = {value!r} is outside the supported range "
-                                    f"[{low}, {high}]")
+            if f.name in self._CHOICES:
+                if value not in self._CHOICES[f.name]:
+                    raise SettingsError(f"{f.name} = {value!r} is not one of "
+                                        f"{', '.join(self._CHOICES[f.name])}")
+            elif isinstance(value, bool) or f.name not in self._RANGES:
+                if not isinstance(value, bool):
+                    raise SettingsError(f"{f.name} = {value!r} must be true or false")
+            else:
+                low, high = self._RANGES[f.name]
+                if not isinstance(value, int | float) or not (low <= value <= high):
+                    raise SettingsError(f"{f.name} = {value!r} is outside the supported range "
+                                        f"[{low}, {high}]")
         return self

@@ -48,6 +48,7 @@ def test_direct_light_matches_cycles(blender, tmp_path, name):
     scene = open_scene(name, SIZE)
     configure_cycles(scene, CYCLES_SAMPLES, bounces=0)
     reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
+    scene.vpl_gi.bounces = 0
     scene.vpl_gi.antialiasing = 4
     scene.vpl_gi.light_samples = 64
     scene.vpl_gi.world_samples = 128

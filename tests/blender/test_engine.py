@@ -58,15 +58,17 @@ def test_sample_scene_exports_lights_camera_and_materials(blender):
 
 
 def test_passes_compose_into_combined(blender):
-    """Combined = DiffDir × DiffCol + Emit where there is a surface (Blender's pass algebra)."""
+    """Combined = (DiffDir + DiffInd) × DiffCol + Emit where there is a surface (Blender's pass
+    algebra)."""
     bpy = blender
     open_scene("light_area", 32)
     exported = export_scene(bpy.context.evaluated_depsgraph_get())
-    frame, _ = Renderer().render(exported, Settings(antialiasing=1))
+    frame, _ = Renderer().render(exported, Settings(antialiasing=1, vpl_count=64))
     assert set(frame.passes) == set(PASS_CHANNELS)
     p = frame.passes
     covered = p["Depth"][..., 0] < 1e10
-    rebuilt = p["DiffDir"] * p["DiffCol"] + p["Emit"]
+    rebuilt = (p["DiffDir"] + p["DiffInd"]) * p["DiffCol"] + p["Emit"]
+    assert p["DiffInd"].max() > 0
     np.testing.assert_allclose(p["Combined"][covered][:, :3], rebuilt[covered], rtol=1e-5,
                                atol=1e-6)
     normals = np.linalg.norm(p["Normal"][covered], axis=-1)

@@ -56,3 +56,37 @@ def floor_scene(lights: list[Light], albedo: float = 0.8, extra: list[Instance] 
 
 def light(kind: LightKind, matrix: np.ndarray, **kwargs) -> Light:
     return Light(kind.value.lower(), kind, matrix, **kwargs)
+
+
+def icosphere(radius: float, subdivisions: int) -> Mesh:
+    """A geodesic sphere (flat-shaded triangles) of the given circumradius."""
+    t = (1 + 5**0.5) / 2
+    vertices = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                         [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1],
+                         [-t, 0, 1]], dtype=np.float64)
+    faces = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
+                      [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
+                      [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
+                      [8, 6, 7], [9, 8, 1]])
+    tri = vertices[faces]
+    tri /= np.linalg.norm(tri, axis=-1, keepdims=True)
+    for _ in range(subdivisions):
+        a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+        ab, bc, ca = [(p + q) / np.linalg.norm(p + q, axis=-1, keepdims=True)
+                      for p, q in ((a, b), (b, c), (c, a))]
+        tri = np.concatenate([np.stack(f, axis=1) for f in
+                              ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+    positions = (tri * radius).reshape(-1, 3).astype(np.float32)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    return Mesh("sphere", positions, np.repeat(normal, 3, axis=0).astype(np.float32),
+                np.zeros(len(tri), dtype=np.int32))
+
+
+def inside_sphere_camera(size: int = 32) -> Camera:
+    """A perspective camera at the origin looking down -Z with a 90° field of view."""
+    near, far = 0.01, 100.0
+    projection = np.array([[1, 0, 0, 0], [0, 1, 0, 0],
+                           [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
+                           [0, 0, -1, 0]])
+    return Camera(np.eye(4), projection, size, size)

@@ -1,0 +1,293 @@
+"""Virtual point lights by light tracing (Instant Radiosity, the seed's "Creating VPLs").
+
+Light paths start on every emitter (lights, emissive surfaces, the world) from a scrambled
+Halton sequence, reflect diffusely (cosine-distributed) and leave a VPL at every hit. A VPL
+left at the k-th hit carries the light of k bounces and is used when ``bounces >= k``.
+
+Weights (flux Φ is RGB):
+- a path starts with Φ₀ = Φ_emitter / (N p_emitter) (emitters chosen by flux);
+- at a hit y with albedo ρ(y) the VPL is a one-sided Lambertian emitter of peak intensity
+  Φ ρ(y) / π (W/sr) around the normal facing the incoming path;
+- continuing, the flux becomes Φ ρ(y) / q, where q is the chance to continue: with
+  fractional absorption q = n_k / n_(k-1), the share of the N index-ordered paths that go on
+  (n_k = round(ρ̄^k N), ρ̄ the scene's average reflectance); with Russian roulette
+  q = min(1, max(ρ(y))) per path. Both keep the estimator unbiased.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import WorldGeometry
+from .lights import KIND_COSINE, NO_SPOT, LightSamples, concentric_disk
+from .raytrace import RayTracer
+from .scene import Light, LightKind, Scene
+from .sequences import scrambled_halton
+from .settings import Settings
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+START_DIMENSIONS = 5  # emitter choice, position (2), direction (2)
+
+
+@dataclass
+class VPLs:
+    """Virtual point lights: one-sided cosine emitters."""
+
+    position: np.ndarray  # (n, 3)
+    normal: np.ndarray  # (n, 3) unit, facing the side the light arrived from
+    intensity: np.ndarray  # (n, 3) peak radiant intensity, W/sr
+    generation: np.ndarray  # (n,) int, the bounce a VPL's light has made (1 = first hit)
+
+    def __len__(self) -> int:
+        return len(self.generation)
+
+    @classmethod
+    def empty(cls) -> VPLs:
+        return cls(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int))
+
+    def as_light_samples(self, shadow_resolution: int) -> LightSamples:
+        n = len(self)
+        return LightSamples(self.position, self.normal, np.full(n, KIND_COSINE), self.intensity,
+                            np.full(n, NO_SPOT), np.zeros(n), np.ones(n, bool),
+                            np.full(n, shadow_resolution), self.generation)
+
+
+@dataclass
+class _Paths:
+    """A batch of rays leaving emitters: origins, unit directions and carried flux."""
+
+    origin: np.ndarray
+    direction: np.ndarray
+    flux: np.ndarray
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
+
+
+def _frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal tangents (n, 3) around unit normals (Duff et al. 2017)."""
+    sign = np.where(normal[:, 2] >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + normal[:, 2])
+    b = normal[:, 0] * normal[:, 1] * a
+    t = np.stack([1 + sign * normal[:, 0] ** 2 * a, sign * b, -sign * normal[:, 0]], axis=1)
+    s = np.stack([b, sign + normal[:, 1] ** 2 * a, -normal[:, 1]], axis=1)
+    return t, s
+
+
+def cosine_directions(normal: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Cosine-distributed unit directions around unit normals (Malley: disk -> hemisphere)."""
+    disk = concentric_disk(u)
+    z = np.sqrt(np.maximum(0.0, 1.0 - (disk**2).sum(axis=1)))
+    t, s = _frame(normal)
+    return _unit(disk[:, :1] * t + disk[:, 1:] * s + z[:, None] * normal)
+
+
+def uniform_sphere(u: np.ndarray) -> np.ndarray:
+    z = 1 - 2 * u[:, 0]
+    r = np.sqrt(np.maximum(0.0, 1 - z * z))
+    phi = 2 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def average_reflectance(geometry: WorldGeometry) -> float:
+    """Area-weighted mean albedo luminance of all surfaces (ρ̄ of fractional absorption)."""
+    tri = geometry.positions.reshape(-1, 3, 3).astype(np.float64)
+    if len(tri) == 0:
+        return 0.0
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    albedo = geometry.albedo.reshape(-1, 3, 3)[:, 0] @ LUMINANCE
+    return float((area * albedo).sum() / max(area.sum(), 1e-300))
+
+
+class _Emitter:
+    """One source of light paths: its flux (for allocation) and a sampler of start rays."""
+
+    def __init__(self, flux: np.ndarray, sample) -> None:
+        self.flux = np.asarray(flux, dtype=np.float64)
+        self.power = float(self.flux @ LUMINANCE)
+        self.sample = sample  # (u (n, 5) in [0,1)) -> (_Paths with flux per unit path)
+
+
+def _light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
+    color = np.asarray(light.color, dtype=np.float64) * light.power
+    m = light.matrix
+    position, travel = m[:3, 3], _unit(-m[:3, 2][None])[0]
+    if light.kind in (LightKind.POINT, LightKind.SPOT):
+        intensity = color / (4 * np.pi)
+        if light.kind is LightKind.POINT:
+            def sample(u: np.ndarray) -> _Paths:
+                n = len(u)
+                return _Paths(np.repeat(position[None], n, 0), uniform_sphere(u[:, 3:5]),
+                              np.repeat(color[None], n, 0))
+            return _Emitter(color, sample)
+        cos_half = float(np.cos(min(light.spot_size, np.pi) / 2))
+        blend = float(np.clip(light.spot_blend, 0.0, 1.0))
+        solid_angle = 2 * np.pi * (1 - cos_half)
+
+        def sample_spot(u: np.ndarray) -> _Paths:
+            n = len(u)
+            cos_t = 1 - u[:, 3] * (1 - cos_half)
+            sin_t = np.sqrt(np.maximum(0.0, 1 - cos_t**2))
+            phi = 2 * np.pi * u[:, 4]
+            t, s = _frame(np.repeat(travel[None], n, 0))
+            d = (sin_t * np.cos(phi))[:, None] * t + (sin_t * np.sin(phi))[:, None] * s \
+                + cos_t[:, None] * travel
+            x = np.clip((cos_t - cos_half) / max((1 - cos_half) * blend, 1e-12), 0, 1) \
+                if blend > 0 else np.ones(n)
+            mask = x * x * (3 - 2 * x)
+            return _Paths(np.repeat(position[None], n, 0), _unit(d),
+                          intensity * solid_angle * mask[:, None])
+        return _Emitter(intensity * solid_angle, sample_spot)
+    if light.kind is LightKind.SUN:
+        return _Emitter(color * np.pi * radius**2,
+                        _parallel_sampler(lambda u: np.repeat(travel[None], len(u), 0),
+                                          color * np.pi * radius**2, centre, radius))
+    # Area light: position on the shape, cosine-distributed direction around -Z.
+    def sample_area(u: np.ndarray) -> _Paths:
+        n = len(u)
+        unit = 0.5 * concentric_disk(u[:, 1:3]) if light.is_round else u[:, 1:3] - 0.5
+        local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
+        origin = local @ m[:3, :3].T + position
+        return _Paths(origin, cosine_directions(np.repeat(travel[None], n, 0), u[:, 3:5]),
+                      np.repeat(color[None], n, 0))
+    return _Emitter(color, sample_area)
+
+
+def _parallel_sampler(travel_of, flux: np.ndarray, centre: np.ndarray, radius: float):
+    """Parallel rays through a disk covering the scene's bounding sphere."""
+    def sample(u: np.ndarray) -> _Paths:
+        travel = travel_of(u)
+        t, s = _frame(travel)
+        disk = concentric_disk(u[:, 1:3]) * radius
+        origin = centre - 1.01 * radius * travel + disk[:, :1] * t + disk[:, 1:] * s
+        return _Paths(origin, travel, np.repeat(flux[None], len(u), 0))
+    return sample
+
+
+def _world_emitter(scene: Scene, centre: np.ndarray, radius: float) -> _Emitter | None:
+    radiance = scene.world.radiance
+    if not np.any(radiance > 0):
+        return None
+    flux = radiance * 4 * np.pi * np.pi * radius**2
+    return _Emitter(flux, _parallel_sampler(lambda u: -uniform_sphere(u[:, 3:5]), flux, centre,
+                                            radius))
+
+
+def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
+    """Emissive triangles, two-sided Lambertian: flux 2 π L A each."""
+    emission = geometry.emission.reshape(-1, 3, 3)[:, 0].astype(np.float64)
+    emitting = np.flatnonzero(emission.max(axis=1) > 0)
+    if len(emitting) == 0:
+        return None
+    tri = geometry.positions.reshape(-1, 3, 3)[emitting].astype(np.float64)
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    flux = 2 * np.pi * emission[emitting] * area[:, None]
+    power = flux @ LUMINANCE
+    if power.sum() <= 0:
+        return None
+    cdf = np.cumsum(power) / power.sum()
+    normal = _unit(cross)
+
+    def sample(u: np.ndarray) -> _Paths:
+        pick = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), len(cdf) - 1)
+        a, b = u[:, 1], u[:, 2]
+        flip = a + b > 1
+        a, b = np.where(flip, 1 - a, a), np.where(flip, 1 - b, b)
+        t = tri[pick]
+        origin = t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
+        side = np.where(u[:, 4] < 0.5, 1.0, -1.0)
+        v = np.stack([u[:, 3], (u[:, 4] * 2) % 1.0], axis=1)
+        direction = cosine_directions(normal[pick] * side[:, None], v)
+        probability = power[pick] / power.sum()
+        return _Paths(origin, direction, flux[pick] / probability[:, None])
+    return _Emitter(flux.sum(axis=0), sample)
+
+
+def _emitters(scene: Scene, geometry: WorldGeometry, centre: np.ndarray, radius: float
+              ) -> list[_Emitter]:
+    found = [_light_emitter(light, centre, radius) for light in scene.lights
+             if light.power != 0 and np.isfinite(light.matrix).all()]
+    found += [_world_emitter(scene, centre, radius), _emission_emitter(geometry)]
+    return [e for e in found if e is not None and e.power > 0]
+
+
+def _start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
+    """Choose an emitter per path by flux (first dimension, remapped), then sample it."""
+    power = np.array([e.power for e in emitters])
+    probability = power / power.sum()
+    cdf = np.cumsum(probability)
+    choice = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), len(emitters) - 1)
+    low = cdf[choice] - probability[choice]
+    u = u.copy()
+    u[:, 0] = np.clip((u[:, 0] - low) / probability[choice], 0, np.nextafter(1, 0))
+    n = len(u)
+    origin, direction, flux = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    for index, emitter in enumerate(emitters):
+        rows = np.flatnonzero(choice == index)
+        if len(rows):
+            paths = emitter.sample(u[rows])
+            origin[rows], direction[rows] = paths.origin, paths.direction
+            flux[rows] = paths.flux / (n * probability[index])
+    return _Paths(origin, direction, flux)
+
+
+def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tracer: RayTracer,
+                  centre: np.ndarray, radius: float) -> VPLs:
+    """Trace ``settings.vpl_count`` light paths for up to ``settings.bounces`` hits each."""
+    emitters = _emitters(scene, geometry, centre, radius)
+    if settings.bounces == 0 or not emitters or geometry.vertex_count == 0:
+        return VPLs.empty()
+    n = settings.vpl_count
+    dims = START_DIMENSIONS + 2 * max(0, settings.bounces - 1)
+    u = scrambled_halton(n, dims, settings.seed)
+    rng = np.random.default_rng(settings.seed + 1)
+    paths = _start_paths(emitters, u[:, :START_DIMENSIONS])
+    rho_bar = float(np.clip(average_reflectance(geometry), 1e-3, 1.0))
+    triangles = geometry.positions.reshape(-1, 3, 3).astype(np.float64)
+    albedo = geometry.albedo.reshape(-1, 3, 3)[:, 0].astype(np.float64)
+    epsilon = 1e-5 * radius
+    alive = np.flatnonzero(np.any(paths.flux != 0, axis=1))
+    origin, direction, flux = paths.origin[alive], paths.direction[alive], paths.flux[alive]
+    index = alive  # each live path's index in the QMC sequence
+    survivors = n
+    out: list[tuple[np.ndarray, ...]] = []
+    for generation in range(1, settings.bounces + 1):
+        if len(index) == 0:
+            break
+        hits = tracer.intersect(origin, direction, epsilon, np.inf)
+        hit = hits.triangle >= 0
+        origin, direction, flux, index = origin[hit], direction[hit], flux[hit], index[hit]
+        tri = hits.triangle[hit]
+        position = origin + direction * hits.distance[hit, None].astype(np.float64)
+        t = triangles[tri]
+        normal = _unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
+        normal *= np.where((normal * direction).sum(axis=1) > 0, -1.0, 1.0)[:, None]
+        rho = albedo[tri]
+        out.append((position, normal, flux * rho / np.pi, np.full(len(tri), generation)))
+        if generation == settings.bounces:
+            break
+        if settings.termination == "fractional":
+            continuing = max(1, round(n * rho_bar**generation))
+            keep = index < continuing
+            weight = np.full(len(index), survivors / continuing)
+            survivors = continuing
+        else:
+            q = np.minimum(1.0, rho.max(axis=1))
+            keep = rng.uniform(size=len(index)) < q
+            weight = 1.0 / np.maximum(q, 1e-12)
+        dims_k = START_DIMENSIONS + 2 * (generation - 1)
+        new_direction = cosine_directions(normal, u[index, dims_k:dims_k + 2])
+        flux = flux * rho * weight[:, None]
+        origin = position + normal * epsilon
+        origin, direction, flux, index = origin[keep], new_direction[keep], flux[keep], \
+            index[keep]
+        live = np.any(flux > 0, axis=1)
+        origin, direction, flux, index = origin[live], direction[live], flux[live], index[live]
+    if not out:
+        return VPLs.empty()
+    return VPLs(*(np.concatenate(c) for c in zip(*out, strict=True)))

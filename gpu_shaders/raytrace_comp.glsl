@@ -1,0 +1,43 @@
+// Batch ray queries for RayTracer.intersect / occluded (addon/core/raytrace.py): one ray per
+// invocation, rays and results in storage buffers. RT_ANY_HIT (0 or 1) picks the query.
+#include "raytrace_lib.glsl"
+
+#define RT_BINDING_RAYS 12
+#define RT_BINDING_RESULTS 13
+
+layout(local_size_x = 64) in;
+
+struct RtQuery {
+    vec3 origin;
+    float t_min;
+    vec3 dir;  // unit length: t is a distance
+    float t_max;
+};
+
+layout(std430, binding = RT_BINDING_RAYS) readonly buffer RtQueries { RtQuery rt_queries[]; };
+
+#if RT_ANY_HIT
+layout(std430, binding = RT_BINDING_RESULTS) writeonly buffer RtOccluded { int rt_occluded_out[]; };
+#else
+struct RtHit {
+    float t;
+    int triangle;  // original index, -1 on a miss
+    vec2 uv;
+};
+layout(std430, binding = RT_BINDING_RESULTS) writeonly buffer RtHits { RtHit rt_hits[]; };
+#endif
+
+uniform uint rt_ray_count;
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= rt_ray_count) return;
+    RtQuery q = rt_queries[i];
+#if RT_ANY_HIT
+    rt_occluded_out[i] = rt_occluded(q.origin, q.dir, q.t_min, q.t_max) ? 1 : 0;
+#else
+    RtHit hit;
+    rt_closest_hit(q.origin, q.dir, q.t_min, q.t_max, hit.t, hit.triangle, hit.uv);
+    rt_hits[i] = hit;
+#endif
+}

@@ -1,0 +1,173 @@
+// Ray tracing against the scene BVH uploaded by addon/core/raytrace.py (RayTracer.bind() binds
+// it). Needs `#version 430`. Triangles are two-sided; a hit counts when t_min < t < t_max, t
+// being the ray parameter along `dir` (the distance when `dir` is a unit vector; any non-zero
+// length works). A zero `dir` misses everything. Names starting with rt_ / Rt / RT_ are taken.
+#ifndef RAYTRACE_LIB_GLSL
+#define RAYTRACE_LIB_GLSL
+
+#define RT_BINDING_NODES 10
+#define RT_BINDING_TRIANGLES 11
+#define RT_STACK_SIZE 64  // >= the BVH depth (checked when it is built)
+
+// Relative growth of a box's exit distance, covering the rounding of the slab test (2 gamma(3)
+// of Ize 2013, "Robust BVH Ray Traversal") so boxes that just contain a hit are never missed.
+#define RT_BOX_GROWTH 4.0e-7
+// Direction components smaller than this fraction of the largest one are replaced by it (with
+// their sign) in the slab test, so 1/d stays finite and no 0 * inf NaN can arise.
+#define RT_MIN_DIR_FRACTION 1.0e-20
+
+// Interior node: a = left child, a + 1 = right child, b = -1. Leaf: triangles a .. a + b - 1.
+struct RtNode {
+    vec3 lo;
+    int a;
+    vec3 hi;
+    int b;
+};
+
+// Vertices in leaf order and `id`, the triangle's index in the caller's original list.
+struct RtTriangle {
+    vec3 v0;
+    int id;
+    vec3 v1;
+    float pad1;
+    vec3 v2;
+    float pad2;
+};
+
+layout(std430, binding = RT_BINDING_NODES) readonly buffer RtNodes { RtNode rt_nodes[]; };
+layout(std430, binding = RT_BINDING_TRIANGLES) readonly buffer RtTriangles {
+    RtTriangle rt_triangles[];
+};
+
+// Per-ray constants: the slab test's inverse direction, and the shear taking the ray to +z
+// for the watertight triangle test (Woop, Benthin, Wald 2013).
+struct RtRay {
+    vec3 origin;
+    vec3 inv_dir;
+    mat3 shear;
+};
+
+RtRay rt_make_ray(vec3 origin, vec3 dir) {
+    vec3 a = abs(dir);
+    int kz = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
+    int kx = kz == 2 ? 0 : kz + 1;
+    int ky = kx == 2 ? 0 : kx + 1;
+    if (dir[kz] < 0.0) {  // keep the winding, as in the paper (either works two-sided)
+        int k = kx;
+        kx = ky;
+        ky = k;
+    }
+    // Rows: ray-space x = p[kx] - Sx p[kz], y = p[ky] - Sy p[kz], z = p[kz] / dir[kz].
+    mat3 shear = mat3(0.0);
+    shear[kx][0] = 1.0;
+    shear[ky][1] = 1.0;
+    shear[kz] = vec3(-dir[kx] / dir[kz], -dir[ky] / dir[kz], 1.0 / dir[kz]);
+
+    float tiny = a[kz] * RT_MIN_DIR_FRACTION;
+    vec3 safe = mix(dir, mix(vec3(-tiny), vec3(tiny), greaterThanEqual(dir, vec3(0.0))),
+                    lessThan(a, vec3(tiny)));
+    return RtRay(origin, 1.0 / safe, shear);
+}
+
+// Exit distance grown by RT_BOX_GROWTH whatever its sign; never NaN, also for +-inf.
+float rt_grow(float t) {
+    return max(t * (1.0 + RT_BOX_GROWTH), t * (1.0 - RT_BOX_GROWTH));
+}
+
+bool rt_hit_box(RtRay ray, vec3 lo, vec3 hi, float t_min, float t_max, out float t_near) {
+    vec3 t0 = (lo - ray.origin) * ray.inv_dir;
+    vec3 t1 = (hi - ray.origin) * ray.inv_dir;
+    vec3 near = min(t0, t1);
+    vec3 far = max(t0, t1);
+    t_near = max(max(near.x, near.y), max(near.z, t_min));
+    float t_far = min(min(far.x, far.y), min(far.z, t_max));
+    return t_near <= rt_grow(t_far);
+}
+
+// Watertight two-sided test; degenerate triangles (det == 0) never hit.
+bool rt_hit_triangle(RtRay ray, RtTriangle tri, float t_min, float t_max, out float t,
+                     out vec2 uv) {
+    precise vec3 a = ray.shear * (tri.v0 - ray.origin);
+    precise vec3 b = ray.shear * (tri.v1 - ray.origin);
+    precise vec3 c = ray.shear * (tri.v2 - ray.origin);
+    precise float u = c.x * b.y - c.y * b.x;
+    precise float v = a.x * c.y - a.y * c.x;
+    precise float w = b.x * a.y - b.y * a.x;
+    if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) return false;
+    float det = u + v + w;
+    if (det == 0.0) return false;
+    t = (u * a.z + v * b.z + w * c.z) / det;
+    uv = vec2(v, w) / det;
+    return t > t_min && t < t_max;
+}
+
+// Nearest-child-first stack traversal. With any_hit it returns at the first hit in range.
+bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, bool any_hit, out float t,
+              out int triangle, out vec2 uv) {
+    t = t_max;
+    triangle = -1;
+    uv = vec2(0.0);
+    if (!(t_min < t_max) || dir == vec3(0.0)) return false;
+    RtRay ray = rt_make_ray(origin, dir);
+    float t_root;
+    if (!rt_hit_box(ray, rt_nodes[0].lo, rt_nodes[0].hi, t_min, t, t_root)) return false;
+
+    int stack[RT_STACK_SIZE];
+    float stack_near[RT_STACK_SIZE];
+    int size = 0;
+    int node = 0;
+    while (true) {
+        RtNode n = rt_nodes[node];
+        if (n.b < 0) {
+            float t_left, t_right;
+            bool left = rt_hit_box(ray, rt_nodes[n.a].lo, rt_nodes[n.a].hi, t_min, t, t_left);
+            bool right = rt_hit_box(ray, rt_nodes[n.a + 1].lo, rt_nodes[n.a + 1].hi, t_min, t,
+                                    t_right);
+            if (left && right) {
+                bool left_first = t_left <= t_right;
+                stack[size] = left_first ? n.a + 1 : n.a;
+                stack_near[size] = left_first ? t_right : t_left;
+                ++size;
+                node = left_first ? n.a : n.a + 1;
+                continue;
+            }
+            if (left || right) {
+                node = left ? n.a : n.a + 1;
+                continue;
+            }
+        } else {
+            for (int i = n.a; i < n.a + n.b; ++i) {
+                float t_hit;
+                vec2 uv_hit;
+                if (rt_hit_triangle(ray, rt_triangles[i], t_min, t, t_hit, uv_hit)) {
+                    t = t_hit;
+                    uv = uv_hit;
+                    triangle = rt_triangles[i].id;
+                    if (any_hit) return true;
+                }
+            }
+        }
+        // Pop the nearest pending node that may still hold a closer hit.
+        do {
+            if (size == 0) return triangle >= 0;
+            --size;
+        } while (stack_near[size] > rt_grow(t));
+        node = stack[size];
+    }
+}
+
+// Closest hit with t_min < t < t_max: its t, ORIGINAL triangle index and barycentric (u, v) =
+// weights of vertices 1 and 2. On a miss, returns false with triangle = -1.
+bool rt_closest_hit(vec3 origin, vec3 dir, float t_min, float t_max, out float t,
+                    out int triangle, out vec2 uv) {
+    return rt_trace(origin, dir, t_min, t_max, false, t, triangle, uv);
+}
+
+// Whether anything is hit with t_min < t < t_max (any hit, early exit).
+bool rt_occluded(vec3 origin, vec3 dir, float t_min, float t_max) {
+    float t;
+    int triangle;
+    vec2 uv;
+    return rt_trace(origin, dir, t_min, t_max, true, t, triangle, uv);
+}
+#endif

@@ -1,0 +1,83 @@
+"""Instant Radiosity against the closed sphere's exact answer, and its sampling invariants.
+
+Inside a closed sphere of radius R with albedo ρ and a point light of intensity I at the centre,
+direct irradiance E0 = I/R² is uniform and every bounce multiplies it by ρ, so with D diffuse
+bounces DiffDir + DiffInd = (E0/π)(1 + ρ + … + ρ^D). The sphere is tessellated: its faces sit
+slightly inside R, so the direct term is compared with our own DiffDir and the indirect sum with
+ρ(1 + … + ρ^(D-1)) times the mean direct term.
+
+On a sphere the geometry term between two wall points is the constant 1/(4R²) (both cosines are
+d/2R), so every VPL lights the whole wall evenly: the check needs few VPLs and no noise margin,
+and clamping distances below c removes exactly the share c²/(8R²) of the first bounce (the wall
+within chord d of a point has area πd²).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.scene import Instance, LightKind, Material, Scene, World
+from addon.core.settings import Settings
+from tests.core.builders import icosphere, inside_sphere_camera, light, translation
+
+RADIUS, POWER = 2.0, 100.0
+
+
+def sphere_scene(albedo: float) -> Scene:
+    sphere = Instance(icosphere(RADIUS, 3), np.eye(4), [Material("wall", (albedo,) * 3)])
+    return Scene([sphere], [light(LightKind.POINT, translation(0, 0, 0), power=POWER)],
+                 World(), inside_sphere_camera())
+
+
+def indirect_ratio(renderer, albedo: float, **settings) -> float:
+    frame, _ = renderer.render(sphere_scene(albedo), Settings(antialiasing=1, **settings))
+    return float(frame.passes["DiffInd"][..., 0].mean() / frame.passes["DiffDir"][..., 0].mean())
+
+
+@pytest.mark.parametrize("bounces", [1, 2, 4])
+@pytest.mark.parametrize("visibility", ["classic", "exact"])
+def test_closed_sphere_bounce_sum(renderer, bounces, visibility):
+    rho = 0.5
+    ratio = indirect_ratio(renderer, rho, bounces=bounces, vpl_count=128, clamp_distance=0.0,
+                           visibility=visibility, vpl_shadow_resolution=32)
+    expected = rho * sum(rho**k for k in range(bounces))
+    assert ratio == pytest.approx(expected, rel=0.03)
+
+
+@pytest.mark.parametrize("termination", ["fractional", "roulette"])
+def test_both_path_terminations_are_unbiased(renderer, termination):
+    rho = 0.8
+    ratio = indirect_ratio(renderer, rho, bounces=6, vpl_count=512, clamp_distance=0.0,
+                           termination=termination, visibility="exact")
+    assert ratio == pytest.approx(rho * sum(rho**k for k in range(6)), rel=0.03)
+
+
+def test_bounces_zero_leaves_indirect_black(renderer):
+    frame, stats = renderer.render(sphere_scene(0.5), Settings(antialiasing=1, bounces=0))
+    assert stats.counts["vpls"] == 0
+    assert np.all(frame.passes["DiffInd"] == 0)
+
+
+@pytest.mark.parametrize("visibility", ["classic", "exact"])
+def test_clamp_removes_the_predicted_share_and_compensation_restores_it(renderer, visibility):
+    rho, clamp = 0.5, 0.8  # the clamp distance is clamp × the scene radius (= RADIUS here)
+    common = {"bounces": 1, "vpl_count": 128, "visibility": visibility,
+              "vpl_shadow_resolution": 32}
+    unclamped = indirect_ratio(renderer, rho, clamp_distance=0.0, **common)
+    clamped = indirect_ratio(renderer, rho, clamp_distance=clamp, **common)
+    compensated = indirect_ratio(renderer, rho, clamp_distance=clamp, bias_compensation=True,
+                                 bias_samples=64, **common)
+    assert clamped / unclamped == pytest.approx(1 - clamp**2 / 8, rel=0.01)
+    assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
+
+
+def test_scrambled_halton_is_stratified_and_seeded():
+    from addon.core.sequences import scrambled_halton
+
+    points = scrambled_halton(256, 4, seed=1)
+    assert points.shape == (256, 4) and points.min() >= 0 and points.max() < 1
+    for k, cells in enumerate((256, 243, 125, 49)):  # the first b^m points: one per cell
+        counts = np.bincount((points[:cells, k] * cells).astype(int), minlength=cells)
+        assert counts.min() == counts.max() == 1
+    assert not np.allclose(points, scrambled_halton(256, 4, seed=2))
