@@ -143,20 +143,29 @@ def add_report_parser(sub: argparse._SubParsersAction) -> None:
     report.set_defaults(run=run_report)
 
 
-def parse_overrides(pairs: list[str]) -> dict[str, int | float]:
+def _convert(kind: str, text: str) -> int | float | str | bool:
+    """A setting's text as its field type (the type's name, as dataclass annotations give)."""
+    if kind == "bool":
+        if text.lower() not in ("true", "false", "1", "0", "on", "off"):
+            raise ValueError(text)
+        return text.lower() in ("true", "1", "on")
+    return {"int": int, "float": float, "str": str}[kind](text)
+
+
+def parse_overrides(pairs: list[str]) -> dict[str, int | float | str | bool]:
     """'name=value' pairs checked against the Settings fields and converted to their types."""
     from .core.settings import Settings
 
-    types = {f.name: f.type for f in fields(Settings)}
-    overrides: dict[str, int | float] = {}
+    kinds = {f.name: str(f.type) for f in fields(Settings)}
+    overrides: dict[str, int | float | str | bool] = {}
     for pair in pairs:
         name, sep, text = pair.partition("=")
-        if not sep or name not in types:
-            raise CliError(f"unknown setting '{name}' (choose from {', '.join(sorted(types))})")
+        if not sep or name not in kinds:
+            raise CliError(f"unknown setting '{name}' (choose from {', '.join(sorted(kinds))})")
         try:
-            overrides[name] = float(text) if types[name] in (float, "float") else int(text)
+            overrides[name] = _convert(kinds[name], text)
         except ValueError:
-            raise CliError(f"setting {name}: '{text}' is not a number") from None
+            raise CliError(f"setting {name}: '{text}' is not a valid {kinds[name]}") from None
     try:
         replace(Settings(), **overrides).validate()
     except SettingsError as exc:

@@ -79,9 +79,23 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
         name="Compensation Rays", default=_DEFAULTS.bias_samples, min=1, max=1024,
         soft_max=128, description="Rays per pixel for bias compensation")
 
+    interleave: bpy.props.EnumProperty(
+        name="Interleave", default=str(_DEFAULTS.interleave),
+        items=[("1", "Off", "Every pixel gathers every VPL"),
+               ("2", "2×2", "Each pixel gathers every 4th VPL"),
+               ("4", "4×4", "Each pixel gathers every 16th VPL"),
+               ("8", "8×8", "Each pixel gathers every 64th VPL")],
+        description="Interleaved sampling: pixels of a K×K pattern gather disjoint VPL subsets; "
+                    "a geometry-aware blur then removes the pattern")
+    blur_radius: bpy.props.IntProperty(
+        name="Blur Radius", default=_DEFAULTS.blur_radius, min=1, max=32,
+        description="Radius in pixels of the geometry-aware blur (used with interleaving)")
+
     def to_settings(self) -> Settings:
         """The core Settings for these values (validated)."""
-        return Settings(**{f.name: getattr(self, f.name) for f in fields(Settings)}).validate()
+        values = {f.name: getattr(self, f.name) for f in fields(Settings)}
+        values["interleave"] = int(values["interleave"])
+        return Settings(**values).validate()
 
 
 def register() -> None:

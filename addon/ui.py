@@ -52,6 +52,10 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         col.prop(settings, "termination")
         col.prop(settings, "visibility")
         col.prop(settings, "vpl_shadow_resolution")
+        col.prop(settings, "interleave")
+        sub = col.column()
+        sub.active = settings.interleave != "1"
+        sub.prop(settings, "blur_radius")
         col.prop(settings, "clamp_distance")
         col.prop(settings, "bias_compensation")
         sub = col.column()

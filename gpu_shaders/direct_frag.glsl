@@ -5,6 +5,7 @@
 // distance, whose outgoing radiance (this batch's light, gathered at y) arrives with weight
 // 1 - d²/clamp².
 #include "lights_lib.glsl"
+#include "interleave_lib.glsl"
 
 in vec2 v_uv;
 
@@ -16,15 +17,19 @@ uniform int u_count;
 
 out vec4 out_light;
 
+// Sum over this draw's samples; with interleaving (u_interleave = K > 1) each pixel of a K×K
+// pattern takes every K²-th sample and scales by K², so the expectation is unchanged.
 vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation) {
     vec3 irradiance = vec3(0.0);
-    for (int i = 0; i < u_count; ++i) {
-        LightSample s = light_sample(u_first + i);
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    for (int i = interleave_first(u_first, px); i < u_first + u_count;
+         i += interleave_stride()) {
+        LightSample s = light_sample(i);
         if (s.generation <= max_generation) {
             irradiance += sample_irradiance(s, world, normal, geometric);
         }
     }
-    return irradiance;
+    return irradiance * interleave_weight();
 }
 
 #ifdef BIAS_COMPENSATION

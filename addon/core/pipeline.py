@@ -16,6 +16,7 @@ from .lights import KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .raytrace import RayTracer
 from .scene import Camera, Scene
 from .settings import Settings
+from .shading import GeometryAwareBlur
 from .vpl import VPLs, generate_vpls
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
@@ -48,6 +49,7 @@ class _LightPass:
     batch: _Batch
     min_distance: float
     exact: bool
+    interleave: int = 1
 
 
 @dataclass
@@ -97,6 +99,15 @@ def _plan_batches(samples: LightSamples, max_texture: int) -> list[_Batch]:
     return batches
 
 
+def _blur_radius(settings: Settings) -> int:
+    """The blur radius, rounded up to a multiple of K/2 (0 without interleaving)."""
+    k = settings.interleave
+    if k == 1:
+        return 0
+    step = k // 2
+    return -(-settings.blur_radius // step) * step
+
+
 def _samples_per_draw(exact: bool, compensation: _Compensation | None) -> int:
     """Light samples one full-screen draw may loop over. Software OpenGL (Mesa llvmpipe) stops
     a shader invocation's loops after 65535 iterations in all; a ray's BVH traversal takes a
@@ -139,8 +150,12 @@ class Renderer:
         self.programs = ProgramCache(self.ctx)
         self.max_texture = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
         self._tracer: RayTracer | None = None
+        self._blur: GeometryAwareBlur | None = None
 
     def release(self) -> None:
+        if self._blur is not None:
+            self._blur.release()
+            self._blur = None
         if self._tracer is not None:
             self._tracer.release()
             self._tracer = None
@@ -174,8 +189,10 @@ class Renderer:
         work = [_LightPass("direct light", b, radius * 1e-6, exact=False)
                 for b in _plan_batches(samples, self.max_texture)]
         clamp = max(settings.clamp_distance * radius, radius * 1e-6)
-        work += [_LightPass("indirect light", b, clamp, exact=exact)
+        work += [_LightPass("indirect light", b, clamp, exact=exact,
+                            interleave=settings.interleave)
                  for b in _plan_batches(vpl_samples, self.max_texture)]
+        blur_radius = _blur_radius(settings) if len(vpls) else 0
         compensation = None
         if settings.bias_compensation and len(vpls) and settings.clamp_distance > 0:
             compensation = _Compensation(settings.clamp_distance * radius, settings.bias_samples,
@@ -221,9 +238,14 @@ class Renderer:
                             self.ctx.finish()
                     done += 1
                     report(done / steps, f"{light_pass.name} {done}/{steps}")
+                if blur_radius:
+                    with stats.timed("blur"):
+                        indirect_light = resources.blurred(self.blur, indirect, blur_radius)
+                else:
+                    indirect_light = resources.read_accumulator(indirect)
                 with stats.timed("compose"):
                     self._compose(output, gbuffer, resources.read_accumulator(direct),
-                                  resources.read_accumulator(indirect), scene, aa, x0, y0)
+                                  indirect_light, scene, aa, x0, y0)
         finally:
             resources.release()
         self._sanitize(output, stats)
@@ -243,6 +265,13 @@ class Renderer:
             tracer.upload(geometry.positions.reshape(-1, 3, 3))
         with stats.timed("vpl generation"):
             return generate_vpls(scene, geometry, settings, tracer, centre, radius)
+
+    @property
+    def blur(self) -> GeometryAwareBlur:
+        """The geometry-aware blur that removes the interleaving pattern, created on use."""
+        if self._blur is None:
+            self._blur = GeometryAwareBlur(self.ctx, self.programs)
+        return self._blur
 
     @property
     def tracer(self) -> RayTracer:
@@ -468,6 +497,7 @@ class _FrameResources:
                                     version=430 if defines else 410)
         _set_uniforms(program, u_position=0, u_normal=1, u_geometric=2, u_light_table=3,
                       u_shadow_atlas=4, u_atlas_columns=batch.columns,
+                      u_interleave=light_pass.interleave,
                       u_scene_centre=tuple(centre), u_scene_radius=radius, u_shadow_bias=bias,
                       u_min_distance2=light_pass.min_distance**2, u_ray_offset=1e-4 * radius,
                       **uniforms)
@@ -495,6 +525,17 @@ class _FrameResources:
                               self._own(self.ctx.buffer(albedo.tobytes())))
         self._surfaces[0].bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
         self._surfaces[1].bind_to_storage_buffer(SURFACE_ALBEDO_BINDING)
+
+    def blurred(self, blur: GeometryAwareBlur, accumulator: moderngl.Framebuffer,
+                radius: int) -> np.ndarray:
+        """The accumulator after the geometry-aware blur, as (h, w, 4) float32."""
+        textures = self._gbuffer_textures
+        result = blur.apply(accumulator.color_attachments[0], textures["position"],
+                            textures["normal"], radius)
+        w, h = result.size
+        image = np.frombuffer(result.read(), dtype=np.float32).reshape(h, w, 4)
+        result.release()
+        return image
 
     def read_accumulator(self, accumulator: moderngl.Framebuffer) -> np.ndarray:
         w, h = accumulator.size

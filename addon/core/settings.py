@@ -48,6 +48,12 @@ class Settings:
     """Restore the energy the clamp removes (Kollig & Keller 2004: ray traced)."""
     bias_samples: int = 16
     """Rays per pixel for bias compensation."""
+    interleave: int = 1
+    """Interleaved sampling of VPLs: each pixel of a K×K pattern gathers every K²-th VPL
+    (1 = off; 2, 4, 8)."""
+    blur_radius: int = 4
+    """Radius in (supersampled) pixels of the geometry-aware blur that removes the interleaving
+    pattern; rounded up to a multiple of K/2 so the pattern cancels exactly on flat surfaces."""
 
     _RANGES: ClassVar[dict[str, tuple[float, float]]] = {
         "light_samples": (1, 1024),
@@ -63,10 +69,12 @@ class Settings:
         "vpl_shadow_resolution": (16, 2048),
         "clamp_distance": (0.0, 1.0),
         "bias_samples": (1, 1024),
+        "blur_radius": (1, 32),
     }
     _CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "termination": ("fractional", "roulette"),
         "visibility": ("classic", "exact"),
+        "interleave": (1, 2, 4, 8),
     }
 
     def validate(self) -> Settings:

@@ -28,7 +28,8 @@ def digest(path: Path) -> str:
 
 def test_renders_a_png_and_says_where_it_went(tmp_path):
     out = tmp_path / "cornell.png"
-    result = run_cli("render", str(CORNELL), "-o", str(out), "-r", "40x30")
+    result = run_cli("render", str(CORNELL), "-o", str(out), "-r", "40x30",
+                     "--set", "visibility=exact", "--set", "bias_compensation=on")
     assert result.returncode == 0, result.stderr
     assert f"Saved {out}" in result.stdout
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -49,6 +50,8 @@ def test_frame_range_writes_numbered_linear_exrs(tmp_path):
     (["render", str(CORNELL), "-o", "x.png", "-f", "3..1"], "ends before it starts"),
     (["render", str(CORNELL), "-o", "x.png", "-r", "big"], "cannot read resolution"),
     (["render", str(CORNELL), "-o", "x.png", "--set", "seed=-1"], "seed"),
+    (["render", str(CORNELL), "-o", "x.png", "--set", "visibility=fast"], "not one of"),
+    (["render", str(CORNELL), "-o", "x.png", "--set", "bounces=two"], "not a valid int"),
     (["render", str(CORNELL), "-o", "/proc/forbidden/x.png"], "cannot create output folder"),
 ])
 def test_bad_input_is_one_clear_line_and_exit_code_2(args, message):

@@ -1,0 +1,377 @@
+"""Imperfect shadow maps (Ritschel et al. 2008; the seed's ISM steps 2 and 3): a low-quality
+paraboloid depth map per VPL, splatted from a few thousand surface points and hole-filled by
+pull-push, all VPLs at once on the GPU (OpenGL 4.3 compute shaders).
+
+1. ``sample_surface_points`` (pre-process, ``prepare``): a pool of surface points, uniform by
+   area, stored as triangle index + barycentrics so that they follow moved or deformed
+   triangles. Subset k (``points_per_vpl`` consecutive points) belongs to VPL k.
+2. Splat (``ism_splat_comp.glsl``): each VPL's points go into its tile of an atlas of
+   paraboloid maps (the hemisphere around the VPL's normal; ``gpu_shaders/ism_lib.glsl``) with
+   ``imageAtomicMin`` of their distance, over a square footprint of about the point's projected
+   area (``footprint_scale`` times its side, at most ``max_footprint`` texels).
+3. Pull-push (``ism_pull_comp.glsl``, ``ism_push_comp.glsl``): ``pull_push_levels`` halvings of
+   every tile; pull averages the valid texels of each 2x2 block (equal weights), push fills the
+   empty texels of each finer level with the bilinear interpolation of the valid texels of the
+   coarser one. Valid texels are never changed. Texels still empty become ``FAR`` (lit).
+
+The shading side calls ``ism_visibility`` of ``ism_lib.glsl`` on the atlas that ``render``
+returns (tile k = VPL k at column k % columns, row k // columns); ``visibility`` runs the same
+lookup for a batch of points, for tests and debugging.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from .gl import ProgramCache, require_compute
+
+BINDING_POINTS = 20  # ISM_BINDING_POINTS in ism_splat_comp.glsl
+BINDING_VERTICES = 21  # ISM_BINDING_VERTICES in ism_splat_comp.glsl
+BINDING_VPLS = 22  # ISM_BINDING_VPLS in ism_splat_comp.glsl and ism_lookup_comp.glsl
+BINDING_QUERIES = 23  # ISM_BINDING_QUERIES in ism_lookup_comp.glsl
+BINDING_RESULTS = 24  # ISM_BINDING_RESULTS in ism_lookup_comp.glsl
+POINT_LOCAL_SIZE = 64  # local_size_x of ism_splat_comp.glsl and ism_lookup_comp.glsl
+IMAGE_LOCAL_SIZE = 8  # local_size_x and _y of ism_pull_comp.glsl and ism_push_comp.glsl
+FAR = float(np.float32(3.0e38))  # ISM_FAR in ism_lib.glsl: the depth of texels left empty
+EMPTY_BITS = 0xFFFFFFFF  # ISM_EMPTY_BITS: an empty splat texel, above every float's bits
+FOOTPRINT_SCALE = 1.0
+MAX_FOOTPRINT = 3
+DEFAULT_BIAS = 1.0  # texels
+
+QUERY_DTYPE = np.dtype([("world", "<f4", 3), ("vpl", "<i4"), ("normal", "<f4", 3),
+                        ("pad", "<f4")])
+
+
+@dataclass
+class SurfacePoints:
+    """Points on triangles: ``triangle`` (n,) int32 and ``barycentric`` (n, 2) float32, the
+    weights of vertices 1 and 2."""
+
+    triangle: np.ndarray
+    barycentric: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.triangle)
+
+
+def triangle_areas(triangles: np.ndarray) -> np.ndarray:
+    """Areas (float64) of (T, 3, 3) triangles; 0 where a coordinate is not finite."""
+    tris = np.asarray(triangles, np.float64).reshape(-1, 3, 3)
+    with np.errstate(invalid="ignore", over="ignore"):
+        area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]),
+                                    axis=1)
+    return np.where(np.isfinite(area), area, 0.0)
+
+
+def sample_surface_points(triangles: np.ndarray, count: int, seed: int) -> SurfacePoints:
+    """``count`` points uniform by area, stratified: systematic sampling of the area CDF (one
+    random offset, so each triangle gets the floor or the ceiling of its expected share),
+    uniform random barycentrics, then shuffled so that any run of consecutive points is an
+    unbiased subset. Zero-area triangles get none; a scene without area gives none."""
+    area = triangle_areas(triangles)
+    cumulative = np.cumsum(area)
+    if count <= 0 or len(area) == 0 or cumulative[-1] <= 0:
+        return SurfacePoints(np.zeros(0, np.int32), np.zeros((0, 2), np.float32))
+    rng = np.random.default_rng(seed)
+    targets = (np.arange(count) + rng.random()) / count * cumulative[-1]
+    triangle = np.searchsorted(cumulative, targets, side="right").astype(np.int32)
+    uv = rng.random((count, 2))
+    outside = uv.sum(axis=1) > 1
+    uv[outside] = 1 - uv[outside]
+    order = rng.permutation(count)
+    return SurfacePoints(triangle[order], uv[order].astype(np.float32))
+
+
+def pack_points(points: SurfacePoints) -> np.ndarray:
+    """The GPU layout: (n, 2) uint32 of (triangle, barycentrics as GLSL packUnorm2x16)."""
+    unorm = np.round(np.clip(points.barycentric, 0, 1) * 65535).astype(np.uint32)
+    return np.stack([points.triangle.astype(np.uint32), unorm[:, 0] | unorm[:, 1] << 16], axis=1)
+
+
+def atlas_grid(tiles: int) -> tuple[int, int]:
+    """(columns, rows) of an atlas of ``tiles`` tiles (at least one): ceil(sqrt(n)) columns."""
+    columns = max(1, math.ceil(math.sqrt(tiles)))
+    return columns, max(1, -(-tiles // columns))
+
+
+def level_resolutions(resolution: int, levels: int) -> list[int]:
+    """Tile edge of each pull-push level, finest first: each halves the last (rounding up),
+    ``levels`` times or until one texel, whichever comes first."""
+    sizes = [resolution]
+    while len(sizes) <= levels and sizes[-1] > 1:
+        sizes.append((sizes[-1] + 1) // 2)
+    return sizes
+
+
+def _vertices(triangles: np.ndarray) -> np.ndarray:
+    """(T * 3, 4) float32: the vertices as vec4, at least one."""
+    tris = np.asarray(triangles, np.float32).reshape(-1, 3)
+    out = np.zeros((max(1, len(tris)), 4), np.float32)
+    out[:len(tris), :3] = tris
+    return out
+
+
+def _vpl_data(position: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """(2 n, 4) float32, (position, unit normal) per VPL, at least one row pair."""
+    p = np.asarray(position, np.float64).reshape(-1, 3)
+    n = np.asarray(normal, np.float64).reshape(-1, 3)
+    if len(p) != len(n):
+        raise ValueError(f"{len(p)} VPL positions but {len(n)} normals")
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    out = np.zeros((max(1, len(p)), 2, 4), np.float32)
+    out[:len(p), 0, :3] = p
+    out[:len(p), 1, :3] = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    return out.reshape(-1, 4)
+
+
+class ImperfectShadowMaps:
+    """Imperfect shadow maps of many VPLs at once (needs OpenGL 4.3).
+
+    ``prepare`` once per scene (the point pool), then ``render`` per frame with the current
+    triangles and VPLs. ``timings`` holds the seconds of the last render's stages (measured
+    with ``ctx.finish()``)."""
+
+    def __init__(self, ctx: moderngl.Context, programs: ProgramCache,
+                 footprint_scale: float = FOOTPRINT_SCALE,
+                 max_footprint: int = MAX_FOOTPRINT) -> None:
+        require_compute(ctx)
+        self.ctx = ctx
+        self.programs = programs
+        self.footprint_scale = footprint_scale
+        self.max_footprint = max_footprint
+        self.columns = 1
+        self.resolution = 1
+        self.timings: dict[str, float] = {}
+        self._pool_key: tuple | None = None
+        self._points_per_vpl = 0
+        self._subsets = 1
+        self._triangle_count = 0
+        self._buffers: dict[int, moderngl.Buffer] = {}
+        self._layout: tuple | None = None  # (width, height, resolution, level resolutions)
+        self._splat: moderngl.Texture | None = None
+        self._atlas: moderngl.Texture | None = None
+        self._levels: list[moderngl.Texture] = []
+
+    # -- point pool ----------------------------------------------------------------------------
+
+    def prepare(self, triangles: np.ndarray, vpl_count: int, points_per_vpl: int,
+                seed: int) -> None:
+        """Sample and upload ``vpl_count`` subsets of ``points_per_vpl`` points. Skipped when
+        the triangle count and the arguments repeat: the points follow moved or deformed
+        triangles without a new pre-process."""
+        count = len(np.asarray(triangles).reshape(-1, 3, 3))
+        key = (count, vpl_count, points_per_vpl, seed)
+        if key == self._pool_key:
+            return
+        subsets = max(1, vpl_count)
+        packed = pack_points(sample_surface_points(triangles, subsets * points_per_vpl, seed))
+        limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+        if packed.nbytes > limit:
+            raise ValueError(f"{len(packed)} ISM points need {packed.nbytes >> 20} MiB of "
+                             f"storage buffer; this GPU allows {limit >> 20} MiB")
+        self._write(BINDING_POINTS, packed if len(packed) else np.zeros((1, 2), np.uint32))
+        self._points_per_vpl = points_per_vpl if len(packed) else 0
+        self._subsets = subsets
+        self._triangle_count = count
+        self._pool_key = key
+
+    # -- per frame -----------------------------------------------------------------------------
+
+    def render(self, triangles: np.ndarray, vpl_position: np.ndarray, vpl_normal: np.ndarray,
+               resolution: int, pull_push_levels: int) -> moderngl.Texture:
+        """The r32f depth atlas of the VPLs (n, 3) with ``resolution``² tiles (VPL k uses point
+        subset k % vpl_count of ``prepare``). ``pull_push_levels`` = 0 keeps the raw splats."""
+        if self._pool_key is None:
+            raise RuntimeError("call prepare() before render()")
+        tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
+        if len(tris) != self._triangle_count:
+            raise ValueError(f"{len(tris)} triangles; the points were sampled on "
+                             f"{self._triangle_count}")
+        start = time.perf_counter()
+        vpls = _vpl_data(vpl_position, vpl_normal)
+        vpl_count = len(np.asarray(vpl_position).reshape(-1, 3))
+        self._allocate(vpl_count, resolution, pull_push_levels)
+        self._write(BINDING_VERTICES, _vertices(tris))
+        self._write(BINDING_VPLS, vpls)
+        self.ctx.finish()
+        splatted = time.perf_counter()
+        if self._points_per_vpl and vpl_count:
+            self._run_splat(vpl_count, triangle_areas(tris).sum())
+        self.ctx.finish()
+        pulled = time.perf_counter()
+        self._run_pull_push(pull_push_levels)
+        self.ctx.finish()
+        self.timings = {"upload": splatted - start, "splat": pulled - splatted,
+                        "pull_push": time.perf_counter() - pulled}
+        return self._atlas
+
+    def read_atlas(self) -> np.ndarray:
+        """The last atlas as a (rows * resolution, columns * resolution) float32 array."""
+        width, height = self._atlas.size
+        return np.frombuffer(self._atlas.read(), np.float32).reshape(height, width).copy()
+
+    def pull_push(self, depth: np.ndarray, resolution: int, levels: int) -> np.ndarray:
+        """Run pull-push alone on a sparse depth atlas (tiles of ``resolution``², non-finite =
+        empty) and return the filled atlas, as ``render`` would fill its splats."""
+        depth = np.asarray(depth, np.float32)
+        height, width = depth.shape
+        if width % resolution or height % resolution:
+            raise ValueError(f"a {width}x{height} atlas is no grid of {resolution}² tiles")
+        self._allocate_images(width, height, resolution, levels)
+        self.columns = width // resolution
+        bits = depth.view(np.uint32).copy()
+        bits[~np.isfinite(depth)] = EMPTY_BITS
+        self._splat.write(bits.tobytes())
+        self._run_pull_push(levels)
+        return self.read_atlas()
+
+    def visibility(self, vpl: np.ndarray, world: np.ndarray, normal: np.ndarray,
+                   bias: float = DEFAULT_BIAS) -> np.ndarray:
+        """``ism_visibility`` of the last atlas for points ``world`` (Q, 3) with geometric
+        normals (Q, 3), each towards VPL ``vpl[q]`` of the last render: (Q,) float32."""
+        queries = np.zeros(max(1, len(world)), QUERY_DTYPE)
+        queries["world"][:len(world)] = world
+        queries["normal"][:len(world)] = normal
+        queries["vpl"][:len(world)] = vpl
+        self._write(BINDING_QUERIES, queries)
+        results = self._buffer(BINDING_RESULTS, queries.nbytes // 8)
+        results.bind_to_storage_buffer(BINDING_RESULTS)
+        for binding in (BINDING_VPLS, BINDING_QUERIES):
+            self._buffers[binding].bind_to_storage_buffer(binding)
+        shader = self.programs.compute("ism_lookup_comp.glsl")
+        self._atlas.use(0)
+        shader["u_atlas"] = 0
+        shader["u_columns"] = self.columns
+        shader["u_resolution"] = float(self.resolution)
+        shader["u_bias"] = bias
+        shader["u_count"] = len(world)
+        shader.run(-(-len(queries) // POINT_LOCAL_SIZE))
+        self.ctx.memory_barrier(moderngl.BUFFER_UPDATE_BARRIER_BIT)
+        return np.frombuffer(results.read(4 * len(world)), np.float32).copy()
+
+    def memory_bytes(self) -> int:
+        """GPU memory of the splat image, the atlas and the pull-push levels."""
+        return sum(t.width * t.height * 4 for t in (self._splat, self._atlas, *self._levels)
+                   if t is not None)
+
+    def release(self) -> None:
+        for buffer in self._buffers.values():
+            buffer.release()
+        self._buffers.clear()
+        self._release_images()
+        self._pool_key = None
+
+    # -- internals -----------------------------------------------------------------------------
+
+    def _buffer(self, binding: int, nbytes: int) -> moderngl.Buffer:
+        """The storage buffer of ``binding``, grown to at least ``nbytes``."""
+        buffer = self._buffers.get(binding)
+        if buffer is None or buffer.size < nbytes:
+            if buffer is not None:
+                buffer.release()
+            buffer = self._buffers[binding] = self.ctx.buffer(reserve=nbytes)
+        return buffer
+
+    def _write(self, binding: int, data: np.ndarray) -> None:
+        self._buffer(binding, data.nbytes).write(np.ascontiguousarray(data).tobytes())
+
+    def _allocate(self, vpl_count: int, resolution: int, levels: int) -> None:
+        columns, rows = atlas_grid(vpl_count)
+        limit = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
+        if max(columns, rows) * resolution > limit:
+            raise ValueError(f"{vpl_count} tiles of {resolution}² need a "
+                             f"{columns * resolution}² atlas; this GPU allows {limit}²")
+        if rows > 65535:
+            raise ValueError(f"{vpl_count} VPLs are more than one dispatch can splat")
+        self.columns = columns
+        self._allocate_images(columns * resolution, rows * resolution, resolution, levels)
+
+    def _allocate_images(self, width: int, height: int, resolution: int, levels: int) -> None:
+        """The splat image (all empty), the atlas and the coarser levels, kept while the
+        layout and level count repeat."""
+        self.resolution = resolution
+        sizes = level_resolutions(resolution, levels)[1:]
+        if self._layout == (width, height, resolution, tuple(sizes)):
+            return
+        self._release_images()
+        self._layout = (width, height, resolution, tuple(sizes))
+        empty = np.full(width * height, EMPTY_BITS, np.uint32).tobytes()
+        self._splat = self.ctx.texture((width, height), 1, empty, dtype="u4")
+        self._atlas = self.ctx.texture((width, height), 1, dtype="f4")
+        self._atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tiles = (width // resolution, height // resolution)
+        self._levels = [self.ctx.texture((tiles[0] * s, tiles[1] * s), 1, dtype="f4")
+                        for s in sizes]
+
+    def _release_images(self) -> None:
+        for texture in (self._splat, self._atlas, *self._levels):
+            if texture is not None:
+                texture.release()
+        self._splat = self._atlas = None
+        self._levels = []
+        self._layout = None
+
+    def _run_splat(self, vpl_count: int, total_area: float) -> None:
+        for binding in (BINDING_POINTS, BINDING_VERTICES, BINDING_VPLS):
+            self._buffers[binding].bind_to_storage_buffer(binding)
+        shader = self.programs.compute("ism_splat_comp.glsl")
+        self._splat.bind_to_image(0, read=True, write=True)
+        shader["u_points_per_vpl"] = self._points_per_vpl
+        shader["u_subsets"] = self._subsets
+        shader["u_columns"] = self.columns
+        shader["u_resolution"] = self.resolution
+        shader["u_point_area"] = total_area / self._points_per_vpl
+        shader["u_footprint_scale"] = self.footprint_scale
+        shader["u_max_footprint"] = self.max_footprint
+        shader.run(-(-self._points_per_vpl // POINT_LOCAL_SIZE), vpl_count)
+        self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+    def _run_pull_push(self, levels: int) -> None:
+        """Pull into each coarser level, push back down to each finer level in place, and
+        last into the atlas (which resets the splat image to empty for the next frame)."""
+        images = [self._splat, *self._levels]
+        sizes = level_resolutions(self.resolution, levels)
+        for level in range(len(sizes) - 1):
+            self._pull(level, images[level], images[level + 1], sizes[level], sizes[level + 1])
+        for level in range(len(sizes) - 2, 0, -1):
+            self._push(images[level], images[level], images[level + 1], sizes[level],
+                       sizes[level + 1], -1.0)
+        coarse = (images[1], sizes[1]) if len(sizes) > 1 else (self._atlas, 0)
+        self._push(self._splat, self._atlas, coarse[0], sizes[0], coarse[1], FAR)
+
+    def _pull(self, level: int, fine: moderngl.Texture, coarse: moderngl.Texture,
+              fine_resolution: int, coarse_resolution: int) -> None:
+        shader = self.programs.compute("ism_pull_comp.glsl",
+                                       {"ISM_FINE_SPLAT": 1} if level == 0 else None)
+        fine.bind_to_image(0, read=True, write=False)
+        coarse.bind_to_image(1, read=False, write=True)
+        shader["u_fine_resolution"] = fine_resolution
+        shader["u_coarse_resolution"] = coarse_resolution
+        shader["u_coarse_size"] = coarse.size
+        self._run_image_pass(shader, coarse.size)
+
+    def _push(self, fine: moderngl.Texture, target: moderngl.Texture, coarse: moderngl.Texture,
+              resolution: int, coarse_resolution: int, unfilled: float) -> None:
+        """Fill the empty texels of ``fine`` from ``coarse`` (none if ``coarse_resolution`` is
+        0) into ``target``: ``fine`` itself, or the atlas when ``fine`` is the splat image."""
+        from_splat = fine is self._splat
+        shader = self.programs.compute("ism_push_comp.glsl",
+                                       {"ISM_FINE_SPLAT": 1} if from_splat else None)
+        fine.bind_to_image(0, read=True, write=True)
+        coarse.bind_to_image(1, read=True, write=False)
+        if from_splat:
+            target.bind_to_image(2, read=False, write=True)
+        shader["u_resolution"] = resolution
+        shader["u_coarse_resolution"] = coarse_resolution
+        shader["u_size"] = fine.size
+        shader["u_unfilled"] = unfilled
+        self._run_image_pass(shader, fine.size)
+
+    def _run_image_pass(self, shader: moderngl.ComputeShader, size: tuple[int, int]) -> None:
+        shader.run(-(-size[0] // IMAGE_LOCAL_SIZE), -(-size[1] // IMAGE_LOCAL_SIZE))
+        self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)

@@ -1,0 +1,77 @@
+// Imperfect shadow maps (Ritschel et al. 2008, addon/core/ism.py): the paraboloid projection
+// shared by the point splat (ism_splat_comp.glsl) and the lookup, and the lookup itself.
+//
+// A VPL is a one-sided cosine emitter, so its map covers the hemisphere around its normal: in the
+// VPL's frame (z = normal) a unit direction d with d.z > 0 maps to uv = d.xy / (1 + d.z) in the
+// unit disk, and uv in [-1, 1]^2 spans one tile of `resolution`^2 texels of the atlas (tile k at
+// column k % columns, row k / columns). A texel holds the distance from the VPL to the nearest
+// point seen through it; texels that no point reached, even after pull-push, hold ISM_FAR (lit).
+#ifndef ISM_LIB_GLSL
+#define ISM_LIB_GLSL
+#include "common_lib.glsl"
+
+#define ISM_FAR 3.0e38
+
+// Map `world` into the paraboloid map of a VPL at `origin` with unit `normal`: `map` = (uv,
+// cosine to the normal), `distance` = |world - origin|. False behind the VPL or at it.
+bool ism_project(vec3 origin, vec3 normal, vec3 world, out vec3 map, out float distance) {
+    vec3 t, b;
+    basis_of(normal, t, b);
+    vec3 v = world - origin;
+    distance = length(v);
+    vec3 d = vec3(dot(v, t), dot(v, b), dot(v, normal)) / distance;
+    map = vec3(d.xy / (1.0 + d.z), d.z);
+    return d.z > 0.0;  // false for distance 0 too (NaN)
+}
+
+// The unit direction, in the VPL's frame, that maps to `uv` (the inverse of ism_project).
+vec3 ism_local_direction(vec2 uv) {
+    float r2 = dot(uv, uv);
+    return vec3(2.0 * uv, 1.0 - r2) / (1.0 + r2);
+}
+
+// Continuous texel coordinates (0 .. resolution) of a map position inside its tile.
+vec2 ism_texel(vec3 map, float resolution) {
+    return (map.xy * 0.5 + 0.5) * resolution;
+}
+
+// World size of one texel at `distance` along a direction of cosine `cos_normal`: the map's
+// angular texel size is (2 / resolution) (1 + cos), from 2 / res at the centre to 4 / res at
+// the rim.
+float ism_texel_size(float distance, float cos_normal, float resolution) {
+    return distance * 2.0 * (1.0 + cos_normal) / resolution;
+}
+
+// Fraction of a VPL's light reaching `world` (2x2 bilinear percentage-closer taps). The receiver
+// is moved `bias` texels along its geometric normal (turned towards the VPL), and may lie up to
+// `bias` texels behind the stored depth: both are relative to the texel size, so the test does
+// not depend on the scene's scale. Points behind the VPL get 1: its cosine is zero there.
+float ism_visibility(sampler2D atlas, int tile, int columns, float resolution,
+                     vec3 vpl_position, vec3 vpl_normal, vec3 world, vec3 geometric_normal,
+                     float bias) {
+    vec3 map;
+    float distance;
+    if (!ism_project(vpl_position, vpl_normal, world, map, distance)) return 1.0;
+    float texel_size = ism_texel_size(distance, map.z, resolution);
+    vec3 n = faceforward(geometric_normal, world - vpl_position, geometric_normal);
+    vec3 p = world + n * (bias * texel_size);
+    if (!ism_project(vpl_position, vpl_normal, p, map, distance)) return 1.0;
+    float receiver = distance - bias * texel_size;
+
+    int size = int(resolution);
+    ivec2 origin = ivec2(tile % columns, tile / columns) * size;
+    vec2 q = ism_texel(map, resolution) - 0.5;
+    ivec2 base = ivec2(floor(q));
+    vec2 f = q - vec2(base);
+    float lit = 0.0;
+    for (int j = 0; j < 2; ++j) {
+        for (int i = 0; i < 2; ++i) {
+            ivec2 texel = clamp(base + ivec2(i, j), ivec2(0), ivec2(size - 1));
+            float occluder = texelFetch(atlas, origin + texel, 0).r;
+            float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
+            lit += receiver <= occluder ? w : 0.0;
+        }
+    }
+    return lit;
+}
+#endif

@@ -1,0 +1,88 @@
+// Imperfect shadow maps, step 2 (addon/core/ism.py): splat every VPL's own subset of surface
+// points into its paraboloid map. One invocation per (point, VPL): x = the point in the VPL's
+// subset, y = the VPL. The point's position comes from the current triangle vertices, so points
+// follow moved and deformed triangles. Depths are distances (positive floats, whose bits compare
+// like the floats as uints), kept with imageAtomicMin over a square footprint of texels.
+#include "ism_lib.glsl"
+
+#define ISM_BINDING_POINTS 20
+#define ISM_BINDING_VERTICES 21
+#define ISM_BINDING_VPLS 22
+
+layout(local_size_x = 64) in;
+
+// (triangle, packUnorm2x16 of the barycentric weights of vertices 1 and 2)
+layout(std430, binding = ISM_BINDING_POINTS) readonly buffer IsmPoints { uvec2 ism_points[]; };
+// three per triangle
+layout(std430, binding = ISM_BINDING_VERTICES) readonly buffer IsmVertices { vec4 ism_vertices[]; };
+// (position, normal) per VPL
+layout(std430, binding = ISM_BINDING_VPLS) readonly buffer IsmVpls { vec4 ism_vpls[]; };
+
+layout(r32ui, binding = 0) uniform uimage2D u_splat;
+
+uniform int u_points_per_vpl;
+uniform int u_subsets;           // subsets in the point pool; VPL k uses subset k % u_subsets
+uniform int u_columns;
+uniform int u_resolution;
+uniform float u_point_area;      // surface area each point stands for
+uniform float u_footprint_scale; // footprint side / the side of the point's projected area
+uniform int u_max_footprint;     // largest footprint side, texels
+
+// Side in texels of the square footprint of a point standing for `u_point_area` of a surface
+// with (unnormalised) normal `n`, seen along unit `d` at `distance`: its solid angle
+// area |cos| / distance^2 times the map's texels per steradian, (res / 2)^2 / (1 + z)^2.
+int footprint(vec3 n, vec3 d, float distance, float cos_normal) {
+    float len_n = length(n);
+    float cos_surface = len_n > 0.0 ? abs(dot(n, d)) / len_n : 0.0;
+    float side = sqrt(u_point_area * cos_surface) / distance * 0.5 * float(u_resolution)
+        / (1.0 + cos_normal);
+    return clamp(int(side * u_footprint_scale + 0.5), 1, u_max_footprint);
+}
+
+// Depth of the texel whose centre is at `uv`: the distance along its ray (in the VPL's frame
+// t, b, n) to the plane through the point with normal `surface`, whose ray at the point's own
+// direction `d` has length `distance`. Kept within a factor 2 of `distance`, and `distance`
+// where the ray does not meet the plane in front (a splat is a small disc, not the plane).
+float plane_depth(vec3 t, vec3 b, vec3 n, vec2 uv, vec3 surface, vec3 d, float distance) {
+    vec3 local = ism_local_direction(uv);
+    float cos_texel = dot(surface, local.x * t + local.y * b + local.z * n);
+    float cos_point = dot(surface, d);
+    if (cos_texel * cos_point <= 0.0) return distance;
+    return clamp(distance * cos_point / cos_texel, 0.5 * distance, 2.0 * distance);
+}
+
+void main() {
+    int i = int(gl_GlobalInvocationID.x);
+    int vpl = int(gl_GlobalInvocationID.y);
+    if (i >= u_points_per_vpl) return;
+    uvec2 point = ism_points[(vpl % u_subsets) * u_points_per_vpl + i];
+    vec2 bary = unpackUnorm2x16(point.y);
+    int tri = int(point.x) * 3;
+    vec3 v0 = ism_vertices[tri].xyz;
+    vec3 e1 = ism_vertices[tri + 1].xyz - v0;
+    vec3 e2 = ism_vertices[tri + 2].xyz - v0;
+    vec3 world = v0 + bary.x * e1 + bary.y * e2;
+
+    vec3 origin = ism_vpls[2 * vpl].xyz;
+    vec3 n = ism_vpls[2 * vpl + 1].xyz;
+    vec3 map;
+    float distance;
+    if (!ism_project(origin, n, world, map, distance)) return;
+    vec3 surface = cross(e1, e2);
+    vec3 d = (world - origin) / distance;
+    int side = footprint(surface, d, distance, map.z);
+    ivec2 first = ivec2(floor(ism_texel(map, float(u_resolution)) - 0.5 * float(side) + 0.5));
+    ivec2 lo = max(first, ivec2(0));
+    ivec2 hi = min(first + side, ivec2(u_resolution));
+    ivec2 tile = ivec2(vpl % u_columns, vpl / u_columns) * u_resolution;
+    vec3 t, b;
+    basis_of(n, t, b);
+    float texel_uv = 2.0 / float(u_resolution);
+    for (int y = lo.y; y < hi.y; ++y) {
+        for (int x = lo.x; x < hi.x; ++x) {
+            vec2 uv = (vec2(x, y) + 0.5) * texel_uv - 1.0;
+            float depth = plane_depth(t, b, n, uv, surface, d, distance);
+            imageAtomicMin(u_splat, tile + ivec2(x, y), floatBitsToUint(depth));
+        }
+    }
+}
