@@ -132,9 +132,11 @@ def add_report_parser(sub: argparse._SubParsersAction) -> None:
                         help="folder for report.json and error_vs_time.png "
                              "(default: renders/report_SCENE)")
     report.add_argument("--size", type=int, default=128, help="image edge in pixels (128)")
-    report.add_argument("--ladder", choices=("quick", "full", "test"), default="quick",
+    report.add_argument("--ladder", choices=("quick", "full", "ism", "large", "test"),
+                        default="quick",
                         help="renders to compare: quick (minutes), full (tens of minutes "
-                             "at 128 px), test (seconds, tiny)")
+                             "at 128 px), ism (ISM modes only), large (ISM up to 16k paths, "
+                             "for big scenes), test (seconds, tiny)")
     report.add_argument("--reference-samples", type=int, default=4096,
                         help="Cycles samples of each of the two references (4096)")
     report.add_argument("--cache", type=Path,

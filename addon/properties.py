@@ -59,7 +59,9 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
                 "widely (dark and bright surfaces)")])
     visibility: bpy.props.EnumProperty(
         name="Visibility", default=_DEFAULTS.visibility,
-        items=[("classic", "Shadow Maps", "One shadow map per VPL (Instant Radiosity)"),
+        items=[("ism", "Imperfect Shadow Maps", "Point-splatted low-resolution maps for many "
+                                                 "VPLs, holes filled by pull-push (fast)"),
+               ("classic", "Shadow Maps", "One triangle shadow map per VPL (Instant Radiosity)"),
                ("exact", "Ray Traced", "Exact visibility of every pixel/VPL pair (slow; "
                                        "a reference)")])
     vpl_shadow_resolution: bpy.props.IntProperty(
@@ -91,10 +93,27 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
         name="Blur Radius", default=_DEFAULTS.blur_radius, min=1, max=32,
         description="Radius in pixels of the geometry-aware blur (used with interleaving)")
 
+    area_light_ism: bpy.props.BoolProperty(
+        name="Area Lights with ISMs", default=_DEFAULTS.area_light_ism,
+        description="Shadow the point samples of area and sphere lights with imperfect shadow "
+                    "maps (faster soft shadows for many samples, slightly less exact)")
+    ism_points: bpy.props.IntProperty(
+        name="Points per VPL", default=_DEFAULTS.ism_points, min=16, max=1 << 16,
+        soft_max=32768, description="Surface points splatted into each imperfect shadow map")
+    ism_resolution: bpy.props.EnumProperty(
+        name="ISM Resolution", default=str(_DEFAULTS.ism_resolution),
+        items=[(str(r), f"{r}²", f"{r}×{r} texels per imperfect shadow map")
+               for r in (32, 64, 128, 256, 512)])
+    pull_push_levels: bpy.props.IntProperty(
+        name="Pull-Push Levels", default=_DEFAULTS.pull_push_levels, min=0, max=12,
+        description="Levels of the pull-push hole filling (log2 of the resolution fills every "
+                    "hole; 0 keeps the raw splats)")
+
     def to_settings(self) -> Settings:
         """The core Settings for these values (validated)."""
         values = {f.name: getattr(self, f.name) for f in fields(Settings)}
         values["interleave"] = int(values["interleave"])
+        values["ism_resolution"] = int(values["ism_resolution"])
         return Settings(**values).validate()
 
 

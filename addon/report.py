@@ -67,10 +67,12 @@ class VPLMode:
 
     visibility: str
     clamp_distance: float
+    interleave: str = "1"  # the enum property's value: "1" (off), "2", "4", "8"
 
     @property
     def label(self) -> str:
-        return f"VPL GI {self.visibility}, clamp {self.clamp_distance:g}"
+        pattern = "" if self.interleave == "1" else f", interleave {self.interleave}×"
+        return f"VPL GI {self.visibility}, clamp {self.clamp_distance:g}{pattern}"
 
 
 @dataclass(frozen=True)
@@ -82,11 +84,13 @@ class Ladder:
     vpl_modes: tuple[VPLMode, ...]
 
 
-_ALL_MODES = (VPLMode("classic", 0.05), VPLMode("classic", 0.0), VPLMode("exact", 0.05),
-              VPLMode("exact", 0.0))
+_ISM_MODES = (VPLMode("ism", 0.05, "4"), VPLMode("ism", 0.05), VPLMode("exact", 0.05))
+_ALL_MODES = (*_ISM_MODES, VPLMode("classic", 0.05), VPLMode("exact", 0.0))
 LADDERS = {
     "quick": Ladder((4, 16, 64, 256), (16, 64, 256, 1024), _ALL_MODES),
     "full": Ladder((4, 16, 64, 256, 1024, 4096), (16, 64, 256, 1024, 4096), _ALL_MODES),
+    "ism": Ladder((4, 16, 64, 256), (64, 256, 1024, 4096), _ISM_MODES),
+    "large": Ladder((4, 16, 64, 256), (1024, 4096, 16384), (VPLMode("ism", 0.05, "4"),)),
     "test": Ladder((4, 64), (16, 256), (VPLMode("classic", 0.05),)),
 }
 

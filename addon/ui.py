@@ -51,7 +51,14 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         col.prop(settings, "vpl_count")
         col.prop(settings, "termination")
         col.prop(settings, "visibility")
-        col.prop(settings, "vpl_shadow_resolution")
+        sub = col.column()
+        sub.active = settings.visibility == "ism"
+        sub.prop(settings, "ism_points")
+        sub.prop(settings, "ism_resolution")
+        sub.prop(settings, "pull_push_levels")
+        sub = col.column()
+        sub.active = settings.visibility == "classic"
+        sub.prop(settings, "vpl_shadow_resolution")
         col.prop(settings, "interleave")
         sub = col.column()
         sub.active = settings.interleave != "1"
@@ -65,6 +72,7 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         col.prop(settings, "light_samples")
         col.prop(settings, "emission_samples")
         col.prop(settings, "world_samples")
+        col.prop(settings, "area_light_ism")
         col = layout.column(heading="Shadows")
         col.prop(settings, "shadow_resolution")
         col.prop(settings, "sample_shadow_resolution")

@@ -21,7 +21,7 @@ bool ism_project(vec3 origin, vec3 normal, vec3 world, out vec3 map, out float d
     distance = length(v);
     vec3 d = vec3(dot(v, t), dot(v, b), dot(v, normal)) / distance;
     map = vec3(d.xy / (1.0 + d.z), d.z);
-    return d.z > 0.0;  // false for distance 0 too (NaN)
+    return distance > 0.0 && d.z > 0.0;
 }
 
 // The unit direction, in the VPL's frame, that maps to `uv` (the inverse of ism_project).
@@ -42,10 +42,17 @@ float ism_texel_size(float distance, float cos_normal, float resolution) {
     return distance * 2.0 * (1.0 + cos_normal) / resolution;
 }
 
-// Fraction of a VPL's light reaching `world` (2x2 bilinear percentage-closer taps). The receiver
-// is moved `bias` texels along its geometric normal (turned towards the VPL), and may lie up to
-// `bias` texels behind the stored depth: both are relative to the texel size, so the test does
-// not depend on the scene's scale. Points behind the VPL get 1: its cosine is zero there.
+// 1 where `receiver` is not behind the depth of `texel` (clamped into the tile), else 0.
+float ism_tap(sampler2D atlas, ivec2 origin, int size, ivec2 texel, float receiver) {
+    float occluder = texelFetch(atlas, origin + clamp(texel, ivec2(0), ivec2(size - 1)), 0).r;
+    return receiver <= occluder ? 1.0 : 0.0;
+}
+
+// Fraction of a VPL's light reaching `world`: percentage-closer filtering of the 2x2 texels
+// around it, weighted bilinearly (exactly 1 when all four are lit). The receiver is moved
+// `bias` texels along its geometric normal (turned towards the VPL), and may lie up to `bias`
+// texels behind the stored depth: both are relative to the texel size, so the test does not
+// depend on the scene's scale. Points behind the VPL get 1: its cosine is zero there.
 float ism_visibility(sampler2D atlas, int tile, int columns, float resolution,
                      vec3 vpl_position, vec3 vpl_normal, vec3 world, vec3 geometric_normal,
                      float bias) {
@@ -63,15 +70,12 @@ float ism_visibility(sampler2D atlas, int tile, int columns, float resolution,
     vec2 q = ism_texel(map, resolution) - 0.5;
     ivec2 base = ivec2(floor(q));
     vec2 f = q - vec2(base);
-    float lit = 0.0;
-    for (int j = 0; j < 2; ++j) {
-        for (int i = 0; i < 2; ++i) {
-            ivec2 texel = clamp(base + ivec2(i, j), ivec2(0), ivec2(size - 1));
-            float occluder = texelFetch(atlas, origin + texel, 0).r;
-            float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
-            lit += receiver <= occluder ? w : 0.0;
-        }
-    }
-    return lit;
+    float a = ism_tap(atlas, origin, size, base, receiver);
+    float b = ism_tap(atlas, origin, size, base + ivec2(1, 0), receiver);
+    float c = ism_tap(atlas, origin, size, base + ivec2(0, 1), receiver);
+    float d = ism_tap(atlas, origin, size, base + ivec2(1, 1), receiver);
+    float bottom = a + (b - a) * f.x;
+    float top = c + (d - c) * f.x;
+    return bottom + (top - bottom) * f.y;
 }
 #endif

@@ -28,15 +28,26 @@ uniform float u_point_area;      // surface area each point stands for
 uniform float u_footprint_scale; // footprint side / the side of the point's projected area
 uniform int u_max_footprint;     // largest footprint side, texels
 
+// A uniform random number in [0, 1) from an integer (PCG hash, Jarzynski & Olano 2020).
+float random01(uint v) {
+    uint state = v * 747796405u + 2891336453u;
+    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return float((word >> 22u) ^ word) * (1.0 / 4294967296.0);
+}
+
 // Side in texels of the square footprint of a point standing for `u_point_area` of a surface
-// with (unnormalised) normal `n`, seen along unit `d` at `distance`: its solid angle
-// area |cos| / distance^2 times the map's texels per steradian, (res / 2)^2 / (1 + z)^2.
-int footprint(vec3 n, vec3 d, float distance, float cos_normal) {
+// with (unnormalised) normal `n`, seen along unit `d` at `distance`: u_footprint_scale times
+// the square root of its projected area, i.e. of its solid angle area |cos| / distance^2 times
+// the map's texels per steradian, (res / 2)^2 / (1 + z)^2. Rounded up or down at random so
+// that the expected footprint area is right: always rounding down leaves holes, up bloats.
+int footprint(vec3 n, vec3 d, float distance, float cos_normal, uint id) {
     float len_n = length(n);
     float cos_surface = len_n > 0.0 ? abs(dot(n, d)) / len_n : 0.0;
-    float side = sqrt(u_point_area * cos_surface) / distance * 0.5 * float(u_resolution)
-        / (1.0 + cos_normal);
-    return clamp(int(side * u_footprint_scale + 0.5), 1, u_max_footprint);
+    float side = u_footprint_scale * sqrt(u_point_area * cos_surface) / distance
+        * 0.5 * float(u_resolution) / (1.0 + cos_normal);
+    float low = floor(side);
+    float up = (side * side - low * low) / (2.0 * low + 1.0);  // P(round up): mean area side^2
+    return clamp(int(low) + (random01(id) < up ? 1 : 0), 1, u_max_footprint);
 }
 
 // Depth of the texel whose centre is at `uv`: the distance along its ray (in the VPL's frame
@@ -70,7 +81,7 @@ void main() {
     if (!ism_project(origin, n, world, map, distance)) return;
     vec3 surface = cross(e1, e2);
     vec3 d = (world - origin) / distance;
-    int side = footprint(surface, d, distance, map.z);
+    int side = footprint(surface, d, distance, map.z, uint(vpl * u_points_per_vpl + i));
     ivec2 first = ivec2(floor(ism_texel(map, float(u_resolution)) - 0.5 * float(side) + 0.5));
     ivec2 lo = max(first, ivec2(0));
     ivec2 hi = min(first + side, ivec2(u_resolution));

@@ -51,6 +51,7 @@ uniform int u_atlas_columns;
 uniform vec3 u_scene_centre;
 uniform float u_scene_radius;
 uniform float u_shadow_bias;   // receiver offset in texels
+uniform float u_ism_bias;      // imperfect shadow maps: receiver offset in texels
 
 // Percentage-closer lookup (2x2 bilinear taps) of one tile at texel coordinates `texel`.
 float shadow_taps(int tile, float resolution, vec2 texel, float receiver, float tolerance) {
@@ -86,6 +87,14 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     float t_max = distance * (1.0 - 1e-4) - u_ray_offset;
     if (t_max <= 0.0) return 1.0;
     return rt_occluded(origin, to_light / distance, 0.0, t_max) ? 0.0 : 1.0;
+}
+#elif defined(ISM_VISIBILITY)
+#include "ism_lib.glsl"
+
+// Imperfect shadow map of a VPL: tile `s.tile` of the atlas holds its paraboloid depth map.
+float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+    return ism_visibility(u_shadow_atlas, s.tile, u_atlas_columns, s.resolution, s.position,
+                          s.axis, world, geometric_normal, u_ism_bias);
 }
 #else
 // Fraction of the sample's light reaching `world` (normal offset by `bias` texels).

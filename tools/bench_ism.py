@@ -3,7 +3,7 @@ memory of imperfect shadow maps on a synthetic scene (a tessellated box room wit
 about 70k triangles), with VPLs on its surfaces facing into the room.
 
     .venv/bin/python tools/bench_ism.py [--vpls 1024] [--points 8192] [--resolutions 128 256]
-        [--footprint-scale 2.0] [--max-footprint 4] [--repeat 3]
+        [--footprint-scale 1.25] [--max-footprint 0.125] [--levels N] [--repeat 3]
 """
 
 from __future__ import annotations
@@ -86,7 +86,9 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=8192)
     parser.add_argument("--resolutions", type=int, nargs="+", default=[128, 256])
     parser.add_argument("--footprint-scale", type=float, default=FOOTPRINT_SCALE)
-    parser.add_argument("--max-footprint", type=int, default=MAX_FOOTPRINT)
+    parser.add_argument("--max-footprint", type=float, default=MAX_FOOTPRINT)
+    parser.add_argument("--levels", type=int, help="pull-push levels (default: log2 of the "
+                        "resolution, every hole filled)")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
     ctx = shared_context()
@@ -102,7 +104,7 @@ def main() -> None:
           f"scale {args.footprint_scale}, max {args.max_footprint}; point pool "
           f"{time.perf_counter() - start:.2f} s")
     for resolution in args.resolutions:
-        levels = int(math.log2(resolution))
+        levels = int(math.log2(resolution)) if args.levels is None else args.levels
         ism.render(triangles, position, normal, resolution, levels)  # compile, allocate
         runs = []
         for _ in range(args.repeat):

@@ -12,7 +12,8 @@ import numpy as np
 from .frame import PASS_CHANNELS, Frame, Stats
 from .geometry import WorldGeometry, bounding_sphere, flatten_instances, light_shapes
 from .gl import GLUnavailableError, ProgramCache, shared_context
-from .lights import KIND_DIRECTIONAL, LightSamples, build_light_samples
+from .ism import ImperfectShadowMaps, atlas_grid
+from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .raytrace import RayTracer
 from .scene import Camera, Scene
 from .settings import Settings
@@ -26,6 +27,9 @@ MAX_BATCH = 8192  # samples or tiles per batch (rows of a table texture)
 VERTEX_FORMAT = "3f 3f 3f 3f"
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_albedo", "in_emission")
 GL_CLIP_DISTANCE0 = 0x3000
+ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see core/ism.py)
+ISM_POINT_SUBSETS = 512  # distinct point sets; VPL k uses set k % 512 (sampling costs ~0.4 µs
+# a point on the CPU, so a set per VPL would cost seconds at 1024+ VPLs and 8k points each)
 SURFACE_VERTICES_BINDING, SURFACE_ALBEDO_BINDING = 4, 5  # SSBOs of direct_frag.glsl
 
 
@@ -48,7 +52,7 @@ class _LightPass:
     name: str
     batch: _Batch
     min_distance: float
-    exact: bool
+    visibility: str = "classic"  # "classic" (shadow-map atlas), "exact" or "ism"
     interleave: int = 1
 
 
@@ -118,6 +122,19 @@ def _samples_per_draw(exact: bool, compensation: _Compensation | None) -> int:
     return 4096 if rays_per_sample == 0 else max(1, 48 // rays_per_sample)
 
 
+def _plan_ism_batches(samples: LightSamples, resolution: int) -> list[_Batch]:
+    """VPLs in groups whose imperfect shadow maps fit one atlas (tile k = VPL k)."""
+    size = max(1, min(MAX_BATCH, ATLAS_TEXELS // (resolution * resolution)))
+    batches = []
+    for start in range(0, len(samples), size):
+        index = np.arange(start, min(start + size, len(samples)))
+        columns, rows = atlas_grid(len(index))
+        batch_samples = samples.subset(index)
+        batch_samples.resolution = np.full(len(index), resolution)
+        batches.append(_Batch(batch_samples, resolution, np.arange(len(index)), columns, rows))
+    return batches
+
+
 def _tile_projection(projection: np.ndarray, x0: int, x1: int, y0: int, y1: int,
                      width: int, height: int) -> np.ndarray:
     """Projection whose clip volume covers only pixels [x0, x1) × [y0, y1) of the image."""
@@ -151,8 +168,12 @@ class Renderer:
         self.max_texture = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
         self._tracer: RayTracer | None = None
         self._blur: GeometryAwareBlur | None = None
+        self._ism: ImperfectShadowMaps | None = None
 
     def release(self) -> None:
+        if self._ism is not None:
+            self._ism.release()
+            self._ism = None
         if self._blur is not None:
             self._blur.release()
             self._blur = None
@@ -183,24 +204,36 @@ class Renderer:
             samples = build_light_samples(scene, geometry, settings, stats.warnings)
         vpls = self._virtual_point_lights(scene, geometry, settings, centre, radius, stats)
         vpl_samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
-        exact = settings.visibility == "exact" and len(vpls) > 0
-        if exact:
+        mode = settings.visibility
+        if mode == "exact":
             vpl_samples.casts_shadow[:] = False
-        work = [_LightPass("direct light", b, radius * 1e-6, exact=False)
-                for b in _plan_batches(samples, self.max_texture)]
+        vpl_batches = (_plan_ism_batches(vpl_samples, settings.ism_resolution) if mode == "ism"
+                       else _plan_batches(vpl_samples, self.max_texture))
+        area_ism = settings.area_light_ism and samples.kind.size > 0
+        as_ism = (samples.kind == KIND_COSINE) & samples.casts_shadow if area_ism \
+            else np.zeros(len(samples), bool)
+        direct_ism = _plan_ism_batches(samples.subset(np.flatnonzero(as_ism)),
+                                       settings.ism_resolution)
+        work = [_LightPass("direct light", b, radius * 1e-6)
+                for b in _plan_batches(samples.subset(np.flatnonzero(~as_ism)),
+                                       self.max_texture)]
+        work += [_LightPass("direct light", b, radius * 1e-6, visibility="ism")
+                 for b in direct_ism]
         clamp = max(settings.clamp_distance * radius, radius * 1e-6)
-        work += [_LightPass("indirect light", b, clamp, exact=exact,
-                            interleave=settings.interleave)
-                 for b in _plan_batches(vpl_samples, self.max_texture)]
+        work += [_LightPass("indirect light", b, clamp, visibility=mode,
+                            interleave=settings.interleave) for b in vpl_batches]
         blur_radius = _blur_radius(settings) if len(vpls) else 0
         compensation = None
         if settings.bias_compensation and len(vpls) and settings.clamp_distance > 0:
             compensation = _Compensation(settings.clamp_distance * radius, settings.bias_samples,
                                          settings.seed, settings.bounces - 1)
+        ism_batches = [p.batch for p in work if p.visibility == "ism"]
+        ism = self._ism_renderer(geometry, settings, ism_batches, stats) if ism_batches \
+            else None
         stats.counts.update(triangles=geometry.vertex_count // 3, light_samples=len(samples),
-                            vpls=len(vpls),
-                            shadow_maps=int(samples.tiles_per_sample.sum()
-                                            + vpl_samples.tiles_per_sample.sum()))
+                            vpls=len(vpls), shadow_maps=int(sum(
+                                p.batch.samples.tiles_per_sample.sum() for p in work
+                                if p.visibility == "classic")))
 
         aa = settings.antialiasing
         width, height = camera.width * aa, camera.height * aa
@@ -209,7 +242,7 @@ class Renderer:
         output = {name: np.zeros((camera.height, camera.width, c), np.float32)
                   for name, c in PASS_CHANNELS.items()}
         resources = _FrameResources(self.ctx, geometry, shapes, self.programs)
-        if exact or compensation is not None:
+        if mode == "exact" or compensation is not None:
             self.tracer.bind()
         try:
             steps, done = len(tiles) * max(1, len(work)), 0
@@ -222,9 +255,12 @@ class Renderer:
                 for light_pass in work:
                     if check():
                         raise RenderCancelled("render cancelled")
-                    with stats.timed("shadow maps"):
-                        atlas = resources.atlas(light_pass.batch, centre, radius,
-                                                reuse=keep_atlas)
+                    with stats.timed(f"{light_pass.name} maps"):
+                        if light_pass.visibility == "ism":
+                            atlas = ism(light_pass.batch)
+                        else:
+                            atlas = resources.atlas(light_pass.batch, centre, radius,
+                                                    reuse=keep_atlas)
                         self.ctx.finish()
                     with stats.timed(light_pass.name):
                         target = indirect if light_pass.name == "indirect light" else direct
@@ -265,6 +301,40 @@ class Renderer:
             tracer.upload(geometry.positions.reshape(-1, 3, 3))
         with stats.timed("vpl generation"):
             return generate_vpls(scene, geometry, settings, tracer, centre, radius)
+
+    def _ism_renderer(self, geometry: WorldGeometry, settings: Settings,
+                      batches: list[_Batch], stats: Stats):
+        """A function rendering one batch's imperfect shadow maps (points sampled once per
+        scene and VPL count, reused while the triangle count and settings repeat)."""
+        ism = self.ism
+        triangles = geometry.positions.reshape(-1, 3, 3)
+        with stats.timed("ism points"):
+            subsets = min(ISM_POINT_SUBSETS, max(len(b.samples) for b in batches))
+            ism.prepare(triangles, subsets, settings.ism_points, settings.seed)
+        levels = min(settings.pull_push_levels, int(np.log2(settings.ism_resolution)))
+        stats.counts["isms"] = sum(len(b.samples) for b in batches)
+        if geometry.vertex_count == 0:
+            return lambda batch: ism.render(triangles, np.zeros((0, 3)), np.zeros((0, 3)),
+                                            settings.ism_resolution, levels)
+        cache: dict[int, moderngl.Texture] = {}
+
+        def render(batch: _Batch) -> moderngl.Texture:
+            if len(batches) == 1 and id(batch) in cache:
+                return cache[id(batch)]
+            s = batch.samples
+            cache[id(batch)] = ism.render(triangles, s.position, s.axis, settings.ism_resolution,
+                                          levels)
+            for stage, seconds in ism.timings.items():
+                stats.timings[f"ism {stage}"] = stats.timings.get(f"ism {stage}", 0) + seconds
+            return cache[id(batch)]
+        return render
+
+    @property
+    def ism(self) -> ImperfectShadowMaps:
+        """Imperfect shadow maps (needs OpenGL 4.3), created on first use."""
+        if self._ism is None:
+            self._ism = ImperfectShadowMaps(self.ctx, self.programs)
+        return self._ism
 
     @property
     def blur(self) -> GeometryAwareBlur:
@@ -484,7 +554,9 @@ class _FrameResources:
             textures[name].use(unit)
         light_table.use(3)
         atlas.use(4)
-        defines: dict[str, object] = {"EXACT_VISIBILITY": 1} if light_pass.exact else {}
+        defines: dict[str, object] = {
+            "exact": {"EXACT_VISIBILITY": 1}, "ism": {"ISM_VISIBILITY": 1},
+        }.get(light_pass.visibility, {})
         uniforms: dict[str, object] = {}
         if compensation is not None:
             defines.update(BIAS_COMPENSATION=1, SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING,
@@ -493,11 +565,12 @@ class _FrameResources:
                             u_bias_samples=compensation.samples, u_seed=compensation.seed,
                             u_max_generation=compensation.max_generation)
             self._bind_surfaces()
+        needs_430 = light_pass.visibility == "exact" or compensation is not None
         program = self.programs.get("fullscreen_vert.glsl", "direct_frag.glsl", defines,
-                                    version=430 if defines else 410)
+                                    version=430 if needs_430 else 410)
         _set_uniforms(program, u_position=0, u_normal=1, u_geometric=2, u_light_table=3,
                       u_shadow_atlas=4, u_atlas_columns=batch.columns,
-                      u_interleave=light_pass.interleave,
+                      u_interleave=light_pass.interleave, u_ism_bias=ISM_BIAS_TEXELS,
                       u_scene_centre=tuple(centre), u_scene_radius=radius, u_shadow_bias=bias,
                       u_min_distance2=light_pass.min_distance**2, u_ray_offset=1e-4 * radius,
                       **uniforms)
@@ -505,7 +578,7 @@ class _FrameResources:
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE
         vao = self.ctx.vertex_array(program, [])
-        chunk = _samples_per_draw(light_pass.exact, compensation)
+        chunk = _samples_per_draw(light_pass.visibility == "exact", compensation)
         for first in range(0, len(s), chunk):
             _set_uniforms(program, u_first=first, u_count=min(chunk, len(s) - first))
             vao.render(moderngl.TRIANGLES, vertices=3)

@@ -32,13 +32,14 @@ class Settings:
     """Seed of every stochastic choice; a render is deterministic for (scene, settings)."""
     bounces: int = 4
     """Diffuse bounces, as Cycles counts them: 0 = direct light only."""
-    vpl_count: int = 256
+    vpl_count: int = 1024
     """Light paths started per frame; each leaves a VPL at every bounce it survives."""
     termination: str = "fractional"
     """How light paths end: 'fractional' absorption by the average reflectance (the seed's
     scheme: N paths start, ρ̄N continue, ...) or per-path 'roulette'."""
-    visibility: str = "classic"
-    """VPL visibility: 'classic' (a shadow map per VPL) or 'exact' (ray traced per pixel)."""
+    visibility: str = "ism"
+    """VPL visibility: 'ism' (imperfect shadow maps: point-splatted paraboloid maps, the fast
+    default), 'classic' (a triangle cube shadow map per VPL) or 'exact' (ray traced)."""
     vpl_shadow_resolution: int = 256
     """Texels per cube-face edge of each VPL's shadow map (classic visibility)."""
     clamp_distance: float = 0.05
@@ -48,12 +49,22 @@ class Settings:
     """Restore the energy the clamp removes (Kollig & Keller 2004: ray traced)."""
     bias_samples: int = 16
     """Rays per pixel for bias compensation."""
-    interleave: int = 1
+    interleave: int = 4
     """Interleaved sampling of VPLs: each pixel of a K×K pattern gathers every K²-th VPL
     (1 = off; 2, 4, 8)."""
     blur_radius: int = 4
     """Radius in (supersampled) pixels of the geometry-aware blur that removes the interleaving
     pattern; rounded up to a multiple of K/2 so the pattern cancels exactly on flat surfaces."""
+    area_light_ism: bool = False
+    """Shadows of area-light and sphere-light samples from imperfect shadow maps instead of
+    cube maps (the seed's extension to direct light: soft shadows of many point lights)."""
+    ism_points: int = 8192
+    """Surface points splatted into each VPL's imperfect shadow map."""
+    ism_resolution: int = 128
+    """Texels per edge of each imperfect shadow map (paraboloid, one per VPL)."""
+    pull_push_levels: int = 7
+    """Pull-push levels that fill the holes between splatted points (capped at
+    log2(ism_resolution), which fills every hole)."""
 
     _RANGES: ClassVar[dict[str, tuple[float, float]]] = {
         "light_samples": (1, 1024),
@@ -70,10 +81,13 @@ class Settings:
         "clamp_distance": (0.0, 1.0),
         "bias_samples": (1, 1024),
         "blur_radius": (1, 32),
+        "ism_points": (16, 1 << 16),
+        "pull_push_levels": (0, 12),
     }
     _CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "termination": ("fractional", "roulette"),
-        "visibility": ("classic", "exact"),
+        "visibility": ("ism", "classic", "exact"),
+        "ism_resolution": (32, 64, 128, 256, 512),
         "interleave": (1, 2, 4, 8),
     }
 

@@ -10,6 +10,7 @@ bounce weights exactly on a closed sphere).
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from addon.core import metrics
 from tests.blender.rendering import configure_cycles, open_scene, render_linear
@@ -45,17 +46,23 @@ def test_cornell_indirect_energy_matches_cycles(blender, tmp_path):
     assert abs(total) < 0.02
 
 
-def test_classic_and_exact_visibility_agree(blender, tmp_path):
+@pytest.mark.parametrize("mode, energy_bound, error_bound", [
+    ("classic", 0.01, 0.03),  # measured +0.01 %, 0.6 % (512² cube maps)
+    ("ism", 0.015, 0.03),  # measured −0.6 %, 1.2 % (imperfect shadow maps, 8k points, 128²)
+])
+def test_visibility_modes_agree_with_exact_visibility(blender, tmp_path, mode, energy_bound,
+                                                       error_bound):
+    """The same VPLs gathered with shadow maps or ISMs against ray-traced visibility."""
     scene = open_scene("cornell_box", SIZE)
     settings = scene.vpl_gi
     settings.antialiasing, settings.vpl_count, settings.bounces = 2, 256, 2
-    settings.vpl_shadow_resolution = 512
+    settings.vpl_shadow_resolution, settings.interleave = 512, "1"
     settings.visibility = "exact"
     exact = render_linear(scene, "VPL_GI", tmp_path / "exact.exr")
-    settings.visibility = "classic"
-    classic = render_linear(scene, "VPL_GI", tmp_path / "classic.exr")
-    energy = metrics.mean_relative_energy(classic, exact)
-    error = metrics.relative_rmse(classic, exact)
-    print(f"classic vs exact: energy {energy:+.4f} relRMSE {error:.4f}")
-    assert abs(energy) < 0.01
-    assert error < 0.03
+    settings.visibility = mode
+    image = render_linear(scene, "VPL_GI", tmp_path / f"{mode}.exr")
+    energy = metrics.mean_relative_energy(image, exact)
+    error = metrics.relative_rmse(image, exact)
+    print(f"{mode} vs exact: energy {energy:+.4f} relRMSE {error:.4f}")
+    assert abs(energy) < energy_bound
+    assert error < error_bound

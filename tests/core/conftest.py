@@ -1,10 +1,18 @@
-"""Shared fixtures of the core tests: one Renderer (one GL context) for the whole session."""
+"""Shared fixtures of the core tests: one GL context, program cache and Renderer per session."""
 
 from __future__ import annotations
 
 import pytest
 
+from addon.core.gl import ProgramCache, shared_context
 from addon.core.pipeline import Renderer
+
+
+@pytest.fixture(scope="session")
+def programs() -> ProgramCache:
+    cache = ProgramCache(shared_context())
+    yield cache
+    cache.release()
 
 
 @pytest.fixture(scope="session")

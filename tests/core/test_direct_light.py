@@ -36,7 +36,7 @@ def rectangle_irradiance(x: np.ndarray, y: np.ndarray, height: float, half: floa
 def test_point_light_inverse_square_and_cosine(renderer):
     power, height = 100.0, 2.0
     scene = floor_scene([light(LightKind.POINT, translation(0, 0, height), power=power)])
-    frame, _ = renderer.render(scene, Settings(antialiasing=1))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
     x, y = pixel_centres()
     expected = power / (4 * np.pi) * height / (x**2 + y**2 + height**2) ** 1.5
     np.testing.assert_allclose(irradiance(frame), expected, rtol=2e-3)
@@ -46,7 +46,7 @@ def test_spot_light_cone_and_blend_follow_cycles(renderer):
     power, height, size, blend = 500.0, 3.0, np.radians(60), 0.4
     spot = light(LightKind.SPOT, translation(0, 0, height), power=power, spot_size=size,
                  spot_blend=blend)
-    frame, _ = renderer.render(floor_scene([spot]), Settings(antialiasing=1))
+    frame, _ = renderer.render(floor_scene([spot]), Settings(bounces=0, antialiasing=1))
     x, y = pixel_centres()
     d2 = x**2 + y**2 + height**2
     cos_axis = height / np.sqrt(d2)
@@ -59,7 +59,7 @@ def test_spot_light_cone_and_blend_follow_cycles(renderer):
 def test_sun_irradiance_is_strength_times_cosine(renderer):
     angle = np.radians(35)
     sun = light(LightKind.SUN, rotation_x(angle), power=3.0)
-    frame, _ = renderer.render(floor_scene([sun]), Settings(antialiasing=1))
+    frame, _ = renderer.render(floor_scene([sun]), Settings(bounces=0, antialiasing=1))
     np.testing.assert_allclose(irradiance(frame), 3.0 * np.cos(angle), rtol=1e-4)
 
 
@@ -67,7 +67,8 @@ def test_area_light_is_lambertian_with_total_power(renderer):
     power, height, side = 80.0, 1.5, 0.6
     area = light(LightKind.AREA, translation(0, 0, height), power=power,
                  area_shape=AreaShape.SQUARE, size_x=side)
-    frame, _ = renderer.render(floor_scene([area]), Settings(antialiasing=1, light_samples=256))
+    frame, _ = renderer.render(floor_scene([area]),
+                               Settings(bounces=0, antialiasing=1, light_samples=256))
     x, y = pixel_centres()
     expected = rectangle_irradiance(x, y, height, side / 2, power / (np.pi * side * side))
     np.testing.assert_allclose(irradiance(frame), expected, rtol=1e-2)
@@ -78,7 +79,7 @@ def test_emissive_surface_lights_both_sides(renderer):
     emitter = Instance(quad(half, half, z=height), np.eye(4),
                        [Material("lamp", (0.0, 0.0, 0.0), (radiance,) * 3)])
     scene = floor_scene([], extra=[emitter])
-    frame, _ = renderer.render(scene, Settings(antialiasing=1, emission_samples=1024))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1, emission_samples=1024))
     x, y = pixel_centres()
     expected = rectangle_irradiance(x, y, height, half, radiance)
     visible = (np.abs(x) > half + 0.1) | (np.abs(y) > half + 0.1)  # not hidden by the emitter
@@ -87,7 +88,7 @@ def test_emissive_surface_lights_both_sides(renderer):
 
 def test_world_lights_an_open_floor_with_pi_times_radiance(renderer):
     scene = floor_scene([], world=World((0.2, 0.4, 0.6), 2.0))
-    frame, _ = renderer.render(scene, Settings(antialiasing=1, world_samples=512))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1, world_samples=512))
     diff_dir = frame.passes["DiffDir"]
     np.testing.assert_allclose(diff_dir.mean(axis=(0, 1)), [0.4, 0.8, 1.2], rtol=1e-2)
 
@@ -97,7 +98,7 @@ def test_point_light_shadow_of_an_occluder(renderer):
     blocker = Instance(quad(0.5, 0.5, z=1.5), np.eye(4), [Material("blocker")])
     scene = floor_scene([light(LightKind.POINT, translation(0, 0, height), power=power)],
                         extra=[blocker])
-    frame, _ = renderer.render(scene, Settings(antialiasing=1))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
     x, y = pixel_centres()
     hidden_by_blocker = (np.abs(x) < 0.6) & (np.abs(y) < 0.6)  # the blocker covers the view
     umbra = (np.maximum(np.abs(x), np.abs(y)) < 0.9) & ~hidden_by_blocker
@@ -112,7 +113,7 @@ def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch):
     lights = [light(LightKind.POINT, translation(x, 0.5, 2.0), power=50.0) for x in (-1, 0, 1)]
     blocker = Instance(quad(0.4, 0.4, z=1.0), np.eye(4), [Material("blocker")])
     scene = floor_scene(lights, extra=[blocker])
-    settings = Settings(antialiasing=2, shadow_resolution=256)
+    settings = Settings(bounces=0, antialiasing=2, shadow_resolution=256)
     whole, _ = renderer.render(scene, settings)
     monkeypatch.setattr(pipeline, "MAX_TILE", 48)
     monkeypatch.setattr(pipeline, "ATLAS_TEXELS", 6 * 256 * 256)
@@ -124,9 +125,9 @@ def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch):
 def test_render_is_deterministic_for_a_seed(renderer):
     area = light(LightKind.AREA, translation(0, 0, 1.0), power=40.0, size_x=1.0)
     scene = floor_scene([area])
-    a, _ = renderer.render(scene, Settings(seed=3))
-    b, _ = renderer.render(scene, Settings(seed=3))
-    c, _ = renderer.render(scene, Settings(seed=4))
+    a, _ = renderer.render(scene, Settings(bounces=0, seed=3))
+    b, _ = renderer.render(scene, Settings(bounces=0, seed=3))
+    c, _ = renderer.render(scene, Settings(bounces=0, seed=4))
     np.testing.assert_array_equal(a.passes["Combined"], b.passes["Combined"])
     assert not np.array_equal(a.passes["Combined"], c.passes["Combined"])
 
@@ -136,8 +137,23 @@ def test_every_area_shape_emits_its_full_power(renderer, shape):
     """Far from a small light, irradiance tends to P / (pi d²) whatever the shape."""
     area = light(LightKind.AREA, translation(0, 0, 4.0), power=100.0, area_shape=shape,
                  size_x=0.2, size_y=0.1)
-    frame, _ = renderer.render(floor_scene([area], size=8), Settings(antialiasing=1))
+    frame, _ = renderer.render(floor_scene([area], size=8), Settings(bounces=0, antialiasing=1))
     centre = irradiance(frame)[3:5, 3:5].mean()
     x = (4 + 0.5) / 8 * 6 - 3  # the four pixel centres nearest the axis are 0.375 m off
     d2 = 2 * x * x + 16
     assert centre == pytest.approx(100.0 / np.pi * 16 / d2**2, rel=5e-3)
+
+
+def test_area_light_with_imperfect_shadow_maps_matches_cube_maps(renderer):
+    """The seed's extension: area-light samples shadowed by ISMs instead of cube maps. Measured:
+    energy +0.7 %, relative RMSE 6.7 % (the 128² maps blur the penumbra a little)."""
+    area = light(LightKind.AREA, translation(0, 0, 2.0), power=100.0, size_x=0.5)
+    blocker = Instance(quad(0.5, 0.5, z=1.0), np.eye(4), [Material("blocker")])
+    scene = floor_scene([area], extra=[blocker])
+    common = {"bounces": 0, "antialiasing": 2, "light_samples": 64}
+    cube, _ = renderer.render(scene, Settings(**common))
+    ism, stats = renderer.render(scene, Settings(area_light_ism=True, **common))
+    assert stats.counts["isms"] == 64
+    reference, image = cube.passes["DiffDir"], ism.passes["DiffDir"]
+    assert abs(image.sum() / reference.sum() - 1) < 0.02
+    assert np.sqrt(np.mean((image - reference) ** 2)) / reference.mean() < 0.08

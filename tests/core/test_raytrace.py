@@ -11,21 +11,16 @@ from addon.core import raytrace
 from addon.core.gl import (
     SHADER_DIR,
     GLUnavailableError,
-    ProgramCache,
     require_compute,
-    shared_context,
 )
 from addon.core.raytrace import BVH, RayTracer, build_bvh
 
 
 @pytest.fixture(scope="session")
-def tracer() -> RayTracer:
-    ctx = shared_context()
-    programs = ProgramCache(ctx)
-    rt = RayTracer(ctx, programs)
+def tracer(programs) -> RayTracer:
+    rt = RayTracer(programs.ctx, programs)
     yield rt
     rt.release()
-    programs.release()
 
 
 def soup(count: int, rng: np.random.Generator, size: float = 0.2) -> np.ndarray:

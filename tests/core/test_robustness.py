@@ -20,7 +20,7 @@ def test_scene_without_camera_is_refused(renderer):
     scene = floor_scene([])
     scene.camera = None
     with pytest.raises(RenderError, match="no camera"):
-        renderer.render(scene, Settings())
+        renderer.render(scene, Settings(bounces=0))
 
 
 @pytest.mark.parametrize("name, value", [("light_samples", 0), ("shadow_resolution", 10**6),
@@ -35,7 +35,7 @@ def test_nan_vertices_are_left_out_with_a_warning(renderer):
     broken.positions[0] = np.nan
     scene = floor_scene([light(LightKind.POINT, translation(0, 0, 2), power=10.0)],
                         extra=[Instance(broken, np.eye(4), [Material("m")])])
-    frame, stats = renderer.render(scene, Settings(antialiasing=1))
+    frame, stats = renderer.render(scene, Settings(bounces=0, antialiasing=1))
     assert_finite(frame)
     assert any("NaN/Inf positions" in w for w in stats.warnings)
     assert frame.passes["DiffDir"].max() > 0
@@ -44,14 +44,14 @@ def test_nan_vertices_are_left_out_with_a_warning(renderer):
 def test_nan_light_is_left_out_with_a_warning(renderer):
     bad = light(LightKind.POINT, translation(0, 0, np.nan), power=10.0)
     good = light(LightKind.POINT, translation(0, 0, 2), power=10.0)
-    frame, stats = renderer.render(floor_scene([bad, good]), Settings(antialiasing=1))
+    frame, stats = renderer.render(floor_scene([bad, good]), Settings(bounces=0, antialiasing=1))
     assert_finite(frame)
     assert any("NaN/Inf" in w for w in stats.warnings)
 
 
 def test_zero_size_area_light_still_lights_and_warns(renderer):
     area = light(LightKind.AREA, translation(0, 0, 2), power=50.0, size_x=0.0)
-    frame, stats = renderer.render(floor_scene([area]), Settings(antialiasing=1))
+    frame, stats = renderer.render(floor_scene([area]), Settings(bounces=0, antialiasing=1))
     assert_finite(frame)
     assert frame.passes["DiffDir"].max() > 0
     assert any("zero or negative size" in w for w in stats.warnings)
@@ -64,13 +64,13 @@ def test_degenerate_and_empty_meshes_render(renderer):
                  np.zeros(0, np.int32))
     scene = floor_scene([light(LightKind.POINT, translation(0, 0, 2), power=10.0)],
                         extra=[Instance(needle, np.eye(4), []), Instance(empty, np.eye(4), [])])
-    frame, _ = renderer.render(scene, Settings(antialiasing=1))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
     assert_finite(frame)
 
 
 def test_scene_with_nothing_shows_the_world(renderer):
     scene = Scene([], [], World((0.1, 0.2, 0.3), 1.0), floor_scene([]).camera)
-    frame, _ = renderer.render(scene, Settings(antialiasing=1))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
     np.testing.assert_allclose(frame.passes["Combined"][0, 0], [0.1, 0.2, 0.3, 1.0], rtol=1e-6)
     assert np.all(frame.passes["Depth"] == 1e10)
 
@@ -79,10 +79,10 @@ def test_scene_with_nothing_shows_the_world(renderer):
 def test_extreme_powers_scale_linearly(renderer, power):
     reference, _ = renderer.render(
         floor_scene([light(LightKind.POINT, translation(0, 0, 2), power=1.0)]),
-        Settings(antialiasing=1))
+        Settings(bounces=0, antialiasing=1))
     frame, _ = renderer.render(
         floor_scene([light(LightKind.POINT, translation(0, 0, 2), power=power)]),
-        Settings(antialiasing=1))
+        Settings(bounces=0, antialiasing=1))
     assert_finite(frame)
     np.testing.assert_allclose(frame.passes["DiffDir"], reference.passes["DiffDir"] * power,
                                rtol=1e-5)
@@ -90,5 +90,6 @@ def test_extreme_powers_scale_linearly(renderer, power):
 
 def test_cancel_stops_the_render(renderer):
     with pytest.raises(RenderCancelled):
-        renderer.render(floor_scene([light(LightKind.POINT, translation(0, 0, 2))]), Settings(),
+        renderer.render(floor_scene([light(LightKind.POINT, translation(0, 0, 2))]),
+                        Settings(bounces=0),
                         cancelled=lambda: True)

@@ -7,19 +7,12 @@ import moderngl
 import numpy as np
 import pytest
 
-from addon.core.gl import ProgramCache, shared_context
+from addon.core.gl import ProgramCache
 from addon.core.shading import GeometryAwareBlur
 
 SIZE = 128
 SPACING = 0.05  # world units between pixel centres
 DEPTH = 10.0  # view depth of z = 0
-
-
-@pytest.fixture(scope="session")
-def programs() -> ProgramCache:
-    cache = ProgramCache(shared_context())
-    yield cache
-    cache.release()
 
 
 @pytest.fixture(scope="session")

@@ -1,0 +1,271 @@
+"""Imperfect shadow maps: the surface-point pool, pull-push, and ISM visibility against the
+analytic shadow of a square occluder above a floor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core import ism
+from addon.core.gl import SHADER_DIR
+from addon.core.ism import ImperfectShadowMaps, sample_surface_points, spread_order
+
+RESOLUTION = 128
+POINTS = 8192
+
+
+@pytest.fixture(scope="session")
+def maps(programs) -> ImperfectShadowMaps:
+    m = ImperfectShadowMaps(programs.ctx, programs)
+    yield m
+    m.release()
+
+
+def quad(x0: float, x1: float, y0: float, y1: float, z: float) -> np.ndarray:
+    """Two triangles: the rectangle [x0, x1] × [y0, y1] at height z."""
+    return np.array([[[x0, y0, z], [x1, y0, z], [x1, y1, z]],
+                     [[x0, y0, z], [x1, y1, z], [x0, y1, z]]], np.float32)
+
+
+# -- surface points ----------------------------------------------------------------------------
+
+def test_points_are_uniform_by_area_in_every_subset():
+    small = np.array([[0, 0, 0], [0.1, 0, 0], [0, 0.2, 0]], np.float32)  # area 0.01
+    big = np.array([[0, 0, 1], [2, 0, 1], [0, 1, 1]], np.float32)  # area 1
+    degenerate = np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2]], np.float32)
+    broken = np.array([[0, 0, 0], [np.nan, 0, 0], [0, 1, 0]], np.float32)
+    tris = np.stack([small, degenerate, big, broken])
+    count, subsets = 1000, 16
+    points = sample_surface_points(tris, count, seed=3, subsets=subsets)
+    assert len(points) == count * subsets
+    per_subset = np.stack([np.bincount(t, minlength=4) for t in
+                           points.triangle.reshape(subsets, count)])
+    expected = count * np.array([0.01, 0, 1, 0]) / 1.01
+    assert (np.abs(per_subset - expected) < 1).all()  # stratified: floor or ceiling
+    # An even prefix of a subset is stratified too (level of detail).
+    prefix = np.bincount(points.triangle[:count // 2], minlength=4)
+    assert (np.abs(prefix - expected / 2) <= 1).all()
+    uv = points.barycentric
+    assert (uv >= 0).all() and (uv.sum(axis=1) <= 1).all()
+    # Within a triangle, the four halved-edge sub-triangles get a quarter each.
+    on_big = uv[points.triangle == 2].astype(np.float64)
+    region = np.select([on_big[:, 0] > 0.5, on_big[:, 1] > 0.5, on_big.sum(axis=1) < 0.5],
+                       [0, 1, 2], 3)
+    share = np.bincount(region, minlength=4) / len(region)
+    np.testing.assert_allclose(share, 0.25, atol=0.01)
+
+
+def test_every_subset_is_its_own():
+    tris = np.concatenate([quad(0, 1, 0, 1, 0), quad(0, 1, 0, 1, 1)])
+    points = sample_surface_points(tris, 500, seed=4, subsets=8)
+    keys = [set(zip(t.tolist(), map(tuple, uv.tolist()), strict=True)) for t, uv in
+            zip(points.triangle.reshape(8, -1), points.barycentric.reshape(8, -1, 2),
+                strict=True)]
+    for i in range(8):
+        for j in range(i):
+            assert not keys[i] & keys[j]
+    again = sample_surface_points(tris, 500, seed=4, subsets=8)
+    np.testing.assert_array_equal(again.barycentric, points.barycentric)  # seeded
+
+
+def test_empty_and_zero_area_scenes_give_no_points():
+    flat = np.zeros((3, 3, 3), np.float32)
+    for tris in (np.zeros((0, 3, 3), np.float32), flat):
+        points = sample_surface_points(tris, 100, seed=1, subsets=4)
+        assert len(points) == 0 and points.barycentric.shape == (0, 2)
+
+
+def test_spread_order_prefixes_are_even():
+    order = spread_order(16)
+    assert sorted(order) == list(range(16))
+    np.testing.assert_array_equal(np.sort(order[:4]), [0, 4, 8, 12])
+    assert sorted(spread_order(11)) == list(range(11))
+
+
+# -- pull-push ---------------------------------------------------------------------------------
+
+def in_disk(height: int, width: int, resolution: int) -> np.ndarray:
+    """Texels of an atlas whose centres lie inside their tile's unit disk."""
+    local = (np.arange(resolution) + 0.5) / resolution * 2 - 1
+    disk = local[:, None] ** 2 + local[None, :] ** 2 < 1
+    return np.tile(disk, (height // resolution, width // resolution))
+
+
+def sparse(shape: tuple[int, int], fraction: float, rng: np.random.Generator,
+           low: float = 1.0, high: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    depth = np.full(shape, np.inf, np.float32)
+    valid = rng.random(shape) < fraction
+    depth[valid] = rng.uniform(low, high, valid.sum())
+    return depth, valid
+
+
+def test_pull_push_fills_every_hole_and_keeps_valid_texels(maps):
+    resolution = 64
+    depth, valid = sparse((2 * resolution, 3 * resolution), 0.1, np.random.default_rng(5))
+    filled = maps.pull_push(depth, resolution, 6)
+    assert filled.shape == depth.shape and np.isfinite(filled).all()
+    np.testing.assert_array_equal(filled.view(np.uint32)[valid], depth.view(np.uint32)[valid])
+    assert (filled[in_disk(*depth.shape, resolution)] < ism.FAR).all()
+    assert (filled >= 1).all() and (filled <= 2).all()  # averages of valid depths
+
+
+def test_too_few_levels_leave_far_holes(maps):
+    resolution = 32
+    depth = np.full((resolution, resolution), np.inf, np.float32)
+    depth[0, 0] = 1.5
+    raw = maps.pull_push(depth, resolution, 0)
+    assert raw[0, 0] == 1.5 and (raw.ravel()[1:] == np.float32(ism.FAR)).all()
+    one = maps.pull_push(depth, resolution, 1)
+    near = np.zeros(one.shape, bool)
+    near[:3, :3] = True  # the texels whose bilinear taps reach coarse texel (0, 0)
+    np.testing.assert_array_equal(one[near], 1.5)
+    assert (one[~near] == np.float32(ism.FAR)).all()
+    full = maps.pull_push(depth, resolution, 5)
+    np.testing.assert_array_equal(full, 1.5)
+
+
+def test_pull_push_of_a_plane_is_the_plane_and_tiles_do_not_mix(maps):
+    resolution = 64
+    rng = np.random.default_rng(6)
+    depth, valid = sparse((resolution, 2 * resolution), 0.05, rng)
+    depth[:, :resolution][valid[:, :resolution]] = 1.25  # tile 0: a constant plane
+    ramp = np.float32(2.0) + np.arange(resolution, dtype=np.float32) / resolution  # tile 1
+    depth[:, resolution:] = np.where(valid[:, resolution:], ramp[None, :], np.inf)
+    filled = maps.pull_push(depth, resolution, 6)
+    np.testing.assert_allclose(filled[:, :resolution], 1.25, rtol=1e-6)
+    right = filled[:, resolution:]
+    assert (right >= 2.0).all() and (right < 3.0).all()
+    # Filled texels follow the ramp to within a few texels' worth of its slope.
+    np.testing.assert_allclose(right, np.broadcast_to(ramp, right.shape), atol=6 / resolution)
+
+
+# -- visibility --------------------------------------------------------------------------------
+
+def occluder_scene() -> np.ndarray:
+    """A 2 × 2 floor at z = 0, a 0.5 × 0.5 occluder at z = 0.5 and a ceiling at z = 1."""
+    return np.concatenate([quad(-1, 1, -1, 1, 0), quad(-0.25, 0.25, -0.25, 0.25, 0.5),
+                           quad(-1, 1, -1, 1, 1)])
+
+
+def floor_grid(n: int) -> np.ndarray:
+    g = (np.arange(n) + 0.5) / n * 2 - 1
+    x, y = np.meshgrid(g, g)
+    return np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+
+
+def analytic_lit(floor: np.ndarray, light: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether the segment from each floor point to the light misses the occluder, and each
+    point's distance (in the occluder's plane) to the occluder's edge."""
+    m = floor + (light - floor) * (0.5 / light[2])
+    outside = np.abs(m[:, :2]) - 0.25
+    edge = np.where((outside < 0).all(axis=1), -outside.max(axis=1),
+                    np.linalg.norm(np.maximum(outside, 0), axis=1))
+    return ~(outside < 0).all(axis=1), edge
+
+
+VPLS = np.array([[0.0, 0.0, 0.999], [0.3, -0.2, 0.999], [-0.4, 0.1, 0.999], [0.1, 0.45, 0.999]])
+
+
+def visibility_stats(m: ImperfectShadowMaps, levels: int, points: int = POINTS
+                     ) -> tuple[float, float]:
+    """(agreement, leak: the share of shadowed points found lit) of ISM visibility on a floor
+    grid for each VPL, averaged; points within 0.02 of the shadow's edge (in the occluder's
+    plane, about a texel) are left out."""
+    tris = occluder_scene()
+    m.prepare(tris, len(VPLS), points, seed=11)
+    m.render(tris, VPLS, np.tile([0.0, 0.0, -1.0], (len(VPLS), 1)), RESOLUTION, levels)
+    floor = floor_grid(60)
+    agree, leak = [], []
+    for k, light in enumerate(VPLS):
+        lit, edge = analytic_lit(floor, light)
+        v = m.visibility(np.full(len(floor), k), floor, np.tile([0.0, 0.0, 1.0], (len(floor), 1)))
+        assert np.isfinite(v).all() and ((v >= 0) & (v <= 1)).all()
+        clear = edge > 0.02
+        ism_lit = v[clear] > 0.5
+        agree.append((ism_lit == lit[clear]).mean())
+        leak.append(ism_lit[~lit[clear]].mean())
+    return float(np.mean(agree)), float(np.mean(leak))
+
+
+def test_visibility_matches_the_analytic_shadow(maps):
+    agree, leak = visibility_stats(maps, 7)
+    assert agree >= 0.95 and leak <= 0.15, (agree, leak)
+
+
+def test_raw_point_splats_leak_and_pull_push_fills_them(programs):
+    """The seed's step 3: single-texel splats of sparse points leave holes in the occluder
+    that light leaks through, and pull-push fills them. (Floor points splatted into the
+    occluder's gaps stay: pull-push never moves a valid texel. Footprints remove those.)"""
+    points_only = ImperfectShadowMaps(programs.ctx, programs, footprint_scale=0)
+    try:
+        _, raw_leak = visibility_stats(points_only, 0, 2048)
+        _, filled_leak = visibility_stats(points_only, 7, 2048)
+    finally:
+        points_only.release()
+    assert raw_leak > 0.8 and filled_leak < 0.75 * raw_leak, (raw_leak, filled_leak)
+
+
+def test_points_follow_moved_triangles_and_depth_scales(maps):
+    tris = occluder_scene()
+    normals = np.tile([0.0, 0.0, -1.0], (2, 1))
+    maps.prepare(tris, 2, 2048, seed=12)
+    maps.render(tris, VPLS[:2], normals, 32, 5)
+    base = maps.read_atlas()
+    shift = np.float32([5.0, -3.0, 2.0])
+    maps.prepare(tris + shift, 2, 2048, seed=12)  # same inputs: the pool is kept
+    maps.render(tris + shift, VPLS[:2] + shift, normals, 32, 5)
+    np.testing.assert_allclose(maps.read_atlas(), base, rtol=1e-4)
+    maps.render(tris * 1000, VPLS[:2] * 1000, normals, 32, 5)
+    np.testing.assert_allclose(maps.read_atlas(), np.minimum(base * 1000, ism.FAR), rtol=1e-4)
+
+
+def test_empty_scene_and_vpl_facing_nothing_are_all_lit(maps):
+    lights = np.array([[0.0, 0.0, 0.5], [0.0, 0.0, 0.5]])
+    normals = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])  # the second faces the empty sky
+    below, above = floor_grid(8) * [0.5, 0.5, 0], floor_grid(8) * [0.5, 0.5, 0] + [0, 0, 1]
+    up = np.tile([0.0, 0.0, 1.0], (len(below), 1))
+    for tris, vpls, targets in ((np.zeros((0, 3, 3), np.float32), (0, 1), (below, above)),
+                                (quad(-1, 1, -1, 1, 0), (1,), (above,))):
+        maps.prepare(tris, 2, 1024, seed=13)
+        maps.render(tris, lights, normals, 32, 5)
+        atlas = maps.read_atlas()
+        assert not np.isnan(atlas).any()
+        assert (atlas[:, 32:] == np.float32(ism.FAR)).all()
+        for vpl, points in zip(vpls, targets, strict=True):
+            v = maps.visibility(np.full(len(points), vpl), points, up)
+            np.testing.assert_array_equal(v, 1.0)
+    assert (atlas[:, :32] < 1).any()  # the floor is seen by the first VPL
+    maps.render(tris, np.zeros((0, 3)), np.zeros((0, 3)), 32, 5)  # no VPLs: one empty tile
+    assert (maps.read_atlas() == np.float32(ism.FAR)).all()
+
+
+def test_render_checks_its_inputs(programs):
+    m = ImperfectShadowMaps(programs.ctx, programs)
+    try:
+        with pytest.raises(RuntimeError, match="prepare"):
+            m.render(quad(0, 1, 0, 1, 0), VPLS, VPLS, 32, 1)
+        m.prepare(quad(0, 1, 0, 1, 0), 1, 16, seed=1)
+        with pytest.raises(ValueError, match="4 triangles; the points were sampled on 2"):
+            m.render(np.concatenate([quad(0, 1, 0, 1, 0)] * 2), VPLS, VPLS, 32, 1)
+        with pytest.raises(ValueError, match="atlas; this GPU allows"):
+            m.render(quad(0, 1, 0, 1, 0), VPLS, VPLS, 1 << 15, 1)
+    finally:
+        m.release()
+
+
+@pytest.mark.parametrize("file, name, value", [
+    ("ism_splat_comp.glsl", "ISM_BINDING_POINTS", ism.BINDING_POINTS),
+    ("ism_splat_comp.glsl", "ISM_BINDING_VERTICES", ism.BINDING_VERTICES),
+    ("ism_splat_comp.glsl", "ISM_BINDING_VPLS", ism.BINDING_VPLS),
+    ("ism_lookup_comp.glsl", "ISM_BINDING_VPLS", ism.BINDING_VPLS),
+    ("ism_lookup_comp.glsl", "ISM_BINDING_QUERIES", ism.BINDING_QUERIES),
+    ("ism_lookup_comp.glsl", "ISM_BINDING_RESULTS", ism.BINDING_RESULTS),
+    ("ism_splat_comp.glsl", "local_size_x =", ism.POINT_LOCAL_SIZE),
+    ("ism_lookup_comp.glsl", "local_size_x =", ism.POINT_LOCAL_SIZE),
+    ("ism_pull_comp.glsl", "local_size_x =", ism.IMAGE_LOCAL_SIZE),
+    ("ism_push_comp.glsl", "local_size_y =", ism.IMAGE_LOCAL_SIZE),
+    ("ism_lib.glsl", "ISM_FAR", "3.0e38"),
+    ("ism_pull_comp.glsl", "ISM_EMPTY_BITS", "0xFFFFFFFFu"),
+    ("ism_push_comp.glsl", "ISM_EMPTY_BITS", "0xFFFFFFFFu")])
+def test_glsl_constants_match_python(file, name, value):
+    assert f"{name} {value}" in (SHADER_DIR / file).read_text(encoding="utf-8")
