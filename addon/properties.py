@@ -49,6 +49,16 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
         name="Light Paths", default=_DEFAULTS.vpl_count, min=1, max=1 << 16, soft_max=4096,
         description="Light paths traced per frame; each leaves a virtual point light at "
                     "every bounce")
+    vpl_source: bpy.props.EnumProperty(
+        name="VPL Source", default=_DEFAULTS.vpl_source,
+        items=[("paths", "Light Paths", "Trace light paths from every emitter (all bounces)"),
+               ("rsm", "Reflective Shadow Maps",
+                "Render what each light sees and importance-sample VPLs by reflected flux "
+                "(one bounce, lights only)")])
+    rsm_resolution: bpy.props.EnumProperty(
+        name="RSM Resolution", default=str(_DEFAULTS.rsm_resolution),
+        items=[(str(r), f"{r}²", f"{r}×{r} texels per reflective-shadow-map face")
+               for r in (32, 64, 128, 256, 512)])
     termination: bpy.props.EnumProperty(
         name="Path Termination", default=_DEFAULTS.termination,
         items=[("fractional", "Fractional Absorption",
@@ -114,6 +124,7 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
         values = {f.name: getattr(self, f.name) for f in fields(Settings)}
         values["interleave"] = int(values["interleave"])
         values["ism_resolution"] = int(values["ism_resolution"])
+        values["rsm_resolution"] = int(values["rsm_resolution"])
         return Settings(**values).validate()
 
 

@@ -49,6 +49,10 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         col = layout.column(heading="Indirect Light")
         col.prop(settings, "bounces")
         col.prop(settings, "vpl_count")
+        col.prop(settings, "vpl_source")
+        sub = col.column()
+        sub.active = settings.vpl_source == "rsm"
+        sub.prop(settings, "rsm_resolution")
         col.prop(settings, "termination")
         col.prop(settings, "visibility")
         sub = col.column()

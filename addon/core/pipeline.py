@@ -15,6 +15,7 @@ from .gl import GLUnavailableError, ProgramCache, shared_context
 from .ism import ImperfectShadowMaps, atlas_grid
 from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .raytrace import RayTracer
+from .rsm import render_rsm, rsm_light_samples, rsm_vpls
 from .scene import Camera, Scene
 from .settings import Settings
 from .shading import GeometryAwareBlur
@@ -299,8 +300,33 @@ class Renderer:
             return VPLs.empty()
         with stats.timed("ray tracing setup"):
             tracer.upload(geometry.positions.reshape(-1, 3, 3))
+        if settings.vpl_source == "rsm":
+            if settings.bounces == 1:
+                with stats.timed("vpl generation (rsm)"):
+                    return self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
+            stats.warnings.append("reflective shadow maps give one bounce only: VPLs of "
+                                  f"{settings.bounces} bounces come from light paths")
         with stats.timed("vpl generation"):
             return generate_vpls(scene, geometry, settings, tracer, centre, radius)
+
+    def _rsm_vpls(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
+                  centre: np.ndarray, radius: float, stats: Stats) -> VPLs:
+        """First-bounce VPLs from the lights' reflective shadow maps."""
+        if np.any(scene.world.radiance > 0) or np.any(geometry.emission > 0):
+            stats.warnings.append("reflective shadow maps cover lights only: the world and "
+                                  "emissive surfaces add no indirect light with vpl_source rsm")
+        samples = rsm_light_samples(scene, settings)
+        if len(samples) == 0:
+            return VPLs.empty()
+        vbo = self.ctx.buffer(geometry.interleaved().tobytes())
+        try:
+            rows, position, normal, albedo = render_rsm(self.ctx, self.programs, vbo,
+                                                        geometry.vertex_count, samples, centre,
+                                                        radius)
+        finally:
+            vbo.release()
+        return rsm_vpls(rows, position, normal, albedo, samples, radius, settings.vpl_count,
+                        settings.seed)
 
     def _ism_renderer(self, geometry: WorldGeometry, settings: Settings,
                       batches: list[_Batch], stats: Stats):

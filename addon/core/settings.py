@@ -34,6 +34,11 @@ class Settings:
     """Diffuse bounces, as Cycles counts them: 0 = direct light only."""
     vpl_count: int = 1024
     """Light paths started per frame; each leaves a VPL at every bounce it survives."""
+    vpl_source: str = "paths"
+    """Where VPLs come from: 'paths' (light tracing, every bounce) or 'rsm' (reflective
+    shadow maps of the lights, importance-sampled by reflected flux; one bounce only)."""
+    rsm_resolution: int = 128
+    """Texels per edge of each reflective-shadow-map face (vpl_source = 'rsm')."""
     termination: str = "fractional"
     """How light paths end: 'fractional' absorption by the average reflectance (the seed's
     scheme: N paths start, ρ̄N continue, ...) or per-path 'roulette'."""
@@ -89,6 +94,8 @@ class Settings:
         "visibility": ("ism", "classic", "exact"),
         "ism_resolution": (32, 64, 128, 256, 512),
         "interleave": (1, 2, 4, 8),
+        "vpl_source": ("paths", "rsm"),
+        "rsm_resolution": (32, 64, 128, 256, 512),
     }
 
     def validate(self) -> Settings:

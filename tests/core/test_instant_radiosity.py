@@ -19,7 +19,7 @@ import pytest
 
 from addon.core.scene import Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
-from tests.core.builders import icosphere, inside_sphere_camera, light, translation
+from tests.core.builders import icosphere, inside_sphere_camera, light, rotation_x, translation
 
 RADIUS, POWER = 2.0, 100.0
 
@@ -81,3 +81,22 @@ def test_scrambled_halton_is_stratified_and_seeded():
         counts = np.bincount((points[:cells, k] * cells).astype(int), minlength=cells)
         assert counts.min() == counts.max() == 1
     assert not np.allclose(points, scrambled_halton(256, 4, seed=2))
+
+
+@pytest.mark.parametrize("kind", [LightKind.POINT, LightKind.SPOT, LightKind.SUN, LightKind.AREA])
+def test_reflective_shadow_map_vpls_match_light_path_vpls(renderer, kind):
+    """One bounce: VPLs importance-sampled from the lights' reflective shadow maps carry the same
+    indirect light as traced light paths (floor and red wall, exact visibility, no clamp)."""
+    from tests.core.test_interleaved_gather import smooth_scene
+
+    scene = smooth_scene()
+    matrix = translation(0, 1.5, 2.5) if kind is not LightKind.SUN else rotation_x(0.6)
+    scene.lights = [light(kind, matrix, power=300.0 if kind is not LightKind.SUN else 3.0,
+                          spot_size=np.radians(120), size_x=0.5)]
+    common = {"antialiasing": 1, "bounces": 1, "vpl_count": 4096, "clamp_distance": 0.0,
+              "visibility": "exact", "interleave": 1}
+    paths, _ = renderer.render(scene, Settings(vpl_source="paths", **common))
+    rsm, stats = renderer.render(scene, Settings(vpl_source="rsm", **common))
+    assert "vpl generation (rsm)" in stats.timings
+    ratio = rsm.passes["DiffInd"].sum() / paths.passes["DiffInd"].sum()
+    assert ratio == pytest.approx(1.0, abs=0.03)

@@ -1,0 +1,138 @@
+"""Single-bounce VPLs from reflective shadow maps (the seed's GPU route, Dachsbacher & Stamminger
+2005): render position, normal and albedo of what each light sees, give every texel the flux
+it receives (intensity × the texel's solid angle, or irradiance × its area for the sun), and
+importance-sample VPLs by reflected flux. Only lights are covered (not the world or emissive
+surfaces); multi-bounce VPLs come from light paths (core/vpl.py)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import moderngl
+import numpy as np
+
+from .geometry import WorldGeometry
+from .gl import ProgramCache
+from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
+from .scene import Scene, World
+from .settings import Settings
+from .vpl import LUMINANCE, VPLs
+
+GL_CLIP_DISTANCE0 = 0x3000
+
+
+def rsm_light_samples(scene: Scene, settings: Settings) -> LightSamples:
+    """Each light as one point seen from: sphere lights and area lights from their centre (area
+    lights keep their cosine emission), suns without their angle."""
+    lights = [replace(light, radius=0.0, sun_angle=0.0, size_x=0.0, size_y=0.0)
+              for light in scene.lights]
+    plain = Scene([], lights, World(), scene.camera)
+    samples = build_light_samples(plain, WorldGeometry(*(np.zeros((0, 3), np.float32),) * 4),
+                                  replace(settings, light_samples=1), [])
+    samples.resolution = np.full(len(samples), settings.rsm_resolution)
+    samples.casts_shadow = np.ones(len(samples), bool)
+    return samples
+
+
+def _tile_rows(samples: LightSamples, centre: np.ndarray, radius: float) -> np.ndarray:
+    """The tile table (see tiles_lib.glsl) of one tile per cube face or directional light."""
+    rows = []
+    for i in range(len(samples)):
+        directional = samples.kind[i] == KIND_DIRECTIONAL
+        origin = samples.axis[i] if directional else samples.position[i]
+        far = np.linalg.norm(samples.position[i] - centre) + 1.01 * radius
+        for face in ([-1] if directional else range(6)):
+            rows.append((i, face, origin, max(far * 1e-5, radius * 1e-6), far))
+    return rows
+
+
+def _texel_solid_angle(resolution: int) -> np.ndarray:
+    """Solid angle of every texel of a 90° cube face (resolution × resolution)."""
+    c = (np.arange(resolution) + 0.5) / resolution * 2 - 1
+    u, v = np.meshgrid(c, c)
+    return (2.0 / resolution) ** 2 / (1 + u * u + v * v) ** 1.5
+
+
+def render_rsm(ctx: moderngl.Context, programs: ProgramCache, vbo: moderngl.Buffer,
+               vertices: int, samples: LightSamples, centre: np.ndarray, radius: float
+               ) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
+    """Position, normal and albedo images (tiles, res, res, 4) of the lights' views."""
+    res = int(samples.resolution[0]) if len(samples) else 1
+    rows = _tile_rows(samples, centre, radius)
+    columns = int(np.ceil(np.sqrt(len(rows))))
+    table = np.zeros((len(rows), 2, 4), np.float32)
+    for t, (_, face, origin, near, far) in enumerate(rows):
+        table[t, 0] = (*origin, face)
+        table[t, 1] = (near, far, t % columns, t // columns)
+    size = (columns * res, -(-len(rows) // columns) * res)
+    objects = [ctx.texture((2, len(rows)), 4, table.tobytes(), dtype="f4")]
+    targets = [ctx.texture(size, 4, dtype="f4") for _ in range(3)]
+    objects += targets
+    objects.append(ctx.depth_renderbuffer(size))
+    fbo = ctx.framebuffer(targets, objects[-1])
+    objects.append(fbo)
+    try:
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        objects[0].use(0)
+        program = programs.get("rsm_vert.glsl", "rsm_frag.glsl")
+        for name, value in {"u_tiles": 0, "u_atlas_tiles": (columns, size[1] // res),
+                            "u_scene_centre": tuple(centre), "u_scene_radius": radius}.items():
+            if name in program:
+                program[name].value = value
+        vao = ctx.vertex_array(program, [(vbo, "3f 12x 3f 12x", "in_position", "in_albedo")])
+        objects.append(vao)
+        ctx.enable(moderngl.DEPTH_TEST)
+        for plane in range(4):
+            ctx.enable_direct(GL_CLIP_DISTANCE0 + plane)
+        vao.render(moderngl.TRIANGLES, vertices=vertices, instances=len(rows))
+        for plane in range(4):
+            ctx.disable_direct(GL_CLIP_DISTANCE0 + plane)
+        ctx.disable(moderngl.DEPTH_TEST)
+        images = [np.frombuffer(t.read(), np.float32).reshape(size[1] // res, res, columns, res,
+                                                              4).transpose(0, 2, 1, 3, 4)
+                  .reshape(-1, res, res, 4)[:len(rows)] for t in targets]
+    finally:
+        for obj in reversed(objects):
+            obj.release()
+    return rows, *images
+
+
+def rsm_vpls(rows: list, position: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
+             samples: LightSamples, radius: float, count: int, seed: int) -> VPLs:
+    """``count`` first-bounce VPLs importance-sampled from the RSM texels by reflected flux."""
+    res = position.shape[1]
+    solid_angle = _texel_solid_angle(res)
+    flux = np.zeros((*position.shape[:3], 3))
+    for t, (i, face, _, _, _) in enumerate(rows):
+        seen = position[t, ..., 3] > 0
+        if face < 0:
+            flux[t][seen] = samples.intensity[i] * (2 * radius / res) ** 2
+            continue
+        direction = position[t, ..., :3] - samples.position[i]
+        direction /= np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-300)
+        emitted = np.ones(direction.shape[:2])
+        if samples.kind[i] == KIND_COSINE:
+            emitted = np.maximum(direction @ samples.axis[i], 0.0)
+        elif samples.spot_cos[i] > -1:
+            x = direction @ samples.axis[i] - samples.spot_cos[i]
+            x = np.clip(x * samples.spot_smooth[i], 0, 1) if samples.spot_smooth[i] > 0 \
+                else (x > 0).astype(float)
+            emitted = x * x * (3 - 2 * x)
+        intensity = samples.intensity[i] * (emitted * solid_angle)[..., None]
+        flux[t][seen] = intensity[seen]
+    reflected = flux * albedo[..., :3]
+    weight = (reflected @ LUMINANCE).ravel()
+    if weight.sum() <= 0 or count == 0:
+        return VPLs.empty()
+    cdf = np.cumsum(weight) / weight.sum()
+    u = (np.arange(count) + np.random.default_rng(seed).uniform()) / count
+    pick = np.minimum(np.searchsorted(cdf, u, side="right"), len(cdf) - 1)
+    probability = weight[pick] / weight.sum()
+    intensity = _texels(reflected)[pick] / (np.pi * count * probability[:, None])
+    return VPLs(_texels(position)[pick, :3].astype(np.float64), _texels(normal)[pick, :3],
+                intensity, np.ones(count, int))
+
+
+def _texels(image: np.ndarray) -> np.ndarray:
+    return image.reshape(-1, image.shape[-1])
