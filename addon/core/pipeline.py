@@ -15,11 +15,12 @@ from .gl import GLUnavailableError, ProgramCache, shared_context
 from .ism import ImperfectShadowMaps, atlas_grid
 from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .raytrace import RayTracer
-from .rsm import render_rsm, rsm_light_samples, rsm_vpls
+from .rsm import render_rsm, rsm_hits, rsm_light_samples
 from .scene import Camera, Scene
+from .sequences import scrambled_halton
 from .settings import Settings
 from .shading import GeometryAwareBlur
-from .vpl import VPLs, generate_vpls
+from .vpl import VPLs, generate_vpls, propagate
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
 MAX_TILE = 1024  # supersampled pixels per image tile edge
@@ -301,17 +302,14 @@ class Renderer:
         with stats.timed("ray tracing setup"):
             tracer.upload(geometry.positions.reshape(-1, 3, 3))
         if settings.vpl_source == "rsm":
-            if settings.bounces == 1:
-                with stats.timed("vpl generation (rsm)"):
-                    return self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
-            stats.warnings.append("reflective shadow maps give one bounce only: VPLs of "
-                                  f"{settings.bounces} bounces come from light paths")
+            with stats.timed("vpl generation (rsm)"):
+                return self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
         with stats.timed("vpl generation"):
             return generate_vpls(scene, geometry, settings, tracer, centre, radius)
 
     def _rsm_vpls(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
                   centre: np.ndarray, radius: float, stats: Stats) -> VPLs:
-        """First-bounce VPLs from the lights' reflective shadow maps."""
+        """VPLs whose first bounce comes from the lights' reflective shadow maps."""
         if np.any(scene.world.radiance > 0) or np.any(geometry.emission > 0):
             stats.warnings.append("reflective shadow maps cover lights only: the world and "
                                   "emissive surfaces add no indirect light with vpl_source rsm")
@@ -325,8 +323,12 @@ class Renderer:
                                                         radius)
         finally:
             vbo.release()
-        return rsm_vpls(rows, position, normal, albedo, samples, radius, settings.vpl_count,
-                        settings.seed)
+        first = rsm_hits(rows, position, normal, albedo, samples, radius, settings.vpl_count,
+                         settings.seed)
+        directions = scrambled_halton(settings.vpl_count, 2 * max(0, settings.bounces - 1),
+                                      settings.seed)
+        return propagate(first, settings.vpl_count, directions, settings, self.tracer, geometry,
+                         radius)
 
     def _ism_renderer(self, geometry: WorldGeometry, settings: Settings,
                       batches: list[_Batch], stats: Stats):

@@ -1,8 +1,8 @@
-"""Single-bounce VPLs from reflective shadow maps (the seed's GPU route, Dachsbacher & Stamminger
+"""First-bounce VPLs from reflective shadow maps (the seed's GPU route, Dachsbacher & Stamminger
 2005): render position, normal and albedo of what each light sees, give every texel the flux
 it receives (intensity × the texel's solid angle, or irradiance × its area for the sun), and
-importance-sample VPLs by reflected flux. Only lights are covered (not the world or emissive
-surfaces); multi-bounce VPLs come from light paths (core/vpl.py)."""
+importance-sample the first hits by reflected flux. Only lights are covered (not the world or
+emissive surfaces); further bounces continue from these hits as traced paths (core/vpl.py)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from .gl import ProgramCache
 from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .scene import Scene, World
 from .settings import Settings
-from .vpl import LUMINANCE, VPLs
+from .vpl import LUMINANCE, SurfaceHits
 
 GL_CLIP_DISTANCE0 = 0x3000
 
@@ -98,9 +98,11 @@ def render_rsm(ctx: moderngl.Context, programs: ProgramCache, vbo: moderngl.Buff
     return rows, *images
 
 
-def rsm_vpls(rows: list, position: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
-             samples: LightSamples, radius: float, count: int, seed: int) -> VPLs:
-    """``count`` first-bounce VPLs importance-sampled from the RSM texels by reflected flux."""
+def rsm_hits(rows: list, position: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
+             samples: LightSamples, radius: float, count: int, seed: int) -> SurfaceHits:
+    """``count`` first hits importance-sampled from the RSM texels by reflected flux, each
+    carrying flux Φ/(count p); ranks are a random permutation, so continuing paths are not
+    chosen by where they were sampled."""
     res = position.shape[1]
     solid_angle = _texel_solid_angle(res)
     flux = np.zeros((*position.shape[:3], 3))
@@ -121,17 +123,19 @@ def rsm_vpls(rows: list, position: np.ndarray, normal: np.ndarray, albedo: np.nd
             emitted = x * x * (3 - 2 * x)
         intensity = samples.intensity[i] * (emitted * solid_angle)[..., None]
         flux[t][seen] = intensity[seen]
-    reflected = flux * albedo[..., :3]
-    weight = (reflected @ LUMINANCE).ravel()
+    weight = (_texels(flux * albedo[..., :3]) @ LUMINANCE)
+    rng = np.random.default_rng(seed)
     if weight.sum() <= 0 or count == 0:
-        return VPLs.empty()
+        return SurfaceHits(*(np.zeros((0, 3)),) * 4, np.zeros(0, int))
     cdf = np.cumsum(weight) / weight.sum()
-    u = (np.arange(count) + np.random.default_rng(seed).uniform()) / count
+    u = (np.arange(count) + rng.uniform()) / count
     pick = np.minimum(np.searchsorted(cdf, u, side="right"), len(cdf) - 1)
     probability = weight[pick] / weight.sum()
-    intensity = _texels(reflected)[pick] / (np.pi * count * probability[:, None])
-    return VPLs(_texels(position)[pick, :3].astype(np.float64), _texels(normal)[pick, :3],
-                intensity, np.ones(count, int))
+    return SurfaceHits(_texels(position)[pick, :3].astype(np.float64),
+                       _texels(normal)[pick, :3].astype(np.float64),
+                       _texels(albedo)[pick, :3].astype(np.float64),
+                       _texels(flux)[pick] / (count * probability[:, None]),
+                       rng.permutation(count))
 
 
 def _texels(image: np.ndarray) -> np.ndarray:

@@ -236,6 +236,66 @@ def _start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
     return _Paths(origin, direction, flux)
 
 
+@dataclass
+class SurfaceHits:
+    """Where light paths met surfaces: the incident flux there, and each path's rank (paths
+    continue by rank under fractional absorption, so ranks must not depend on the path)."""
+
+    position: np.ndarray  # (m, 3)
+    normal: np.ndarray  # (m, 3) facing the side the light came from
+    albedo: np.ndarray  # (m, 3)
+    flux: np.ndarray  # (m, 3) incident flux carried by the path
+    rank: np.ndarray  # (m,) int in [0, n)
+
+
+def _trace(tracer: RayTracer, geometry: WorldGeometry, origin: np.ndarray,
+           direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float
+           ) -> SurfaceHits:
+    """The surfaces the rays hit (misses dropped), normals turned towards the ray."""
+    hits = tracer.intersect(origin, direction, epsilon, np.inf)
+    hit = hits.triangle >= 0
+    tri = hits.triangle[hit]
+    position = origin[hit] + direction[hit] * hits.distance[hit, None].astype(np.float64)
+    t = geometry.positions.reshape(-1, 3, 3)[tri].astype(np.float64)
+    normal = _unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
+    normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
+    albedo = geometry.albedo.reshape(-1, 3, 3)[tri, 0].astype(np.float64)
+    return SurfaceHits(position, normal, albedo, flux[hit], rank[hit])
+
+
+def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: Settings,
+              tracer: RayTracer, geometry: WorldGeometry, radius: float) -> VPLs:
+    """VPLs at the first hits of ``count`` paths and at every further hit up to
+    ``settings.bounces``; ``directions`` (count, 2 (bounces - 1)) are the unit-square samples
+    of the cosine-distributed reflections, per rank."""
+    rho_bar = float(np.clip(average_reflectance(geometry), 1e-3, 1.0))
+    rng = np.random.default_rng(settings.seed + 1)
+    epsilon = 1e-5 * radius
+    hits, survivors = first, count
+    out: list[tuple[np.ndarray, ...]] = []
+    for generation in range(1, settings.bounces + 1):
+        out.append((hits.position, hits.normal, hits.flux * hits.albedo / np.pi,
+                    np.full(len(hits.rank), generation)))
+        if generation == settings.bounces or len(hits.rank) == 0:
+            break
+        if settings.termination == "fractional":
+            continuing = max(1, round(count * rho_bar**generation))
+            keep = hits.rank < continuing
+            weight = np.full(len(hits.rank), survivors / continuing)
+            survivors = continuing
+        else:
+            q = np.minimum(1.0, hits.albedo.max(axis=1))
+            keep = rng.uniform(size=len(hits.rank)) < q
+            weight = 1.0 / np.maximum(q, 1e-12)
+        k = 2 * (generation - 1)
+        direction = cosine_directions(hits.normal, directions[hits.rank, k:k + 2])
+        flux = hits.flux * hits.albedo * weight[:, None]
+        keep &= np.any(flux > 0, axis=1)
+        hits = _trace(tracer, geometry, (hits.position + hits.normal * epsilon)[keep],
+                      direction[keep], flux[keep], hits.rank[keep], epsilon)
+    return VPLs(*(np.concatenate(c) for c in zip(*out, strict=True)))
+
+
 def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tracer: RayTracer,
                   centre: np.ndarray, radius: float) -> VPLs:
     """Trace ``settings.vpl_count`` light paths for up to ``settings.bounces`` hits each."""
@@ -243,51 +303,9 @@ def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tra
     if settings.bounces == 0 or not emitters or geometry.vertex_count == 0:
         return VPLs.empty()
     n = settings.vpl_count
-    dims = START_DIMENSIONS + 2 * max(0, settings.bounces - 1)
-    u = scrambled_halton(n, dims, settings.seed)
-    rng = np.random.default_rng(settings.seed + 1)
+    u = scrambled_halton(n, START_DIMENSIONS + 2 * max(0, settings.bounces - 1), settings.seed)
     paths = _start_paths(emitters, u[:, :START_DIMENSIONS])
-    rho_bar = float(np.clip(average_reflectance(geometry), 1e-3, 1.0))
-    triangles = geometry.positions.reshape(-1, 3, 3).astype(np.float64)
-    albedo = geometry.albedo.reshape(-1, 3, 3)[:, 0].astype(np.float64)
-    epsilon = 1e-5 * radius
     alive = np.flatnonzero(np.any(paths.flux != 0, axis=1))
-    origin, direction, flux = paths.origin[alive], paths.direction[alive], paths.flux[alive]
-    index = alive  # each live path's index in the QMC sequence
-    survivors = n
-    out: list[tuple[np.ndarray, ...]] = []
-    for generation in range(1, settings.bounces + 1):
-        if len(index) == 0:
-            break
-        hits = tracer.intersect(origin, direction, epsilon, np.inf)
-        hit = hits.triangle >= 0
-        origin, direction, flux, index = origin[hit], direction[hit], flux[hit], index[hit]
-        tri = hits.triangle[hit]
-        position = origin + direction * hits.distance[hit, None].astype(np.float64)
-        t = triangles[tri]
-        normal = _unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
-        normal *= np.where((normal * direction).sum(axis=1) > 0, -1.0, 1.0)[:, None]
-        rho = albedo[tri]
-        out.append((position, normal, flux * rho / np.pi, np.full(len(tri), generation)))
-        if generation == settings.bounces:
-            break
-        if settings.termination == "fractional":
-            continuing = max(1, round(n * rho_bar**generation))
-            keep = index < continuing
-            weight = np.full(len(index), survivors / continuing)
-            survivors = continuing
-        else:
-            q = np.minimum(1.0, rho.max(axis=1))
-            keep = rng.uniform(size=len(index)) < q
-            weight = 1.0 / np.maximum(q, 1e-12)
-        dims_k = START_DIMENSIONS + 2 * (generation - 1)
-        new_direction = cosine_directions(normal, u[index, dims_k:dims_k + 2])
-        flux = flux * rho * weight[:, None]
-        origin = position + normal * epsilon
-        origin, direction, flux, index = origin[keep], new_direction[keep], flux[keep], \
-            index[keep]
-        live = np.any(flux > 0, axis=1)
-        origin, direction, flux, index = origin[live], direction[live], flux[live], index[live]
-    if not out:
-        return VPLs.empty()
-    return VPLs(*(np.concatenate(c) for c in zip(*out, strict=True)))
+    first = _trace(tracer, geometry, paths.origin[alive], paths.direction[alive],
+                   paths.flux[alive], alive, 1e-5 * radius)
+    return propagate(first, n, u[:, START_DIMENSIONS:], settings, tracer, geometry, radius)

@@ -100,3 +100,13 @@ def test_reflective_shadow_map_vpls_match_light_path_vpls(renderer, kind):
     assert "vpl generation (rsm)" in stats.timings
     ratio = rsm.passes["DiffInd"].sum() / paths.passes["DiffInd"].sum()
     assert ratio == pytest.approx(1.0, abs=0.03)
+
+
+@pytest.mark.parametrize("bounces", [1, 3])
+def test_reflective_shadow_map_paths_continue_for_more_bounces(renderer, bounces):
+    """First hits from the point light's reflective shadow map, later bounces traced: the closed
+    sphere's bounce sum again."""
+    rho = 0.5
+    ratio = indirect_ratio(renderer, rho, bounces=bounces, vpl_count=512, clamp_distance=0.0,
+                           visibility="exact", vpl_source="rsm")
+    assert ratio == pytest.approx(rho * sum(rho**k for k in range(bounces)), rel=0.03)
