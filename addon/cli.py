@@ -127,7 +127,9 @@ def add_report_parser(sub: argparse._SubParsersAction) -> None:
     report = sub.add_parser(
         "report", help="error against render time: VPL GI and Cycles against a converged "
                        "Cycles reference (report.json, error_vs_time.png, a table)")
-    report.add_argument("scene", type=Path, help="the .blend file (never modified)")
+    report.add_argument("scene", type=Path,
+                        help="the .blend file (never modified), or an .obj asset: camera, sun "
+                             "and sky are added unless it emits light")
     report.add_argument("-o", "--output", type=Path,
                         help="folder for report.json and error_vs_time.png "
                              "(default: renders/report_SCENE)")
@@ -267,8 +269,8 @@ def check_report_args(args: argparse.Namespace) -> Path:
     """Check the report's input before Blender starts; return the output folder."""
     if not args.scene.is_file():
         raise CliError(f"scene file not found: {args.scene}")
-    if args.scene.suffix.lower() != ".blend":
-        raise CliError(f"not a .blend file: {args.scene}")
+    if args.scene.suffix.lower() not in (".blend", ".obj"):
+        raise CliError(f"not a .blend or .obj file: {args.scene}")
     if not 1 <= args.size <= 8192:
         raise CliError(f"size {args.size} is outside 1..8192")
     if not 1 <= args.reference_samples <= 1 << 24:

@@ -30,6 +30,7 @@ from matplotlib.figure import Figure
 from .core import metrics
 from .core.gl import GLUnavailableError, shared_context
 from .engine import monitor
+from .obj_scene import scene_from_obj
 
 DEFAULT_CACHE = Path(__file__).resolve().parents[1] / ".cache" / "references"
 REFERENCE_SEEDS = (1, 2)
@@ -109,10 +110,14 @@ def cycles_settings(samples: int, bounces: int, seed: int) -> dict[str, object]:
 
 
 def open_scene(path: Path, size: int) -> bpy.types.Scene:
-    """Open ``path`` at size × size pixels, set up to render the Combined pass to a 32-bit EXR."""
+    """Open ``path`` (a .blend, or an .obj asset made into a scene by obj_scene.py) at size ×
+    size pixels, set up to render the Combined pass to a 32-bit EXR."""
     try:
-        bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
-    except RuntimeError as exc:
+        if path.suffix.lower() == ".obj":
+            scene_from_obj(path)
+        else:
+            bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
+    except (RuntimeError, ValueError) as exc:
         raise ReportError(f"cannot open {path}: {str(exc).strip()}") from None
     scene = bpy.context.scene
     if scene.camera is None:

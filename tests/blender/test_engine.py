@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -107,3 +109,23 @@ def test_final_render_writes_an_image(blender, tmp_path):
     image = render_linear(scene, "VPL_GI", tmp_path / "out.exr")
     assert image.shape == (24, 24, 4)
     assert np.isfinite(image).all() and image[..., :3].max() > 0
+
+
+ASSETS = Path(__file__).resolve().parents[3] / "shared" / "assets"
+
+
+@pytest.mark.skipif(not (ASSETS / "cornell-box").is_dir(), reason="shared assets not present")
+@pytest.mark.parametrize("asset, emits", [("cornell-box/CornellBox-Original.obj", True),
+                                          ("sponza/sponza.obj", False)])
+def test_obj_assets_become_diffuse_benchmark_scenes(blender, asset, emits):
+    from addon.obj_scene import scene_from_obj
+
+    scene = scene_from_obj(ASSETS / asset)
+    assert scene.camera is not None
+    assert (scene.world is None) == emits  # a sun and sky only where nothing emits
+    assert any(o.type == "LIGHT" for o in scene.objects) != emits
+    for material in blender.data.materials:
+        bsdf = material.node_tree.nodes.get("Principled BSDF")
+        assert bsdf is None or bsdf.inputs["Specular IOR Level"].default_value == 0.0
+    exported = export_scene(blender.context.evaluated_depsgraph_get())
+    assert sum(i.mesh.triangle_count for i in exported.instances) > 30
