@@ -168,20 +168,12 @@ class Renderer:
         self.ctx = ctx or shared_context()
         self.programs = ProgramCache(self.ctx)
         self.max_texture = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
-        self._tracer: RayTracer | None = None
-        self._blur: GeometryAwareBlur | None = None
-        self._ism: ImperfectShadowMaps | None = None
+        self._helpers: dict[type, RayTracer | ImperfectShadowMaps | GeometryAwareBlur] = {}
 
     def release(self) -> None:
-        if self._ism is not None:
-            self._ism.release()
-            self._ism = None
-        if self._blur is not None:
-            self._blur.release()
-            self._blur = None
-        if self._tracer is not None:
-            self._tracer.release()
-            self._tracer = None
+        for helper in self._helpers.values():
+            helper.release()
+        self._helpers.clear()
         self.programs.release()
 
     # -- one frame ------------------------------------------------------------------------
@@ -212,6 +204,10 @@ class Renderer:
         vpl_batches = (_plan_ism_batches(vpl_samples, settings.ism_resolution) if mode == "ism"
                        else _plan_batches(vpl_samples, self.max_texture))
         area_ism = settings.area_light_ism and samples.kind.size > 0
+        if area_ism and self.ctx.version_code < 430:
+            stats.warnings.append("area lights use cube shadow maps: imperfect shadow maps need "
+                                  "OpenGL 4.3")
+            area_ism = False
         as_ism = (samples.kind == KIND_COSINE) & samples.casts_shadow if area_ism \
             else np.zeros(len(samples), bool)
         direct_ism = _plan_ism_batches(samples.subset(np.flatnonzero(as_ism)),
@@ -357,26 +353,24 @@ class Renderer:
             return cache[id(batch)]
         return render
 
+    def _helper(self, cls):
+        """This context's GPU helper of a class (ray tracer, ISMs, blur), made on first use;
+        the ray tracer and ISMs raise GLUnavailableError without OpenGL 4.3."""
+        if cls not in self._helpers:
+            self._helpers[cls] = cls(self.ctx, self.programs)
+        return self._helpers[cls]
+
     @property
     def ism(self) -> ImperfectShadowMaps:
-        """Imperfect shadow maps (needs OpenGL 4.3), created on first use."""
-        if self._ism is None:
-            self._ism = ImperfectShadowMaps(self.ctx, self.programs)
-        return self._ism
+        return self._helper(ImperfectShadowMaps)
 
     @property
     def blur(self) -> GeometryAwareBlur:
-        """The geometry-aware blur that removes the interleaving pattern, created on use."""
-        if self._blur is None:
-            self._blur = GeometryAwareBlur(self.ctx, self.programs)
-        return self._blur
+        return self._helper(GeometryAwareBlur)
 
     @property
     def tracer(self) -> RayTracer:
-        """The GPU ray tracer, created on first use (needs OpenGL 4.3)."""
-        if self._tracer is None:
-            self._tracer = RayTracer(self.ctx, self.programs)
-        return self._tracer
+        return self._helper(RayTracer)
 
     @staticmethod
     def _compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray],
