@@ -103,10 +103,11 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
         name="Blur Radius", default=_DEFAULTS.blur_radius, min=1, max=32,
         description="Radius in pixels of the geometry-aware blur (used with interleaving)")
 
-    area_light_ism: bpy.props.BoolProperty(
-        name="Area Lights with ISMs", default=_DEFAULTS.area_light_ism,
-        description="Shadow the point samples of area and sphere lights with imperfect shadow "
-                    "maps (faster soft shadows for many samples, slightly less exact)")
+    soft_light_ism: bpy.props.BoolProperty(
+        name="Soft Lights with ISMs", default=_DEFAULTS.soft_light_ism,
+        description="Shadow the samples of area lights, sphere lights, suns with an angle and "
+                    "the world with imperfect shadow maps (faster for many samples, slightly "
+                    "less exact)")
     ism_points: bpy.props.IntProperty(
         name="Points per VPL", default=_DEFAULTS.ism_points, min=16, max=1 << 16,
         soft_max=32768, description="Surface points splatted into each imperfect shadow map")

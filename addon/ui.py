@@ -76,7 +76,7 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         col.prop(settings, "light_samples")
         col.prop(settings, "emission_samples")
         col.prop(settings, "world_samples")
-        col.prop(settings, "area_light_ism")
+        col.prop(settings, "soft_light_ism")
         col = layout.column(heading="Shadows")
         col.prop(settings, "shadow_resolution")
         col.prop(settings, "sample_shadow_resolution")

@@ -48,23 +48,10 @@ float ism_tap(sampler2D atlas, ivec2 origin, int size, ivec2 texel, float receiv
     return receiver <= occluder ? 1.0 : 0.0;
 }
 
-// Fraction of a VPL's light reaching `world`: percentage-closer filtering of the 2x2 texels
-// around it, weighted bilinearly (exactly 1 when all four are lit). The receiver is moved
-// `bias` texels along its geometric normal (turned towards the VPL), and may lie up to `bias`
-// texels behind the stored depth: both are relative to the texel size, so the test does not
-// depend on the scene's scale. Points behind the VPL get 1: its cosine is zero there.
-float ism_visibility(sampler2D atlas, int tile, int columns, float resolution,
-                     vec3 vpl_position, vec3 vpl_normal, vec3 world, vec3 geometric_normal,
-                     float bias) {
-    vec3 map;
-    float distance;
-    if (!ism_project(vpl_position, vpl_normal, world, map, distance)) return 1.0;
-    float texel_size = ism_texel_size(distance, map.z, resolution);
-    vec3 n = faceforward(geometric_normal, world - vpl_position, geometric_normal);
-    vec3 p = world + n * (bias * texel_size);
-    if (!ism_project(vpl_position, vpl_normal, p, map, distance)) return 1.0;
-    float receiver = distance - bias * texel_size;
-
+// Percentage-closer filtering of the 2x2 texels around map position `map` of a tile, weighted
+// bilinearly (exactly 1 when all four are lit).
+float ism_filtered(sampler2D atlas, int tile, int columns, float resolution, vec3 map,
+                   float receiver) {
     int size = int(resolution);
     ivec2 origin = ivec2(tile % columns, tile / columns) * size;
     vec2 q = ism_texel(map, resolution) - 0.5;
@@ -77,5 +64,45 @@ float ism_visibility(sampler2D atlas, int tile, int columns, float resolution,
     float bottom = a + (b - a) * f.x;
     float top = c + (d - c) * f.x;
     return bottom + (top - bottom) * f.y;
+}
+
+// Fraction of a VPL's light reaching `world`. The receiver is moved `bias` texels along its
+// geometric normal (turned towards the VPL), and may lie up to `bias` texels behind the stored
+// depth: both are relative to the texel size, so the test does not depend on the scene's
+// scale. Points behind the VPL get 1: its cosine is zero there.
+float ism_visibility(sampler2D atlas, int tile, int columns, float resolution,
+                     vec3 vpl_position, vec3 vpl_normal, vec3 world, vec3 geometric_normal,
+                     float bias) {
+    vec3 map;
+    float distance;
+    if (!ism_project(vpl_position, vpl_normal, world, map, distance)) return 1.0;
+    float texel_size = ism_texel_size(distance, map.z, resolution);
+    vec3 n = faceforward(geometric_normal, world - vpl_position, geometric_normal);
+    vec3 p = world + n * (bias * texel_size);
+    if (!ism_project(vpl_position, vpl_normal, p, map, distance)) return 1.0;
+    return ism_filtered(atlas, tile, columns, resolution, map, distance - bias * texel_size);
+}
+
+// Directional imperfect shadow maps (sun and world samples): an orthographic map along the
+// direction of travel `axis` over the scene's bounding sphere; depth is measured along the axis
+// from the sphere's front.
+void ism_project_directional(vec3 axis, vec3 centre, float radius, vec3 world, out vec3 map,
+                             out float depth) {
+    vec3 t, b;
+    basis_of(axis, t, b);
+    vec3 v = world - centre;
+    map = vec3(dot(v, t) / radius, dot(v, b) / radius, 1.0);
+    depth = dot(v, axis) + radius;
+}
+
+float ism_visibility_directional(sampler2D atlas, int tile, int columns, float resolution,
+                                 vec3 axis, vec3 centre, float radius, vec3 world,
+                                 vec3 geometric_normal, float bias) {
+    float texel_size = 2.0 * radius / resolution;
+    vec3 n = faceforward(geometric_normal, axis, geometric_normal);
+    vec3 map;
+    float depth;
+    ism_project_directional(axis, centre, radius, world + n * (bias * texel_size), map, depth);
+    return ism_filtered(atlas, tile, columns, resolution, map, depth - bias * texel_size);
 }
 #endif

@@ -15,7 +15,7 @@ layout(local_size_x = 64) in;
 layout(std430, binding = ISM_BINDING_POINTS) readonly buffer IsmPoints { uvec2 ism_points[]; };
 // three per triangle
 layout(std430, binding = ISM_BINDING_VERTICES) readonly buffer IsmVertices { vec4 ism_vertices[]; };
-// (position, normal) per VPL
+// (position, directional flag), (normal or direction of travel) per VPL
 layout(std430, binding = ISM_BINDING_VPLS) readonly buffer IsmVpls { vec4 ism_vpls[]; };
 
 layout(r32ui, binding = 0) uniform uimage2D u_splat;
@@ -27,12 +27,22 @@ uniform int u_resolution;
 uniform float u_point_area;      // surface area each point stands for
 uniform float u_footprint_scale; // footprint side / the side of the point's projected area
 uniform int u_max_footprint;     // largest footprint side, texels
+uniform vec3 u_scene_centre;     // bounding sphere of the scene, for directional maps
+uniform float u_scene_radius;
 
 // A uniform random number in [0, 1) from an integer (PCG hash, Jarzynski & Olano 2020).
 float random01(uint v) {
     uint state = v * 747796405u + 2891336453u;
     uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
     return float((word >> 22u) ^ word) * (1.0 / 4294967296.0);
+}
+
+// A footprint side of `side` texels rounded up or down at random so that the expected area is
+// side², kept within 1 .. u_max_footprint.
+int random_side(float side, uint id) {
+    float low = floor(side);
+    float up = (side * side - low * low) / (2.0 * low + 1.0);  // P(round up): mean area side^2
+    return clamp(int(low) + (random01(id) < up ? 1 : 0), 1, u_max_footprint);
 }
 
 // Side in texels of the square footprint of a point standing for `u_point_area` of a surface
@@ -45,10 +55,9 @@ int footprint(vec3 n, vec3 d, float distance, float cos_normal, uint id) {
     float cos_surface = len_n > 0.0 ? abs(dot(n, d)) / len_n : 0.0;
     float side = u_footprint_scale * sqrt(u_point_area * cos_surface) / distance
         * 0.5 * float(u_resolution) / (1.0 + cos_normal);
-    float low = floor(side);
-    float up = (side * side - low * low) / (2.0 * low + 1.0);  // P(round up): mean area side^2
-    return clamp(int(low) + (random01(id) < up ? 1 : 0), 1, u_max_footprint);
+    return random_side(side, id);
 }
+
 
 // Depth of the texel whose centre is at `uv`: the distance along its ray (in the VPL's frame
 // t, b, n) to the plane through the point with normal `surface`, whose ray at the point's own
@@ -74,18 +83,38 @@ void main() {
     vec3 e2 = ism_vertices[tri + 2].xyz - v0;
     vec3 world = v0 + bary.x * e1 + bary.y * e2;
 
-    vec3 origin = ism_vpls[2 * vpl].xyz;
+    vec4 origin = ism_vpls[2 * vpl];
     vec3 n = ism_vpls[2 * vpl + 1].xyz;
+    vec3 surface = cross(e1, e2);
+    ivec2 tile = ivec2(vpl % u_columns, vpl / u_columns) * u_resolution;
+    if (origin.w > 0.0) {  // directional: orthographic map, the point's depth over its square
+        vec3 map;
+        float depth;
+        ism_project_directional(n, u_scene_centre, u_scene_radius, world, map, depth);
+        float len_s = length(surface);
+        float cos_surface = len_s > 0.0 ? abs(dot(surface, n)) / len_s : 0.0;
+        int side = random_side(u_footprint_scale * sqrt(u_point_area * cos_surface)
+                               * float(u_resolution) / (2.0 * u_scene_radius),
+                               uint(vpl * u_points_per_vpl + i));
+        ivec2 first = ivec2(floor(ism_texel(map, float(u_resolution)) - 0.5 * float(side)
+                                  + 0.5));
+        ivec2 lo = max(first, ivec2(0));
+        ivec2 hi = min(first + side, ivec2(u_resolution));
+        for (int y = lo.y; y < hi.y; ++y) {
+            for (int x = lo.x; x < hi.x; ++x) {
+                imageAtomicMin(u_splat, tile + ivec2(x, y), floatBitsToUint(max(depth, 0.0)));
+            }
+        }
+        return;
+    }
     vec3 map;
     float distance;
-    if (!ism_project(origin, n, world, map, distance)) return;
-    vec3 surface = cross(e1, e2);
-    vec3 d = (world - origin) / distance;
+    if (!ism_project(origin.xyz, n, world, map, distance)) return;
+    vec3 d = (world - origin.xyz) / distance;
     int side = footprint(surface, d, distance, map.z, uint(vpl * u_points_per_vpl + i));
     ivec2 first = ivec2(floor(ism_texel(map, float(u_resolution)) - 0.5 * float(side) + 0.5));
     ivec2 lo = max(first, ivec2(0));
     ivec2 hi = min(first + side, ivec2(u_resolution));
-    ivec2 tile = ivec2(vpl % u_columns, vpl / u_columns) * u_resolution;
     vec3 t, b;
     basis_of(n, t, b);
     float texel_uv = 2.0 / float(u_resolution);

@@ -91,8 +91,14 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
 #elif defined(ISM_VISIBILITY)
 #include "ism_lib.glsl"
 
-// Imperfect shadow map of a VPL: tile `s.tile` of the atlas holds its paraboloid depth map.
+// Imperfect shadow map of a sample: tile `s.tile` of the atlas holds its paraboloid depth map
+// (orthographic for directional samples).
 float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+    if (s.kind == KIND_DIRECTIONAL) {
+        return ism_visibility_directional(u_shadow_atlas, s.tile, u_atlas_columns, s.resolution,
+                                          s.axis, u_scene_centre, u_scene_radius, world,
+                                          geometric_normal, u_ism_bias);
+    }
     return ism_visibility(u_shadow_atlas, s.tile, u_atlas_columns, s.resolution, s.position,
                           s.axis, world, geometric_normal, u_ism_bias);
 }

@@ -161,8 +161,10 @@ def _vertices(triangles: np.ndarray) -> np.ndarray:
     return out
 
 
-def _vpl_data(position: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """(2 n, 4) float32, (position, unit normal) per VPL, at least one row pair."""
+def _vpl_data(position: np.ndarray, normal: np.ndarray,
+              directional: np.ndarray | None = None) -> np.ndarray:
+    """(2 n, 4) float32, (position, directional flag), (unit normal or direction of travel) per
+    VPL, at least one row pair."""
     p = np.asarray(position, np.float64).reshape(-1, 3)
     n = np.asarray(normal, np.float64).reshape(-1, 3)
     if len(p) != len(n):
@@ -171,6 +173,8 @@ def _vpl_data(position: np.ndarray, normal: np.ndarray) -> np.ndarray:
     out = np.zeros((max(1, len(p)), 2, 4), np.float32)
     out[:len(p), 0, :3] = p
     out[:len(p), 1, :3] = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    if directional is not None:
+        out[:len(p), 0, 3] = directional
     return out.reshape(-1, 4)
 
 
@@ -201,6 +205,7 @@ class ImperfectShadowMaps:
         self._splat: moderngl.Texture | None = None
         self._atlas: moderngl.Texture | None = None
         self._levels: list[moderngl.Texture] = []
+        self._scene_sphere: tuple[np.ndarray, float] = (np.zeros(3), 1.0)
 
     # -- point pool ----------------------------------------------------------------------------
 
@@ -228,9 +233,13 @@ class ImperfectShadowMaps:
     # -- per frame -----------------------------------------------------------------------------
 
     def render(self, triangles: np.ndarray, vpl_position: np.ndarray, vpl_normal: np.ndarray,
-               resolution: int, pull_push_levels: int) -> moderngl.Texture:
+               resolution: int, pull_push_levels: int, directional: np.ndarray | None = None,
+               scene_sphere: tuple[np.ndarray, float] = (np.zeros(3), 1.0)) -> moderngl.Texture:
         """The r32f depth atlas of the VPLs (n, 3) with ``resolution``² tiles (VPL k uses point
-        subset k % vpl_count of ``prepare``). ``pull_push_levels`` = 0 keeps the raw splats."""
+        subset k % vpl_count of ``prepare``). ``pull_push_levels`` = 0 keeps the raw splats.
+        Where ``directional`` is true the "VPL" is a direction of travel (``vpl_normal``) and its
+        map is orthographic over ``scene_sphere`` (centre, radius)."""
+        self._scene_sphere = scene_sphere
         if self._pool_key is None:
             raise RuntimeError("call prepare() before render()")
         tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
@@ -242,7 +251,7 @@ class ImperfectShadowMaps:
         vpl_count = len(positions)
         self._allocate(vpl_count, resolution, pull_push_levels)
         self._write(BINDING_VERTICES, _vertices(tris))
-        self._write(BINDING_VPLS, _vpl_data(positions, vpl_normal))
+        self._write(BINDING_VPLS, _vpl_data(positions, vpl_normal, directional))
         self.ctx.finish()
         uploaded = time.perf_counter()
         if self._points_per_vpl and vpl_count:
@@ -373,6 +382,9 @@ class ImperfectShadowMaps:
         shader["u_point_area"] = total_area / self._points_per_vpl
         shader["u_footprint_scale"] = self.footprint_scale
         shader["u_max_footprint"] = max(1, round(self.resolution * self.max_footprint))
+        centre, radius = self._scene_sphere
+        shader["u_scene_centre"] = tuple(float(c) for c in centre)
+        shader["u_scene_radius"] = float(radius)
         shader.run(-(-self._points_per_vpl // POINT_LOCAL_SIZE), vpl_count)
         self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
 

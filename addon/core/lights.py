@@ -36,7 +36,8 @@ class LightSamples:
     casts_shadow: np.ndarray  # (n,) bool
     resolution: np.ndarray  # (n,) int shadow-map edge in texels
     generation: np.ndarray  # (n,) int bounces the light has made (0 = emitted light)
-
+    soft: np.ndarray  # (n,) bool one of many samples of a soft light (area, sphere, sun angle,
+    # world, emission) rather than a light of its own
     def __len__(self) -> int:
         return len(self.kind)
 
@@ -102,7 +103,7 @@ class _Builder:
         self.rows: list[dict] = []
 
     def add(self, *, position, axis, kind, intensity, shadow, resolution,
-            spot_cos=NO_SPOT, spot_smooth=0.0) -> None:
+            spot_cos=NO_SPOT, spot_smooth=0.0, soft=False) -> None:
         position = np.atleast_2d(position)
         n = len(position)
         self.rows.append({
@@ -115,13 +116,14 @@ class _Builder:
             "casts_shadow": np.full(n, shadow),
             "resolution": np.full(n, resolution),
             "generation": np.zeros(n, dtype=int),
+            "soft": np.full(n, soft),
         })
 
     def build(self) -> LightSamples:
         if not self.rows:
             return LightSamples(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int),
                                 np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, bool),
-                                np.zeros(0, int), np.zeros(0, int))
+                                np.zeros(0, int), np.zeros(0, int), np.zeros(0, bool))
         keys = self.rows[0].keys()
         return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
 
@@ -151,7 +153,8 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         normals = fibonacci_sphere(n, rng)
         b.add(position=position + light.radius * normals, axis=normals, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
-              resolution=s.sample_shadow_resolution, spot_cos=spot_cos, spot_smooth=spot_smooth)
+              resolution=s.sample_shadow_resolution, soft=True, spot_cos=spot_cos,
+              spot_smooth=spot_smooth)
     elif light.kind is LightKind.SUN:
         half = 0.5 * min(light.sun_angle, np.pi)
         if half <= 0:
@@ -165,7 +168,7 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), -cos_t], axis=1)
         b.add(position=np.repeat(position[None], n, 0), axis=_normalized(local @ m[:3, :3].T),
               kind=KIND_DIRECTIONAL, intensity=color / n, shadow=light.cast_shadow,
-              resolution=s.sample_shadow_resolution)
+              resolution=s.sample_shadow_resolution, soft=True)
     elif light.kind is LightKind.AREA:
         n = s.light_samples
         u = stratified_square(n, rng)
@@ -173,7 +176,7 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
         b.add(position=local @ m[:3, :3].T + position, axis=travel, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
-              resolution=s.sample_shadow_resolution)
+              resolution=s.sample_shadow_resolution, soft=True)
 
 
 def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator) -> None:
@@ -183,7 +186,8 @@ def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator)
     n = s.world_samples
     sky = fibonacci_sphere(n, rng)
     b.add(position=np.zeros((n, 3)), axis=-sky, kind=KIND_DIRECTIONAL,
-          intensity=radiance * 4 * np.pi / n, shadow=True, resolution=s.sample_shadow_resolution)
+          intensity=radiance * 4 * np.pi / n, shadow=True, resolution=s.sample_shadow_resolution,
+          soft=True)
 
 
 def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
@@ -209,7 +213,7 @@ def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
     probability = power[pick] / power.sum()
     intensity = emission[emitting][pick] * (area[pick] / (n * probability))[:, None]
     b.add(position=points, axis=_normalized(cross[pick]), kind=KIND_COSINE2,
-          intensity=intensity, shadow=True, resolution=s.sample_shadow_resolution)
+          intensity=intensity, shadow=True, resolution=s.sample_shadow_resolution, soft=True)
 
 
 def _light_problem(light: Light) -> str | None:

@@ -203,12 +203,13 @@ class Renderer:
             vpl_samples.casts_shadow[:] = False
         vpl_batches = (_plan_ism_batches(vpl_samples, settings.ism_resolution) if mode == "ism"
                        else _plan_batches(vpl_samples, self.max_texture))
-        area_ism = settings.area_light_ism and samples.kind.size > 0
-        if area_ism and self.ctx.version_code < 430:
-            stats.warnings.append("area lights use cube shadow maps: imperfect shadow maps need "
-                                  "OpenGL 4.3")
-            area_ism = False
-        as_ism = (samples.kind == KIND_COSINE) & samples.casts_shadow if area_ism \
+        soft_ism = settings.soft_light_ism and samples.kind.size > 0
+        if soft_ism and self.ctx.version_code < 430:
+            stats.warnings.append("soft lights use triangle shadow maps: imperfect shadow maps "
+                                  "need OpenGL 4.3")
+            soft_ism = False
+        as_ism = samples.soft & samples.casts_shadow & np.isin(
+            samples.kind, (KIND_COSINE, KIND_DIRECTIONAL)) if soft_ism \
             else np.zeros(len(samples), bool)
         direct_ism = _plan_ism_batches(samples.subset(np.flatnonzero(as_ism)),
                                        settings.ism_resolution)
@@ -226,8 +227,8 @@ class Renderer:
             compensation = _Compensation(settings.clamp_distance * radius, settings.bias_samples,
                                          settings.seed, settings.bounces - 1)
         ism_batches = [p.batch for p in work if p.visibility == "ism"]
-        ism = self._ism_renderer(geometry, settings, ism_batches, stats) if ism_batches \
-            else None
+        ism = self._ism_renderer(geometry, settings, ism_batches, centre, radius, stats) \
+            if ism_batches else None
         stats.counts.update(triangles=geometry.vertex_count // 3, light_samples=len(samples),
                             vpls=len(vpls), shadow_maps=int(sum(
                                 p.batch.samples.tiles_per_sample.sum() for p in work
@@ -327,7 +328,7 @@ class Renderer:
                          radius)
 
     def _ism_renderer(self, geometry: WorldGeometry, settings: Settings,
-                      batches: list[_Batch], stats: Stats):
+                      batches: list[_Batch], centre: np.ndarray, radius: float, stats: Stats):
         """A function rendering one batch's imperfect shadow maps (points sampled once per
         scene and VPL count, reused while the triangle count and settings repeat)."""
         ism = self.ism
@@ -347,7 +348,7 @@ class Renderer:
                 return cache[id(batch)]
             s = batch.samples
             cache[id(batch)] = ism.render(triangles, s.position, s.axis, settings.ism_resolution,
-                                          levels)
+                                          levels, s.kind == KIND_DIRECTIONAL, (centre, radius))
             for stage, seconds in ism.timings.items():
                 stats.timings[f"ism {stage}"] = stats.timings.get(f"ism {stage}", 0) + seconds
             return cache[id(batch)]

@@ -60,9 +60,10 @@ class Settings:
     blur_radius: int = 4
     """Radius in (supersampled) pixels of the geometry-aware blur that removes the interleaving
     pattern; rounded up to a multiple of K/2 so the pattern cancels exactly on flat surfaces."""
-    area_light_ism: bool = False
-    """Shadows of area-light and sphere-light samples from imperfect shadow maps instead of
-    cube maps (the seed's extension to direct light: soft shadows of many point lights)."""
+    soft_light_ism: bool = False
+    """Shadows of the samples of area lights, sphere lights, suns with an angle and the world
+    from imperfect shadow maps instead of triangle shadow maps (the seed's extension to direct
+    light: soft shadows and natural illumination from many point lights)."""
     ism_points: int = 8192
     """Surface points splatted into each VPL's imperfect shadow map."""
     ism_resolution: int = 128

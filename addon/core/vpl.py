@@ -51,7 +51,7 @@ class VPLs:
         n = len(self)
         return LightSamples(self.position, self.normal, np.full(n, KIND_COSINE), self.intensity,
                             np.full(n, NO_SPOT), np.zeros(n), np.ones(n, bool),
-                            np.full(n, shadow_resolution), self.generation)
+                            np.full(n, shadow_resolution), self.generation, np.zeros(n, bool))
 
 
 @dataclass

