@@ -77,6 +77,13 @@ void main() {
     if (i >= u_points_per_vpl) return;
     uvec2 point = ism_points[(vpl % u_subsets) * u_points_per_vpl + i];
     vec2 bary = unpackUnorm2x16(point.y);
+    if (vpl >= u_subsets) {
+        // VPLs beyond the pool reuse a set, moved within its triangles by a per-VPL random
+        // shift on the unit square (folded back into the triangle: still uniform by area).
+        uint key = uint(vpl / u_subsets) * 2654435761u;
+        bary = fract(bary + vec2(random01(key), random01(key ^ 0x9e3779b9u)));
+        if (bary.x + bary.y > 1.0) bary = 1.0 - bary;
+    }
     int tri = int(point.x) * 3;
     vec3 v0 = ism_vertices[tri].xyz;
     vec3 e1 = ism_vertices[tri + 1].xyz - v0;

@@ -236,7 +236,8 @@ class ImperfectShadowMaps:
                resolution: int, pull_push_levels: int, directional: np.ndarray | None = None,
                scene_sphere: tuple[np.ndarray, float] = (np.zeros(3), 1.0)) -> moderngl.Texture:
         """The r32f depth atlas of the VPLs (n, 3) with ``resolution``² tiles (VPL k uses point
-        subset k % vpl_count of ``prepare``). ``pull_push_levels`` = 0 keeps the raw splats.
+        subset k % vpl_count of ``prepare``, shifted within its triangles by a per-VPL random
+        offset when k >= vpl_count). ``pull_push_levels`` = 0 keeps the raw splats.
         Where ``directional`` is true the "VPL" is a direction of travel (``vpl_normal``) and its
         map is orthographic over ``scene_sphere`` (centre, radius)."""
         self._scene_sphere = scene_sphere

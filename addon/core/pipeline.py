@@ -30,8 +30,8 @@ VERTEX_FORMAT = "3f 3f 3f 3f"
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_albedo", "in_emission")
 GL_CLIP_DISTANCE0 = 0x3000
 ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see core/ism.py)
-ISM_POINT_SUBSETS = 512  # distinct point sets; VPL k uses set k % 512 (sampling costs ~0.4 µs
-# a point on the CPU, so a set per VPL would cost seconds at 1024+ VPLs and 8k points each)
+ISM_POINT_SUBSETS = 512  # stratified point sets sampled on the CPU (~0.4 µs a point); VPL k uses
+# set k % 512, moved within its triangles by a per-VPL random shift beyond the first 512
 SURFACE_VERTICES_BINDING, SURFACE_ALBEDO_BINDING = 4, 5  # SSBOs of direct_frag.glsl
 
 

@@ -110,3 +110,10 @@ def test_reflective_shadow_map_paths_continue_for_more_bounces(renderer, bounces
     ratio = indirect_ratio(renderer, rho, bounces=bounces, vpl_count=512, clamp_distance=0.0,
                            visibility="exact", vpl_source="rsm")
     assert ratio == pytest.approx(rho * sum(rho**k for k in range(bounces)), rel=0.03)
+
+
+def test_imperfect_shadow_maps_beyond_the_point_sets(renderer):
+    """1536 VPLs > 512 point sets (later VPLs get shifted sets): still the sphere's bounce."""
+    ratio = indirect_ratio(renderer, 0.5, bounces=1, vpl_count=1536, clamp_distance=0.0,
+                           visibility="ism", interleave=1)
+    assert ratio == pytest.approx(0.5, rel=0.01)
