@@ -2,7 +2,7 @@
 pass per tree level), traversed on the GPU by ``gpu_shaders/raytrace_lib.glsl``.
 
 Use it as a batch query (``RayTracer.intersect`` / ``occluded``) or from another shader: include
-``raytrace_lib.glsl`` in a ``#version 430`` shader, call ``RayTracer.bind()`` before its
+``raytrace_lib.glsl`` in a GLSL 4.30 shader, call ``RayTracer.bind()`` before its
 dispatch or draw, and call ``rt_closest_hit`` / ``rt_occluded``.
 
 Triangles are two-sided. A hit counts when ``t_min < t < t_max`` (open interval), ``t`` being
