@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Light, LightKind, Scene
+from .scene import Instance, Light, LightKind, Material, Scene
 
 DISK_SEGMENTS = 48
 
@@ -44,6 +44,24 @@ def _transform_normals(matrix: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return np.divide(out, length, out=np.zeros_like(out), where=length > 0)
 
 
+MAX_ALBEDO = 1.0  # a diffuse surface cannot reflect more than it receives
+
+
+def _albedo_table(inst: Instance, warnings: list[str]) -> np.ndarray:
+    """Base colours per material slot, capped to [0, MAX_ALBEDO] with one warning per material
+    (Blender allows colours above 1; with them every bounce would add energy)."""
+    materials = inst.materials or [Material("(no material)")]
+    table = np.array([m.base_color for m in materials], dtype=np.float64)
+    table = np.where(np.isfinite(table), table, 0.0)
+    for material, row in zip(materials, table, strict=True):
+        if row.max() > MAX_ALBEDO or row.min() < 0:
+            message = (f"material '{material.name}': base colour {tuple(np.round(row, 3))} "
+                       f"capped to [0, {MAX_ALBEDO:g}] (energy would grow with every bounce)")
+            if message not in warnings:
+                warnings.append(message)
+    return np.clip(table, 0.0, MAX_ALBEDO)
+
+
 def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
     """All instances in world space, with each triangle's material spread to its vertices.
 
@@ -62,10 +80,10 @@ def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
                             f"triangles have NaN/Inf positions and were left out")
             if not finite.any():
                 continue
-        albedo_table = np.array([m.base_color for m in inst.materials] or [(0.8, 0.8, 0.8)],
-                                dtype=np.float64)
+        albedo_table = _albedo_table(inst, warnings)
         emission_table = np.array([m.emission for m in inst.materials] or [(0.0, 0.0, 0.0)],
                                   dtype=np.float64)
+        emission_table = np.where(np.isfinite(emission_table), np.maximum(emission_table, 0), 0)
         slots = np.clip(mesh.material_slots, 0, len(albedo_table) - 1)
         keep = np.repeat(finite, 3)
         per_vertex = np.repeat(slots, 3)[keep]

@@ -26,6 +26,7 @@ BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
 MAX_TILE = 1024  # supersampled pixels per image tile edge
 ATLAS_TEXELS = 1 << 25  # texels per shadow atlas batch (128 MiB of float32)
 MAX_BATCH = 8192  # samples or tiles per batch (rows of a table texture)
+MAX_FRAME_SAMPLES = 1 << 27  # supersampled pixels per frame: the passes alone take 80 B each
 VERTEX_FORMAT = "3f 3f 3f 3f"
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_albedo", "in_emission")
 GL_CLIP_DISTANCE0 = 0x3000
@@ -186,6 +187,12 @@ class Renderer:
             raise RenderError("the scene has no camera")
         if camera.width < 1 or camera.height < 1:
             raise RenderError(f"resolution {camera.width}×{camera.height} is empty")
+        samples_per_frame = camera.width * camera.height * settings.antialiasing**2
+        if samples_per_frame > MAX_FRAME_SAMPLES:
+            raise RenderError(f"{camera.width}×{camera.height} pixels at antialiasing "
+                              f"{settings.antialiasing} is {samples_per_frame:,} samples; the "
+                              f"limit is {MAX_FRAME_SAMPLES:,} (lower the resolution or the "
+                              f"antialiasing)")
         stats = Stats(warnings=list(scene.warnings))
         report = progress or (lambda _f, _m: None)
         check = cancelled or (lambda: False)
@@ -297,7 +304,10 @@ class Renderer:
             stats.warnings.append(f"indirect light skipped: {exc}")
             return VPLs.empty()
         with stats.timed("ray tracing setup"):
-            tracer.upload(geometry.positions.reshape(-1, 3, 3))
+            try:
+                tracer.upload(geometry.positions.reshape(-1, 3, 3))
+            except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
+                raise RenderError(f"indirect light: {exc}") from None
         if settings.vpl_source == "rsm":
             with stats.timed("vpl generation (rsm)"):
                 return self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
@@ -335,7 +345,10 @@ class Renderer:
         triangles = geometry.positions.reshape(-1, 3, 3)
         with stats.timed("ism points"):
             subsets = min(ISM_POINT_SUBSETS, max(len(b.samples) for b in batches))
-            ism.prepare(triangles, subsets, settings.ism_points, settings.seed)
+            try:
+                ism.prepare(triangles, subsets, settings.ism_points, settings.seed)
+            except ValueError as exc:  # the point pool exceeds the GPU's storage-buffer limit
+                raise RenderError(f"imperfect shadow maps: {exc} (lower ism_points)") from None
         levels = min(settings.pull_push_levels, int(np.log2(settings.ism_resolution)))
         stats.counts["isms"] = sum(len(b.samples) for b in batches)
         if geometry.vertex_count == 0:

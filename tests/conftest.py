@@ -1,4 +1,5 @@
-"""Shared fixtures of the core tests: one GL context, program cache and Renderer per session."""
+"""Fixtures shared by the bpy-free test folders (core, stability): one GL context, program cache
+and Renderer per session."""
 
 from __future__ import annotations
 
