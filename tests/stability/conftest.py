@@ -1,5 +1,6 @@
 """The stability suite records every case's measured value; at the end of the session the table
-is written to renders/stability_table.md (the README's table is copied from it; a partial run writes a partial table)."""
+is written to renders/stability_table.md (the README's table is copied from it; a partial run
+writes a partial table)."""
 
 from __future__ import annotations
 
