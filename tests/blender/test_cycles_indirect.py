@@ -66,3 +66,44 @@ def test_visibility_modes_agree_with_exact_visibility(blender, tmp_path, mode, e
     print(f"{mode} vs exact: energy {energy:+.4f} relRMSE {error:.4f}")
     assert abs(energy) < energy_bound
     assert error < error_bound
+
+
+def closed_sphere(bpy, albedo: float) -> None:
+    """A closed diffuse sphere of radius 2 around a 100 W point light and the camera."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=2.0, segments=64, ring_count=32)
+    material = bpy.data.materials.new("Wall")
+    material.use_nodes = True
+    bsdf = material.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (albedo, albedo, albedo, 1.0)
+    bsdf.inputs["Roughness"].default_value = 1.0
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    bpy.context.object.data.materials.append(material)
+    lamp = bpy.data.lights.new("Point", "POINT")
+    lamp.energy, lamp.shadow_soft_size = 100.0, 0.0
+    scene.collection.objects.link(bpy.data.objects.new("Light.Point", lamp))
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.resolution_x = scene.render.resolution_y = 24
+
+
+def test_cycles_and_vpl_gi_both_match_the_closed_sphere_formula(blender, tmp_path):
+    """Inside a closed sphere Combined(D) / Combined(0) = 1 + ρ + … + ρ^D for both engines,
+    which validates the Cycles reference itself (the stiff case of the stability suite)."""
+    albedo, bounces = 0.9, 4
+    expected = sum(albedo**k for k in range(bounces + 1))
+    closed_sphere(blender, albedo)
+    scene = blender.context.scene
+    ratios = {}
+    for engine in ("CYCLES", "VPL_GI"):
+        images = []
+        for d in (0, bounces):
+            configure_cycles(scene, 64, bounces=d)
+            scene.vpl_gi.bounces, scene.vpl_gi.vpl_count = d, 64
+            images.append(render_linear(scene, engine, tmp_path / f"{engine}{d}.exr"))
+        ratios[engine] = images[1][..., :3].mean() / images[0][..., :3].mean()
+    print(f"closed sphere ρ={albedo}, D={bounces}: expected {expected:.4f}, {ratios}")
+    assert ratios["CYCLES"] == pytest.approx(expected, rel=0.01)
+    assert ratios["VPL_GI"] == pytest.approx(expected, rel=0.03)
