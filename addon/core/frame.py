@@ -32,6 +32,7 @@ class Stats:
     timings: dict[str, float] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    skipped: dict[str, str] = field(default_factory=dict)  # stage -> why it was not needed
 
     @contextmanager
     def timed(self, stage: str) -> Iterator[None]:
@@ -45,4 +46,5 @@ class Stats:
         """One line for Blender's stats bar and the CLI."""
         counts = ", ".join(f"{k} {v}" for k, v in self.counts.items())
         times = ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in self.timings.items())
-        return f"{counts} | {times}"
+        skipped = ", ".join(f"{k} ({v})" for k, v in self.skipped.items())
+        return f"{counts} | {times}" + (f" | skipped: {skipped}" if skipped else "")

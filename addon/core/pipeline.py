@@ -106,6 +106,20 @@ def _plan_batches(samples: LightSamples, max_texture: int) -> list[_Batch]:
     return batches
 
 
+def _no_indirect_reason(scene: Scene, geometry: WorldGeometry, settings: Settings) -> str:
+    """Why the scene needs no indirect light, or '' when it does."""
+    if settings.bounces == 0:
+        return "bounces = 0"
+    if geometry.vertex_count == 0:
+        return "no surfaces"
+    if not np.any(geometry.albedo > 0):
+        return "every albedo is 0"
+    lit = any(light.power != 0 and any(c != 0 for c in light.color) for light in scene.lights)
+    if not lit and not np.any(scene.world.radiance > 0) and not np.any(geometry.emission > 0):
+        return "nothing emits light"
+    return ""
+
+
 def _blur_radius(settings: Settings) -> int:
     """The blur radius, rounded up to a multiple of K/2 (0 without interleaving)."""
     k = settings.interleave
@@ -229,6 +243,12 @@ class Renderer:
         work += [_LightPass("indirect light", b, clamp, visibility=mode,
                             interleave=settings.interleave) for b in vpl_batches]
         blur_radius = _blur_radius(settings) if len(vpls) else 0
+        if len(vpls) and not blur_radius:
+            stats.skipped["blur"] = "interleaving off"
+        if not np.any(scene.world.radiance > 0):
+            stats.skipped["world light"] = "black world"
+        if len(vpls) and not settings.bias_compensation:
+            stats.skipped["bias compensation"] = "off"
         compensation = None
         if settings.bias_compensation and len(vpls) and settings.clamp_distance > 0:
             compensation = _Compensation(settings.clamp_distance * radius, settings.bias_samples,
@@ -295,8 +315,10 @@ class Renderer:
 
     def _virtual_point_lights(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
                               centre: np.ndarray, radius: float, stats: Stats) -> VPLs:
-        """Trace light paths for the indirect light (none when bounces = 0)."""
-        if settings.bounces == 0 or geometry.vertex_count == 0:
+        """Trace light paths for the indirect light (none when no bounce can carry light)."""
+        reason = _no_indirect_reason(scene, geometry, settings)
+        if reason:
+            stats.skipped["indirect light"] = reason
             return VPLs.empty()
         try:
             tracer = self.tracer

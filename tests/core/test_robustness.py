@@ -93,3 +93,19 @@ def test_cancel_stops_the_render(renderer):
         renderer.render(floor_scene([light(LightKind.POINT, translation(0, 0, 2))]),
                         Settings(bounces=0),
                         cancelled=lambda: True)
+
+
+@pytest.mark.parametrize("change, reason", [
+    ({"bounces": 0}, "bounces = 0"),
+    ({"albedo": 0.0}, "every albedo is 0"),
+    ({"power": 0.0}, "nothing emits light"),
+])
+def test_indirect_light_is_left_out_when_the_scene_does_not_need_it(renderer, change, reason):
+    power = change.get("power", 10.0)
+    scene = floor_scene([light(LightKind.POINT, translation(0, 0, 2), power=power)],
+                        albedo=change.get("albedo", 0.8))
+    frame, stats = renderer.render(scene, Settings(antialiasing=1,
+                                                   bounces=change.get("bounces", 2)))
+    assert stats.skipped["indirect light"] == reason
+    assert stats.counts["vpls"] == 0 and np.all(frame.passes["DiffInd"] == 0)
+    assert "skipped: indirect light" in stats.summary()
