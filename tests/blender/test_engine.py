@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -129,3 +130,30 @@ def test_obj_assets_become_diffuse_benchmark_scenes(blender, asset, emits):
         assert bsdf is None or bsdf.inputs["Specular IOR Level"].default_value == 0.0
     exported = export_scene(blender.context.evaluated_depsgraph_get())
     assert sum(i.mesh.triangle_count for i in exported.instances) > 30
+
+
+class _Layout:
+    """Records the properties a panel draws (Blender's UILayout is not available headless)."""
+
+    def __init__(self, drawn: list[str]) -> None:
+        self.drawn = drawn
+        self.use_property_split = self.use_property_decorate = self.active = False
+
+    def column(self, **_kwargs) -> _Layout:
+        return self
+
+    def prop(self, data, name: str) -> None:
+        assert hasattr(data, name), name
+        self.drawn.append(name)
+
+
+def test_settings_panel_draws_every_setting(blender):
+    from types import SimpleNamespace
+
+    from addon.core.settings import Settings
+    from addon.ui import RENDER_PT_vpl_gi
+
+    drawn: list[str] = []
+    panel = SimpleNamespace(layout=_Layout(drawn))
+    RENDER_PT_vpl_gi.draw(panel, blender.context)
+    assert sorted(drawn) == sorted(f.name for f in fields(Settings))
