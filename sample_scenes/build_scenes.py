@@ -69,6 +69,7 @@ INTERIOR_BLUE: Color = (0.1, 0.2, 0.6)
 INTERIOR_GREEN: Color = (0.12, 0.45, 0.15)
 INTERIOR_YELLOW: Color = (0.75, 0.6, 0.12)
 INTERIOR_SKY: Color = (0.03, 0.035, 0.04)
+INTERIOR_EXPOSURE = 2.0  # display exposure (stops) of the interior scene
 
 # Lens (36 mm sensor) that makes the Cornell box's front opening, 2 m wide at 2.9 m from the
 # camera, just fill the frame with a thin margin: 18 * 2.9 / 1.05 = 49.7 mm.
@@ -600,7 +601,7 @@ def add_books(
             )
             left += width + 0.002
     for colour, material in materials.items():
-        add_grid_boxes(f"Books.{colour}", boxes[colour], material, 0.05)
+        add_grid_boxes(f"Books.{colour}", boxes[colour], material, 0.1)
 
 
 def build_interior() -> bpy.types.Scene:
@@ -615,6 +616,9 @@ def build_interior() -> bpy.types.Scene:
     with the window behind it, sees only surfaces lit by bounce light besides that patch.
     """
     scene = new_scene(world_color=INTERIOR_SKY)
+    # Bounce light is dim (the room averages ~0.02): brighten the display only. Renders and
+    # saved EXRs stay linear and unscaled; view-transformed images of both engines get it.
+    scene.view_settings.exposure = INTERIOR_EXPOSURE
     wall = make_material("Wall", INTERIOR_WALL)
     floor = make_material("Floor", INTERIOR_FLOOR)
     ceiling = make_material("Ceiling", INTERIOR_CEILING)
@@ -625,7 +629,7 @@ def build_interior() -> bpy.types.Scene:
     yellow = make_material("Yellow", INTERIOR_YELLOW)
 
     # Shell: the outside of the building is x in [-4.9, 3.2], y in [-2.2, 2.2].
-    cell = 0.2
+    cell = 0.14
     outside_x, outside_y = (-4.9, 3.2), (-2.2, 2.2)
     wall_z = (-0.1, 3.1)
     end_y = (-2.1, 2.1)  # end walls reach 0.1 m into the long walls
@@ -651,7 +655,7 @@ def build_interior() -> bpy.types.Scene:
     add_grid_boxes("Wall.Partition", partition, wall, cell)
 
     # Furniture.
-    add_grid_boxes("Rug", [span_box((-0.8, 1.4), (-0.65, 0.85), (0.0, 0.012))], red, 0.05)
+    add_grid_boxes("Rug", [span_box((-0.3, 1.7), (-0.4, 0.9), (0.0, 0.012))], red, 0.05)
 
     table = bmesh.new()
     grid_box(table, (1.4, 0.8, 0.04), (0.0, 0.0, 0.73), 0.04)
@@ -672,7 +676,7 @@ def build_interior() -> bpy.types.Scene:
     shelf += [
         span_box((shelf_x[0] + 0.03, shelf_x[1] - 0.03), shelf_y, (z, z + 0.03)) for z in boards
     ]
-    add_grid_boxes("Bookshelf", shelf, wood, 0.05)
+    add_grid_boxes("Bookshelf", shelf, wood, 0.08)
     book_materials = {"Red": red, "Blue": blue, "Green": green, "Yellow": yellow, "Cream": wall}
     add_books(book_materials, [z + 0.03 for z in boards[:-1]], shelf_x, shelf_y[0] + 0.02)
 
@@ -684,9 +688,9 @@ def build_interior() -> bpy.types.Scene:
         span_box((0.6, 1.5), (1.1, 1.75), (0.38, 0.5)),  # seat cushions
         span_box((1.5, 2.4), (1.1, 1.75), (0.38, 0.5)),
     ]
-    add_grid_boxes("Sofa", sofa, blue, 0.05)
+    add_grid_boxes("Sofa", sofa, blue, 0.06)
 
-    add_sphere("Sphere.Floor", 0.35, (2.1, -0.9, 0.35), yellow, segments=96, rings=48)
+    add_sphere("Sphere.Floor", 0.35, (-0.5, 1.45, 0.35), yellow, segments=64, rings=32)
     add_sphere("Sphere.Table", 0.12, (-1.25, -0.5, 0.87), blue, segments=64, rings=32)
 
     # Light only through the window: a sun 35° high, shining north and a little west.
@@ -699,7 +703,7 @@ def build_interior() -> bpy.types.Scene:
     add_light(
         "Light.Sun", "SUN", (0.4, -6.0, 5.0), 4.0, rotation=direction_rotation(travel), angle=0.0
     )
-    add_camera("Camera", (2.75, -1.75, 1.6), 24.0, target=(-1.2, 0.8, 0.6))
+    add_camera("Camera", (2.75, -1.75, 1.6), 24.0, target=(-1.2, 0.8, 0.35))
     return scene
 
 

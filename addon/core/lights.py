@@ -168,7 +168,7 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), -cos_t], axis=1)
         b.add(position=np.repeat(position[None], n, 0), axis=_normalized(local @ m[:3, :3].T),
               kind=KIND_DIRECTIONAL, intensity=color / n, shadow=light.cast_shadow,
-              resolution=s.sample_shadow_resolution, soft=True)
+              resolution=s.shadow_resolution, soft=True)  # each map spans the whole scene
     elif light.kind is LightKind.AREA:
         n = s.light_samples
         u = stratified_square(n, rng)

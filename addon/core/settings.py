@@ -21,9 +21,10 @@ class Settings:
     world_samples: int = 64
     """Directions the world colour is sampled in, each with its own shadow map."""
     shadow_resolution: int = 1024
-    """Edge in texels of each cube face / directional shadow map of point, spot and sun lights."""
+    """Edge in texels of each cube face / directional shadow map of point, spot and sun lights
+    (each of a sun's angle samples too: its map spans the whole scene)."""
     sample_shadow_resolution: int = 256
-    """Edge in texels of shadow maps of area-light, emission and world samples."""
+    """Edge in texels of shadow maps of area-light, sphere-light, emission and world samples."""
     shadow_bias: float = 1.5
     """Receiver offset along its normal, in shadow-map texels (scale independent)."""
     antialiasing: int = 2
