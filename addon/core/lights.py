@@ -128,7 +128,19 @@ class _Builder:
         return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
 
 
-def _spot_parameters(light: Light) -> tuple[float, float]:
+def spot_mask(cos_to_axis: np.ndarray, spot_cos: float, spot_smooth: float) -> np.ndarray:
+    """Cycles' spot mask (as spot_mask in lights_lib.glsl): a smoothstep of the cosine past the
+    cone edge scaled by spot_smooth, a hard edge when it is 0; 1 without a cone (NO_SPOT)."""
+    cos_to_axis = np.asarray(cos_to_axis, dtype=np.float64)
+    if spot_cos <= -1:
+        return np.ones_like(cos_to_axis)
+    if spot_smooth <= 0:
+        return (cos_to_axis > spot_cos).astype(np.float64)
+    x = np.clip((cos_to_axis - spot_cos) * spot_smooth, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+def spot_parameters(light: Light) -> tuple[float, float]:
     if light.kind is not LightKind.SPOT:
         return NO_SPOT, 0.0
     cos_half = float(np.cos(min(light.spot_size, np.pi) / 2))
@@ -142,7 +154,7 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
     m = light.matrix
     position, travel = m[:3, 3], _normalized(-m[:3, 2])
     if light.kind in (LightKind.POINT, LightKind.SPOT):
-        spot_cos, spot_smooth = _spot_parameters(light)
+        spot_cos, spot_smooth = spot_parameters(light)
         if light.radius <= 0:
             b.add(position=position, axis=travel, kind=KIND_OMNI, intensity=color / (4 * np.pi),
                   shadow=light.cast_shadow, resolution=s.shadow_resolution,

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
+from .atlas import draw_tiles, near_far, tile_table
 from .frame import PASS_CHANNELS, Frame, Stats
 from .geometry import WorldGeometry, bounding_sphere, flatten_instances, light_shapes
 from .gl import GLUnavailableError, ProgramCache, shared_context
@@ -29,7 +30,6 @@ MAX_BATCH = 8192  # samples or tiles per batch (rows of a table texture)
 MAX_FRAME_SAMPLES = 1 << 27  # supersampled pixels per frame: the passes alone take 80 B each
 VERTEX_FORMAT = "3f 3f 3f 3f"
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_albedo", "in_emission")
-GL_CLIP_DISTANCE0 = 0x3000
 ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see core/ism.py)
 ISM_POINT_SUBSETS = 512  # stratified point sets sampled on the CPU (~0.4 µs a point); VPL k uses
 # set k % 512, moved within its triangles by a per-VPL random shift beyond the first 512
@@ -347,12 +347,12 @@ class Renderer:
             return VPLs.empty()
         vbo = self.ctx.buffer(geometry.interleaved().tobytes())
         try:
-            rows, position, normal, albedo = render_rsm(self.ctx, self.programs, vbo,
+            table, position, normal, albedo = render_rsm(self.ctx, self.programs, vbo,
                                                         geometry.vertex_count, samples, centre,
                                                         radius)
         finally:
             vbo.release()
-        first = rsm_hits(rows, position, normal, albedo, samples, radius, settings.vpl_count,
+        first = rsm_hits(table, position, normal, albedo, samples, radius, settings.vpl_count,
                          settings.seed)
         directions = scrambled_halton(settings.vpl_count, 2 * max(0, settings.bounces - 1),
                                       settings.seed)
@@ -551,7 +551,8 @@ class _FrameResources:
         s = batch.samples
         if self.scene_vbo is None or not s.casts_shadow.any():
             return texture
-        tiles = self._tile_table(batch, centre, radius)
+        table = tile_table(s, batch.first_tile, batch.columns, centre, radius)
+        tiles = table.texture(self.ctx)
         keep(tiles)
         tiles.use(0)
         program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl")
@@ -559,42 +560,8 @@ class _FrameResources:
         keep(vao)
         _set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
                       u_scene_centre=tuple(centre), u_scene_radius=radius)
-        self.ctx.enable(moderngl.DEPTH_TEST)
-        self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
-        for plane in range(4):
-            self.ctx.enable_direct(GL_CLIP_DISTANCE0 + plane)
-        vao.render(moderngl.TRIANGLES, vertices=self.scene_vertices, instances=tiles.height)
-        for plane in range(4):
-            self.ctx.disable_direct(GL_CLIP_DISTANCE0 + plane)
-        self.ctx.disable(moderngl.DEPTH_TEST)
+        draw_tiles(self.ctx, vao, self.scene_vertices, len(table.rows))
         return texture
-
-    def _tile_table(self, batch: _Batch, centre: np.ndarray, radius: float
-                    ) -> moderngl.Texture:
-        """Per atlas tile: its light's origin (or axis) and face, clip range and position."""
-        s = batch.samples
-        near, far = self.near_far(s, centre, radius)
-        shadowed = np.flatnonzero(s.casts_shadow)
-        directional = s.kind[shadowed] == KIND_DIRECTIONAL
-        faces = np.where(directional, 1, 6)
-        sample = np.repeat(shadowed, faces)
-        face = np.concatenate([[-1] if d else range(6) for d in directional]).astype(float)
-        tile = np.repeat(batch.first_tile[shadowed], faces) + np.where(face < 0, 0, face)
-        table = np.zeros((len(sample), 2, 4), np.float32)
-        table[:, 0, :3] = np.where(directional.repeat(faces)[:, None], s.axis[sample],
-                                   s.position[sample])
-        table[:, 0, 3] = face
-        table[:, 1, 0], table[:, 1, 1] = near[sample], far[sample]
-        table[:, 1, 2], table[:, 1, 3] = tile % batch.columns, tile // batch.columns
-        return self.ctx.texture((2, len(sample)), 4, table.tobytes(), dtype="f4")
-
-    @staticmethod
-    def near_far(samples: LightSamples, centre: np.ndarray, radius: float
-                 ) -> tuple[np.ndarray, np.ndarray]:
-        """Clip distances of each sample's cube maps, relative to the scene's size."""
-        far = np.linalg.norm(samples.position - centre, axis=1) + radius * 1.01
-        near = np.maximum(far * 1e-5, radius * 1e-6)
-        return near, far
 
     # -- shading --------------------------------------------------------------------------
     def shade(self, light_pass: _LightPass, atlas: moderngl.Texture,
@@ -604,7 +571,7 @@ class _FrameResources:
         ``compensation``, add the light its distance clamp removed instead."""
         batch = light_pass.batch
         s = batch.samples
-        near, far = self.near_far(s, centre, radius)
+        near, far = near_far(s, centre, radius)
         table = s.table(batch.first_tile, near, far)
         light_table = self.ctx.texture((table.shape[1], len(s)), 4, table.tobytes(), dtype="f4")
         textures = self._gbuffer_textures

@@ -11,14 +11,13 @@ from dataclasses import replace
 import moderngl
 import numpy as np
 
+from .atlas import TileTable, draw_tiles, tile_table
 from .geometry import WorldGeometry
 from .gl import ProgramCache
-from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
+from .lights import KIND_COSINE, LightSamples, build_light_samples, spot_mask
 from .scene import Scene, World
 from .settings import Settings
 from .vpl import LUMINANCE, SurfaceHits
-
-GL_CLIP_DISTANCE0 = 0x3000
 
 
 def rsm_light_samples(scene: Scene, settings: Settings) -> LightSamples:
@@ -34,18 +33,6 @@ def rsm_light_samples(scene: Scene, settings: Settings) -> LightSamples:
     return samples
 
 
-def _tile_rows(samples: LightSamples, centre: np.ndarray, radius: float) -> np.ndarray:
-    """The tile table (see tiles_lib.glsl) of one tile per cube face or directional light."""
-    rows = []
-    for i in range(len(samples)):
-        directional = samples.kind[i] == KIND_DIRECTIONAL
-        origin = samples.axis[i] if directional else samples.position[i]
-        far = np.linalg.norm(samples.position[i] - centre) + 1.01 * radius
-        for face in ([-1] if directional else range(6)):
-            rows.append((i, face, origin, max(far * 1e-5, radius * 1e-6), far))
-    return rows
-
-
 def _texel_solid_angle(resolution: int) -> np.ndarray:
     """Solid angle of every texel of a 90° cube face (resolution × resolution)."""
     c = (np.arange(resolution) + 0.5) / resolution * 2 - 1
@@ -55,17 +42,15 @@ def _texel_solid_angle(resolution: int) -> np.ndarray:
 
 def render_rsm(ctx: moderngl.Context, programs: ProgramCache, vbo: moderngl.Buffer,
                vertices: int, samples: LightSamples, centre: np.ndarray, radius: float
-               ) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
-    """Position, normal and albedo images (tiles, res, res, 4) of the lights' views."""
+               ) -> tuple[TileTable, np.ndarray, np.ndarray, np.ndarray]:
+    """The tiles and their position, normal and albedo images (tiles, res, res, 4)."""
     res = int(samples.resolution[0]) if len(samples) else 1
-    rows = _tile_rows(samples, centre, radius)
-    columns = int(np.ceil(np.sqrt(len(rows))))
-    table = np.zeros((len(rows), 2, 4), np.float32)
-    for t, (_, face, origin, near, far) in enumerate(rows):
-        table[t, 0] = (*origin, face)
-        table[t, 1] = (near, far, t % columns, t // columns)
-    size = (columns * res, -(-len(rows) // columns) * res)
-    objects = [ctx.texture((2, len(rows)), 4, table.tobytes(), dtype="f4")]
+    first_tile = np.concatenate([[0], np.cumsum(samples.tiles_per_sample)[:-1]])
+    count = int(samples.tiles_per_sample.sum())
+    columns = int(np.ceil(np.sqrt(count)))
+    table = tile_table(samples, first_tile, columns, centre, radius)
+    size = (columns * res, -(-count // columns) * res)
+    objects = [table.texture(ctx)]
     targets = [ctx.texture(size, 4, dtype="f4") for _ in range(3)]
     objects += targets
     objects.append(ctx.depth_renderbuffer(size))
@@ -82,23 +67,17 @@ def render_rsm(ctx: moderngl.Context, programs: ProgramCache, vbo: moderngl.Buff
                 program[name].value = value
         vao = ctx.vertex_array(program, [(vbo, "3f 12x 3f 12x", "in_position", "in_albedo")])
         objects.append(vao)
-        ctx.enable(moderngl.DEPTH_TEST)
-        for plane in range(4):
-            ctx.enable_direct(GL_CLIP_DISTANCE0 + plane)
-        vao.render(moderngl.TRIANGLES, vertices=vertices, instances=len(rows))
-        for plane in range(4):
-            ctx.disable_direct(GL_CLIP_DISTANCE0 + plane)
-        ctx.disable(moderngl.DEPTH_TEST)
+        draw_tiles(ctx, vao, vertices, count)
         images = [np.frombuffer(t.read(), np.float32).reshape(size[1] // res, res, columns, res,
                                                               4).transpose(0, 2, 1, 3, 4)
-                  .reshape(-1, res, res, 4)[:len(rows)] for t in targets]
+                  .reshape(-1, res, res, 4)[:count] for t in targets]
     finally:
         for obj in reversed(objects):
             obj.release()
-    return rows, *images
+    return table, *images
 
 
-def rsm_hits(rows: list, position: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
+def rsm_hits(table: TileTable, position: np.ndarray, normal: np.ndarray, albedo: np.ndarray,
              samples: LightSamples, radius: float, count: int, seed: int) -> SurfaceHits:
     """``count`` first hits importance-sampled from the RSM texels by reflected flux, each
     carrying flux Φ/(count p); ranks are a random permutation, so continuing paths are not
@@ -106,7 +85,7 @@ def rsm_hits(rows: list, position: np.ndarray, normal: np.ndarray, albedo: np.nd
     res = position.shape[1]
     solid_angle = _texel_solid_angle(res)
     flux = np.zeros((*position.shape[:3], 3))
-    for t, (i, face, _, _, _) in enumerate(rows):
+    for t, (i, face) in enumerate(zip(table.sample, table.face, strict=True)):
         seen = position[t, ..., 3] > 0
         if face < 0:
             flux[t][seen] = samples.intensity[i] * (2 * radius / res) ** 2
@@ -116,11 +95,9 @@ def rsm_hits(rows: list, position: np.ndarray, normal: np.ndarray, albedo: np.nd
         emitted = np.ones(direction.shape[:2])
         if samples.kind[i] == KIND_COSINE:
             emitted = np.maximum(direction @ samples.axis[i], 0.0)
-        elif samples.spot_cos[i] > -1:
-            x = direction @ samples.axis[i] - samples.spot_cos[i]
-            x = np.clip(x * samples.spot_smooth[i], 0, 1) if samples.spot_smooth[i] > 0 \
-                else (x > 0).astype(float)
-            emitted = x * x * (3 - 2 * x)
+        else:
+            emitted = spot_mask(direction @ samples.axis[i], samples.spot_cos[i],
+                                samples.spot_smooth[i])
         intensity = samples.intensity[i] * (emitted * solid_angle)[..., None]
         flux[t][seen] = intensity[seen]
     weight = (_texels(flux * albedo[..., :3]) @ LUMINANCE)

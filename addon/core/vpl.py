@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import WorldGeometry
-from .lights import KIND_COSINE, NO_SPOT, LightSamples, concentric_disk
+from .lights import KIND_COSINE, NO_SPOT, LightSamples, concentric_disk, spot_mask, spot_parameters
 from .raytrace import RayTracer
 from .scene import Light, LightKind, Scene
 from .sequences import scrambled_halton
@@ -124,8 +124,7 @@ def _light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter 
                 return _Paths(np.repeat(position[None], n, 0), uniform_sphere(u[:, 3:5]),
                               np.repeat(color[None], n, 0))
             return _Emitter(color, sample)
-        cos_half = float(np.cos(min(light.spot_size, np.pi) / 2))
-        blend = float(np.clip(light.spot_blend, 0.0, 1.0))
+        cos_half, smooth = spot_parameters(light)
         solid_angle = 2 * np.pi * (1 - cos_half)
 
         def sample_spot(u: np.ndarray) -> _Paths:
@@ -136,9 +135,7 @@ def _light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter 
             t, s = _frame(np.repeat(travel[None], n, 0))
             d = (sin_t * np.cos(phi))[:, None] * t + (sin_t * np.sin(phi))[:, None] * s \
                 + cos_t[:, None] * travel
-            x = np.clip((cos_t - cos_half) / max((1 - cos_half) * blend, 1e-12), 0, 1) \
-                if blend > 0 else np.ones(n)
-            mask = x * x * (3 - 2 * x)
+            mask = spot_mask(cos_t, cos_half, smooth) if smooth > 0 else np.ones(n)
             return _Paths(np.repeat(position[None], n, 0), _unit(d),
                           intensity * solid_angle * mask[:, None])
         return _Emitter(intensity * solid_angle, sample_spot)
