@@ -120,6 +120,27 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
         description="Levels of the pull-push hole filling (log2 of the resolution fills every "
                     "hole; 0 keeps the raw splats)")
 
+    incremental: bpy.props.BoolProperty(
+        name="Reuse VPLs Between Frames", default=_DEFAULTS.incremental,
+        description="Incremental Instant Radiosity: keep the VPLs the lights still reach from "
+                    "the previous frame and make new ones only where needed (smoother "
+                    "animations of moving lights rendered in order; leave off when frames "
+                    "are rendered separately, e.g. on a render farm)")
+    incremental_budget: bpy.props.IntProperty(
+        name="Redistributed per Frame", default=_DEFAULTS.incremental_budget, min=0, max=1024,
+        soft_max=64, description="VPLs per light moved each frame from the most crowded spot "
+                                 "to the emptiest one (invalid VPLs are always replaced)")
+
+    viewport_display: bpy.props.EnumProperty(
+        name="Viewport Display", default="combined",
+        items=[("combined", "Combined", "The full image"),
+               ("direct", "Direct Light", "Direct light and emission only"),
+               ("indirect", "Indirect Light", "Only the light the VPLs bring"),
+               ("vpls", "VPL Positions", "The image with each VPL as a dot coloured by its "
+                                         "bounce (yellow first, then orange, pink, blue)"),
+               ("ism", "ISM Atlas", "The imperfect shadow maps, near as white")],
+        description="What the Rendered viewport shows (final renders are unaffected)")
+
     def to_settings(self) -> Settings:
         """The core Settings for these values (validated)."""
         values = {f.name: getattr(self, f.name) for f in fields(Settings)}

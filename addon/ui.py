@@ -63,6 +63,10 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         sub = col.column()
         sub.active = settings.visibility == "classic"
         sub.prop(settings, "vpl_shadow_resolution")
+        col.prop(settings, "incremental")
+        sub = col.column()
+        sub.active = settings.incremental
+        sub.prop(settings, "incremental_budget")
         col.prop(settings, "interleave")
         sub = col.column()
         sub.active = settings.interleave != "1"
@@ -81,6 +85,8 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         col.prop(settings, "shadow_resolution")
         col.prop(settings, "sample_shadow_resolution")
         col.prop(settings, "shadow_bias")
+        col = layout.column(heading="Viewport")
+        col.prop(settings, "viewport_display")
         col = layout.column(heading="Image")
         col.prop(settings, "antialiasing")
         col.prop(settings, "seed")

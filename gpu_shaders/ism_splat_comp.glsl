@@ -1,7 +1,8 @@
 // Imperfect shadow maps, step 2 (addon/core/ism.py): splat every VPL's own subset of surface
 // points into its paraboloid map. One invocation per (point, VPL): x = the point in the VPL's
-// subset, y = the VPL. The point's position comes from the current triangle vertices, so points
-// follow moved and deformed triangles. Depths are distances (positive floats, whose bits compare
+// subset, y = the VPL, which names its atlas tile (a partial update renders a few tiles). The
+// point's position comes from the current triangle vertices, so points follow moved and
+// deformed triangles. Depths are distances (positive floats, whose bits compare
 // like the floats as uints), kept with imageAtomicMin over a square footprint of texels.
 #include "ism_lib.glsl"
 
@@ -15,7 +16,7 @@ layout(local_size_x = 64) in;
 layout(std430, binding = ISM_BINDING_POINTS) readonly buffer IsmPoints { uvec2 ism_points[]; };
 // three per triangle
 layout(std430, binding = ISM_BINDING_VERTICES) readonly buffer IsmVertices { vec4 ism_vertices[]; };
-// (position, directional flag), (normal or direction of travel) per VPL
+// (position, directional flag), (normal or direction of travel, atlas tile) per VPL
 layout(std430, binding = ISM_BINDING_VPLS) readonly buffer IsmVpls { vec4 ism_vpls[]; };
 
 layout(r32ui, binding = 0) uniform uimage2D u_splat;
@@ -73,8 +74,9 @@ float plane_depth(vec3 t, vec3 b, vec3 n, vec2 uv, vec3 surface, vec3 d, float d
 
 void main() {
     int i = int(gl_GlobalInvocationID.x);
-    int vpl = int(gl_GlobalInvocationID.y);
+    int row = int(gl_GlobalInvocationID.y);  // this dispatch's VPL
     if (i >= u_points_per_vpl) return;
+    int vpl = int(ism_vpls[2 * row + 1].w);  // its atlas tile, which also picks its points
     uvec2 point = ism_points[(vpl % u_subsets) * u_points_per_vpl + i];
     vec2 bary = unpackUnorm2x16(point.y);
     if (vpl >= u_subsets) {
@@ -90,8 +92,8 @@ void main() {
     vec3 e2 = ism_vertices[tri + 2].xyz - v0;
     vec3 world = v0 + bary.x * e1 + bary.y * e2;
 
-    vec4 origin = ism_vpls[2 * vpl];
-    vec3 n = ism_vpls[2 * vpl + 1].xyz;
+    vec4 origin = ism_vpls[2 * row];
+    vec3 n = ism_vpls[2 * row + 1].xyz;
     vec3 surface = cross(e1, e2);
     ivec2 tile = ivec2(vpl % u_columns, vpl / u_columns) * u_resolution;
     if (origin.w > 0.0) {  // directional: orthographic map, the point's depth over its square

@@ -17,9 +17,8 @@ class GLUnavailableError(RuntimeError):
     """No OpenGL 4.1 context, or no OpenGL feature a step needs, is available on this machine."""
 
 
-@cache
-def shared_context() -> moderngl.Context:
-    """One standalone context per process, created on first use (EGL first, then the platform
+def create_context() -> moderngl.Context:
+    """A new standalone context, current in the calling thread (EGL first, then the platform
     default; OpenGL 4.3 where there is one, else 4.1, as on macOS), so Blender's own context is
     never touched."""
     errors = []
@@ -30,6 +29,12 @@ def shared_context() -> moderngl.Context:
             except Exception as exc:  # glcontext raises plain Exceptions per backend
                 errors.append(f"{kwargs.get('backend', 'default')} {require}: {exc}")
     raise GLUnavailableError("could not create an OpenGL 4.1 context (" + "; ".join(errors) + ")")
+
+
+@cache
+def shared_context() -> moderngl.Context:
+    """One standalone context per process for final renders, created on first use."""
+    return create_context()
 
 
 def require_compute(ctx: moderngl.Context) -> None:

@@ -51,6 +51,7 @@ BINDING_VERTICES = 21  # ISM_BINDING_VERTICES in ism_splat_comp.glsl
 BINDING_VPLS = 22  # ISM_BINDING_VPLS in ism_splat_comp.glsl and ism_lookup_comp.glsl
 BINDING_QUERIES = 23  # ISM_BINDING_QUERIES in ism_lookup_comp.glsl
 BINDING_RESULTS = 24  # ISM_BINDING_RESULTS in ism_lookup_comp.glsl
+BINDING_DIRTY = 25  # ISM_PARTIAL in ism_push_comp.glsl: tiles a partial update writes
 POINT_LOCAL_SIZE = 64  # local_size_x of ism_splat_comp.glsl and ism_lookup_comp.glsl
 IMAGE_LOCAL_SIZE = 8  # local_size_x and _y of ism_pull_comp.glsl and ism_push_comp.glsl
 FAR = float(np.float32(3.0e38))  # ISM_FAR in ism_lib.glsl: the depth of texels left empty
@@ -162,9 +163,10 @@ def _vertices(triangles: np.ndarray) -> np.ndarray:
 
 
 def _vpl_data(position: np.ndarray, normal: np.ndarray,
-              directional: np.ndarray | None = None) -> np.ndarray:
-    """(2 n, 4) float32, (position, directional flag), (unit normal or direction of travel) per
-    VPL, at least one row pair."""
+              directional: np.ndarray | None = None, tiles: np.ndarray | None = None
+              ) -> np.ndarray:
+    """(2 n, 4) float32, (position, directional flag), (unit normal or direction of travel,
+    atlas tile: k unless ``tiles`` says otherwise) per VPL, at least one row pair."""
     p = np.asarray(position, np.float64).reshape(-1, 3)
     n = np.asarray(normal, np.float64).reshape(-1, 3)
     if len(p) != len(n):
@@ -175,6 +177,7 @@ def _vpl_data(position: np.ndarray, normal: np.ndarray,
     out[:len(p), 1, :3] = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
     if directional is not None:
         out[:len(p), 0, 3] = directional
+    out[:len(p), 1, 3] = np.arange(len(p)) if tiles is None else tiles
     return out.reshape(-1, 4)
 
 
@@ -210,14 +213,14 @@ class ImperfectShadowMaps:
     # -- point pool ----------------------------------------------------------------------------
 
     def prepare(self, triangles: np.ndarray, vpl_count: int, points_per_vpl: int,
-                seed: int) -> None:
-        """Sample and upload ``vpl_count`` subsets of ``points_per_vpl`` points. Skipped when
-        the triangle count and the arguments repeat: the points follow moved or deformed
-        triangles without a new pre-process."""
+                seed: int) -> bool:
+        """Sample and upload ``vpl_count`` subsets of ``points_per_vpl`` points; False when
+        skipped because the triangle count and the arguments repeat (the points follow moved
+        or deformed triangles without a new pre-process)."""
         count = len(np.asarray(triangles).reshape(-1, 3, 3))
         key = (count, vpl_count, points_per_vpl, seed)
         if key == self._pool_key:
-            return
+            return False
         subsets = max(1, vpl_count)
         packed = pack_points(sample_surface_points(triangles, points_per_vpl, seed, subsets))
         limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
@@ -229,17 +232,23 @@ class ImperfectShadowMaps:
         self._subsets = subsets
         self._triangle_count = count
         self._pool_key = key
+        return True
 
     # -- per frame -----------------------------------------------------------------------------
 
     def render(self, triangles: np.ndarray, vpl_position: np.ndarray, vpl_normal: np.ndarray,
                resolution: int, pull_push_levels: int, directional: np.ndarray | None = None,
-               scene_sphere: tuple[np.ndarray, float] = (np.zeros(3), 1.0)) -> moderngl.Texture:
-        """The r32f depth atlas of the VPLs (n, 3) with ``resolution``² tiles (VPL k uses point
-        subset k % vpl_count of ``prepare``, shifted within its triangles by a per-VPL random
-        offset when k >= vpl_count). ``pull_push_levels`` = 0 keeps the raw splats.
-        Where ``directional`` is true the "VPL" is a direction of travel (``vpl_normal``) and its
-        map is orthographic over ``scene_sphere`` (centre, radius)."""
+               scene_sphere: tuple[np.ndarray, float] = (np.zeros(3), 1.0),
+               tiles: np.ndarray | None = None, tile_count: int = 0) -> moderngl.Texture:
+        """The r32f depth atlas of the VPLs (n, 3) with ``resolution``² tiles (the map in tile
+        k uses point subset k % vpl_count of ``prepare``, shifted within its triangles by a
+        per-tile random offset when k >= vpl_count). ``pull_push_levels`` = 0 keeps the raw
+        splats. Where ``directional`` is true the "VPL" is a direction of travel
+        (``vpl_normal``) and its map is orthographic over ``scene_sphere`` (centre, radius).
+
+        A partial update: with ``tiles``, VPL k is rendered into tile ``tiles[k]`` of an atlas
+        of ``tile_count`` tiles and every other tile keeps what an earlier render with the same
+        layout, resolution and levels left there."""
         self._scene_sphere = scene_sphere
         if self._pool_key is None:
             raise RuntimeError("call prepare() before render()")
@@ -250,19 +259,29 @@ class ImperfectShadowMaps:
         start = time.perf_counter()
         positions = np.asarray(vpl_position, np.float64).reshape(-1, 3)
         vpl_count = len(positions)
-        self._allocate(vpl_count, resolution, pull_push_levels)
+        self._allocate(max(vpl_count, tile_count), resolution, pull_push_levels)
         self._write(BINDING_VERTICES, _vertices(tris))
-        self._write(BINDING_VPLS, _vpl_data(positions, vpl_normal, directional))
+        self._write(BINDING_VPLS, _vpl_data(positions, vpl_normal, directional, tiles))
+        dirty = None
+        if tiles is not None:
+            dirty = np.zeros(self.columns * (self._atlas.height // resolution), np.uint32)
+            dirty[np.asarray(tiles, int)] = 1
+            self._write(BINDING_DIRTY, dirty)
         self.ctx.finish()
         uploaded = time.perf_counter()
         if self._points_per_vpl and vpl_count:
             self._run_splat(vpl_count, triangle_areas(tris).sum())
         self.ctx.finish()
         splatted = time.perf_counter()
-        self._run_pull_push(pull_push_levels)
+        self._run_pull_push(pull_push_levels, partial=dirty is not None)
         self.ctx.finish()
         self.timings = {"upload": uploaded - start, "splat": splatted - uploaded,
                         "pull_push": time.perf_counter() - splatted}
+        return self._atlas
+
+    @property
+    def atlas(self) -> moderngl.Texture | None:
+        """The atlas of the last ``render`` (None before the first)."""
         return self._atlas
 
     def read_atlas(self) -> np.ndarray:
@@ -389,9 +408,10 @@ class ImperfectShadowMaps:
         shader.run(-(-self._points_per_vpl // POINT_LOCAL_SIZE), vpl_count)
         self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
 
-    def _run_pull_push(self, levels: int) -> None:
+    def _run_pull_push(self, levels: int, partial: bool = False) -> None:
         """Pull into each coarser level, push back down to each finer level in place, and
-        last into the atlas (which resets the splat image to empty for the next frame)."""
+        last into the atlas (which resets the splat image to empty for the next frame; only
+        the dirty tiles when ``partial``)."""
         images = [self._splat, *self._levels]
         sizes = level_resolutions(self.resolution, levels)
         for level in range(len(sizes) - 1):
@@ -400,7 +420,9 @@ class ImperfectShadowMaps:
             self._push(images[level], images[level], images[level + 1], sizes[level],
                        sizes[level + 1], -1.0)
         coarse = (images[1], sizes[1]) if len(sizes) > 1 else (self._atlas, 0)
-        self._push(self._splat, self._atlas, coarse[0], sizes[0], coarse[1], FAR)
+        if partial:
+            self._buffers[BINDING_DIRTY].bind_to_storage_buffer(BINDING_DIRTY)
+        self._push(self._splat, self._atlas, coarse[0], sizes[0], coarse[1], FAR, partial)
 
     def _pull(self, level: int, fine: moderngl.Texture, coarse: moderngl.Texture,
               fine_resolution: int, coarse_resolution: int) -> None:
@@ -414,12 +436,16 @@ class ImperfectShadowMaps:
         self._run_image_pass(shader, coarse.size)
 
     def _push(self, fine: moderngl.Texture, target: moderngl.Texture, coarse: moderngl.Texture,
-              resolution: int, coarse_resolution: int, unfilled: float) -> None:
+              resolution: int, coarse_resolution: int, unfilled: float,
+              partial: bool = False) -> None:
         """Fill the empty texels of ``fine`` from ``coarse`` (none if ``coarse_resolution`` is
-        0) into ``target``: ``fine`` itself, or the atlas when ``fine`` is the splat image."""
+        0) into ``target``: ``fine`` itself, or the atlas when ``fine`` is the splat image
+        (only the dirty tiles when ``partial``)."""
         from_splat = fine is self._splat
-        shader = self.programs.compute("ism_push_comp.glsl",
-                                       {"ISM_FINE_SPLAT": 1} if from_splat else None)
+        defines: dict[str, object] = {"ISM_FINE_SPLAT": 1} if from_splat else {}
+        if partial:
+            defines["ISM_PARTIAL"] = BINDING_DIRTY
+        shader = self.programs.compute("ism_push_comp.glsl", defines or None)
         fine.bind_to_image(0, read=True, write=True)
         coarse.bind_to_image(1, read=True, write=False)
         if from_splat:

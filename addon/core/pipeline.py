@@ -3,6 +3,8 @@ light batches, composed into Blender's passes."""
 
 from __future__ import annotations
 
+import pickle
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -13,7 +15,9 @@ from .atlas import draw_tiles, near_far, tile_table
 from .frame import PASS_CHANNELS, Frame, Stats
 from .geometry import WorldGeometry, bounding_sphere, flatten_instances, light_shapes
 from .gl import GLUnavailableError, ProgramCache, shared_context
+from .incremental import IncrementalVPLs
 from .ism import ImperfectShadowMaps, atlas_grid
+from .ism_reuse import ReusedISMAtlas
 from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .raytrace import RayTracer
 from .rsm import render_rsm, rsm_hits, rsm_light_samples
@@ -120,6 +124,14 @@ def _no_indirect_reason(scene: Scene, geometry: WorldGeometry, settings: Setting
     return ""
 
 
+def _vpl_inputs(scene: Scene, settings: Settings) -> bytes:
+    """Everything besides geometry that VPL generation reads, as comparable bytes."""
+    relevant = (settings.vpl_count, settings.bounces, settings.seed, settings.termination,
+                settings.vpl_source, settings.rsm_resolution, settings.incremental,
+                settings.incremental_budget)
+    return pickle.dumps((scene.lights, scene.world, relevant))
+
+
 def _blur_radius(settings: Settings) -> int:
     """The blur radius, rounded up to a multiple of K/2 (0 without interleaving)."""
     k = settings.interleave
@@ -184,12 +196,47 @@ class Renderer:
         self.programs = ProgramCache(self.ctx)
         self.max_texture = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
         self._helpers: dict[type, RayTracer | ImperfectShadowMaps | GeometryAwareBlur] = {}
+        self.incremental = IncrementalVPLs()
+        self._geometry: tuple[np.ndarray, ...] | None = None  # last frame's, to spot changes
+        self._geometry_version = 0
+        self._traced_version = -1  # geometry version the ray tracer holds
+        self._vpl_cache: tuple[tuple, VPLs] | None = None  # (inputs, VPLs) of the last frame
+        self._ism_atlas = ReusedISMAtlas()
 
     def release(self) -> None:
         for helper in self._helpers.values():
             helper.release()
         self._helpers.clear()
         self.programs.release()
+        self.forget_frames()
+
+    def forget_frames(self) -> None:
+        """Drop what is reused between frames (VPLs, uploaded geometry, ISM atlas)."""
+        self.incremental = IncrementalVPLs()
+        self._geometry, self._vpl_cache = None, None
+        self._ism_atlas.forget()
+        self._traced_version = -1
+
+    @property
+    def last_vpls(self) -> VPLs | None:
+        """The VPLs of the last frame that had indirect light (None before)."""
+        return self._vpl_cache[1] if self._vpl_cache is not None else None
+
+    @property
+    def has_ism(self) -> bool:
+        """Whether imperfect shadow maps were rendered (their atlas can be read)."""
+        helper = self._helpers.get(ImperfectShadowMaps)
+        return helper is not None and helper.atlas is not None
+
+    def _note_geometry(self, geometry: WorldGeometry) -> None:
+        """Bump the geometry version when surfaces differ from the last frame's."""
+        arrays = (geometry.positions, geometry.albedo, geometry.emission)
+        same = self._geometry is not None and all(
+            a.shape == b.shape and np.array_equal(a, b)
+            for a, b in zip(self._geometry, arrays, strict=True))
+        if not same:
+            self._geometry = tuple(a.copy() for a in arrays)
+            self._geometry_version += 1
 
     # -- one frame ------------------------------------------------------------------------
     def render(self, scene: Scene, settings: Settings, progress: ProgressCallback | None = None,
@@ -215,6 +262,7 @@ class Renderer:
             geometry = flatten_instances(scene, stats.warnings)
             shapes = light_shapes(scene)
             centre, radius = bounding_sphere(geometry.positions)
+            self._note_geometry(geometry)
         with stats.timed("light samples"):
             samples = build_light_samples(scene, geometry, settings, stats.warnings)
         vpls = self._virtual_point_lights(scene, geometry, settings, centre, radius, stats)
@@ -254,8 +302,9 @@ class Renderer:
             compensation = _Compensation(settings.clamp_distance * radius, settings.bias_samples,
                                          settings.seed, settings.bounces - 1)
         ism_batches = [p.batch for p in work if p.visibility == "ism"]
-        ism = self._ism_renderer(geometry, settings, ism_batches, centre, radius, stats) \
-            if ism_batches else None
+        keyed = vpl_batches[0] if mode == "ism" and len(vpl_batches) == 1 else None
+        ism = self._ism_renderer(geometry, settings, ism_batches, centre, radius, stats, keyed,
+                                 vpls.key) if ism_batches else None
         stats.counts.update(triangles=geometry.vertex_count // 3, light_samples=len(samples),
                             vpls=len(vpls), shadow_maps=int(sum(
                                 p.batch.samples.tiles_per_sample.sum() for p in work
@@ -320,21 +369,40 @@ class Renderer:
         if reason:
             stats.skipped["indirect light"] = reason
             return VPLs.empty()
+        inputs = (self._geometry_version, _vpl_inputs(scene, settings))
+        if self._vpl_cache is not None and self._vpl_cache[0] == inputs:
+            stats.skipped["vpl generation"] = "lights, world, geometry and settings unchanged"
+            stats.skipped["ray tracing setup"] = "no rays to trace: the VPLs are reused"
+            return self._vpl_cache[1]
         try:
             tracer = self.tracer
         except GLUnavailableError as exc:
             stats.warnings.append(f"indirect light skipped: {exc}")
             return VPLs.empty()
-        with stats.timed("ray tracing setup"):
-            try:
-                tracer.upload(geometry.positions.reshape(-1, 3, 3))
-            except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
-                raise RenderError(f"indirect light: {exc}") from None
+        if self._traced_version != self._geometry_version:
+            with stats.timed("ray tracing setup"):
+                try:
+                    tracer.upload(geometry.positions.reshape(-1, 3, 3))
+                except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
+                    raise RenderError(f"indirect light: {exc}") from None
+            self._traced_version = self._geometry_version
+        else:
+            stats.skipped["ray tracing setup"] = "geometry unchanged"
         if settings.vpl_source == "rsm":
             with stats.timed("vpl generation (rsm)"):
-                return self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
-        with stats.timed("vpl generation"):
-            return generate_vpls(scene, geometry, settings, tracer, centre, radius)
+                vpls = self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
+        elif settings.incremental:
+            with stats.timed("vpl generation (incremental)"):
+                vpls = self.incremental.update(scene, geometry, settings, tracer, centre, radius)
+            s = self.incremental.stats
+            stats.counts.update(vpls_new=s.new_vpls, vpls_reused=s.reused_vpls,
+                                anchors_invalid=s.invalid, anchors_created=s.created,
+                                anchors_redistributed=s.redistributed)
+        else:
+            with stats.timed("vpl generation"):
+                vpls = generate_vpls(scene, geometry, settings, tracer, centre, radius)
+        self._vpl_cache = (inputs, vpls)
+        return vpls
 
     def _rsm_vpls(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
                   centre: np.ndarray, radius: float, stats: Stats) -> VPLs:
@@ -360,33 +428,58 @@ class Renderer:
                          radius)
 
     def _ism_renderer(self, geometry: WorldGeometry, settings: Settings,
-                      batches: list[_Batch], centre: np.ndarray, radius: float, stats: Stats):
+                      batches: list[_Batch], centre: np.ndarray, radius: float, stats: Stats,
+                      keyed_batch: _Batch | None, keys: np.ndarray | None):
         """A function rendering one batch's imperfect shadow maps (points sampled once per
-        scene and VPL count, reused while the triangle count and settings repeat)."""
+        scene and VPL count, reused while the triangle count and settings repeat). With a
+        single batch the atlas is kept between frames: ``keys`` identify the VPLs of
+        ``keyed_batch``, and only maps of VPLs with new keys are rendered."""
         ism = self.ism
         triangles = geometry.positions.reshape(-1, 3, 3)
-        with stats.timed("ism points"):
-            subsets = min(ISM_POINT_SUBSETS, max(len(b.samples) for b in batches))
-            try:
-                ism.prepare(triangles, subsets, settings.ism_points, settings.seed)
-            except ValueError as exc:  # the point pool exceeds the GPU's storage-buffer limit
-                raise RenderError(f"imperfect shadow maps: {exc} (lower ism_points)") from None
+        subsets = min(ISM_POINT_SUBSETS, max(len(b.samples) for b in batches))
+        start = time.perf_counter()
+        try:
+            sampled = ism.prepare(triangles, subsets, settings.ism_points, settings.seed)
+        except ValueError as exc:  # the point pool exceeds the GPU's storage-buffer limit
+            raise RenderError(f"imperfect shadow maps: {exc} (lower ism_points)") from None
+        if sampled:
+            stats.timings["ism points"] = time.perf_counter() - start
+        else:
+            stats.skipped["ism points"] = "triangle count and point settings unchanged"
         levels = min(settings.pull_push_levels, int(np.log2(settings.ism_resolution)))
         stats.counts["isms"] = sum(len(b.samples) for b in batches)
         if geometry.vertex_count == 0:
             return lambda batch: ism.render(triangles, np.zeros((0, 3)), np.zeros((0, 3)),
                                             settings.ism_resolution, levels)
         cache: dict[int, moderngl.Texture] = {}
+        settings_key = (self._geometry_version, settings.ism_points, settings.ism_resolution,
+                        levels, settings.seed)
+        max_tiles = max(1, min(MAX_BATCH, ATLAS_TEXELS // settings.ism_resolution**2))
 
         def render(batch: _Batch) -> moderngl.Texture:
-            if len(batches) == 1 and id(batch) in cache:
+            if id(batch) in cache:
                 return cache[id(batch)]
             s = batch.samples
-            cache[id(batch)] = ism.render(triangles, s.position, s.axis, settings.ism_resolution,
-                                          levels, s.kind == KIND_DIRECTIONAL, (centre, radius))
+            if len(batches) > 1:  # several atlases per frame: nothing is kept between frames
+                self._ism_atlas.forget()
+                texture = ism.render(triangles, s.position, s.axis, settings.ism_resolution,
+                                     levels, s.kind == KIND_DIRECTIONAL, (centre, radius))
+                rendered = len(s)
+            else:
+                use = self._ism_atlas.render(ism, triangles, s,
+                                             keys if batch is keyed_batch else None,
+                                             settings_key, settings.ism_resolution, levels,
+                                             (centre, radius), max_tiles)
+                texture, rendered = use.texture, use.rendered
+                batch.first_tile, batch.columns, batch.rows = use.tiles, use.columns, use.rows
+                cache[id(batch)] = texture
+            stats.counts["isms_rendered"] = stats.counts.get("isms_rendered", 0) + rendered
+            if rendered == 0:
+                stats.skipped["ism"] = "VPLs and geometry unchanged since the last frame"
+                return texture
             for stage, seconds in ism.timings.items():
                 stats.timings[f"ism {stage}"] = stats.timings.get(f"ism {stage}", 0) + seconds
-            return cache[id(batch)]
+            return texture
         return render
 
     def _helper(self, cls):

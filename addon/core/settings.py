@@ -69,6 +69,14 @@ class Settings:
     """Surface points splatted into each VPL's imperfect shadow map."""
     ism_resolution: int = 128
     """Texels per edge of each imperfect shadow map (paraboloid, one per VPL)."""
+    incremental: bool = False
+    """Incremental Instant Radiosity: reuse last frame's VPLs (and their shadow maps) where the
+    lights still reach them; only invalid ones and a few redistributed ones are new. For
+    animations rendered in order in one process and the viewport; off, every frame is made
+    afresh (the same image whichever machine renders the frame)."""
+    incremental_budget: int = 8
+    """VPLs per light moved per frame from the most crowded place to the emptiest one
+    (beyond replacing invalid VPLs, which always happens at once)."""
     pull_push_levels: int = 7
     """Pull-push levels that fill the holes between splatted points (capped at
     log2(ism_resolution), which fills every hole)."""
@@ -90,6 +98,7 @@ class Settings:
         "blur_radius": (1, 32),
         "ism_points": (16, 1 << 16),
         "pull_push_levels": (0, 12),
+        "incremental_budget": (0, 1024),
     }
     _CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "termination": ("fractional", "roulette"),

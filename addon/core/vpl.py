@@ -39,13 +39,17 @@ class VPLs:
     normal: np.ndarray  # (n, 3) unit, facing the side the light arrived from
     intensity: np.ndarray  # (n, 3) peak radiant intensity, W/sr
     generation: np.ndarray  # (n,) int, the bounce a VPL's light has made (1 = first hit)
+    rank: np.ndarray  # (n,) int, the rank of the light path that left it
+    key: np.ndarray | None = None  # (n,) int64 identity kept while the VPL holds still
+    # (Incremental Instant Radiosity); None when VPLs are made afresh every frame
 
     def __len__(self) -> int:
         return len(self.generation)
 
     @classmethod
     def empty(cls) -> VPLs:
-        return cls(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int))
+        return cls(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int),
+                   np.zeros(0, int))
 
     def as_light_samples(self, shadow_resolution: int) -> LightSamples:
         n = len(self)
@@ -112,7 +116,7 @@ class _Emitter:
         self.sample = sample  # (u (n, 5) in [0,1)) -> (_Paths with flux per unit path)
 
 
-def _light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
+def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
     color = np.asarray(light.color, dtype=np.float64) * light.power
     m = light.matrix
     position, travel = m[:3, 3], _unit(-m[:3, 2][None])[0]
@@ -207,13 +211,20 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
 
 def _emitters(scene: Scene, geometry: WorldGeometry, centre: np.ndarray, radius: float
               ) -> list[_Emitter]:
-    found = [_light_emitter(light, centre, radius) for light in scene.lights
+    found = [light_emitter(light, centre, radius) for light in scene.lights
              if light.power != 0 and np.isfinite(light.matrix).all()]
-    found += [_world_emitter(scene, centre, radius), _emission_emitter(geometry)]
+    return [e for e in found if e is not None and e.power > 0] + environment_emitters(
+        scene, geometry, centre, radius)
+
+
+def environment_emitters(scene: Scene, geometry: WorldGeometry, centre: np.ndarray,
+                         radius: float) -> list[_Emitter]:
+    """The emitters that are not lights: the world and the emissive surfaces (with power)."""
+    found = [_world_emitter(scene, centre, radius), _emission_emitter(geometry)]
     return [e for e in found if e is not None and e.power > 0]
 
 
-def _start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
+def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
     """Choose an emitter per path by flux (first dimension, remapped), then sample it."""
     power = np.array([e.power for e in emitters])
     probability = power / power.sum()
@@ -245,7 +256,7 @@ class SurfaceHits:
     rank: np.ndarray  # (m,) int in [0, n)
 
 
-def _trace(tracer: RayTracer, geometry: WorldGeometry, origin: np.ndarray,
+def trace_hits(tracer: RayTracer, geometry: WorldGeometry, origin: np.ndarray,
            direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float
            ) -> SurfaceHits:
     """The surfaces the rays hit (misses dropped), normals turned towards the ray."""
@@ -266,13 +277,13 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
     ``settings.bounces``; ``directions`` (count, 2 (bounces - 1)) are the unit-square samples
     of the cosine-distributed reflections, per rank."""
     rho_bar = float(np.clip(average_reflectance(geometry), 1e-3, 1.0))
-    rng = np.random.default_rng(settings.seed + 1)
+    roulette = np.random.default_rng(settings.seed + 1).uniform(size=(count, settings.bounces))
     epsilon = 1e-5 * radius
     hits, survivors = first, count
     out: list[tuple[np.ndarray, ...]] = []
     for generation in range(1, settings.bounces + 1):
         out.append((hits.position, hits.normal, hits.flux * hits.albedo / np.pi,
-                    np.full(len(hits.rank), generation)))
+                    np.full(len(hits.rank), generation), hits.rank))
         if generation == settings.bounces or len(hits.rank) == 0:
             break
         if settings.termination == "fractional":
@@ -282,14 +293,16 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
             survivors = continuing
         else:
             q = np.minimum(1.0, hits.albedo.max(axis=1))
-            keep = rng.uniform(size=len(hits.rank)) < q
+            keep = roulette[hits.rank, generation] < q
             weight = 1.0 / np.maximum(q, 1e-12)
         k = 2 * (generation - 1)
         direction = cosine_directions(hits.normal, directions[hits.rank, k:k + 2])
         flux = hits.flux * hits.albedo * weight[:, None]
         keep &= np.any(flux > 0, axis=1)
-        hits = _trace(tracer, geometry, (hits.position + hits.normal * epsilon)[keep],
+        hits = trace_hits(tracer, geometry, (hits.position + hits.normal * epsilon)[keep],
                       direction[keep], flux[keep], hits.rank[keep], epsilon)
+    if not out:
+        return VPLs.empty()
     return VPLs(*(np.concatenate(c) for c in zip(*out, strict=True)))
 
 
@@ -301,8 +314,8 @@ def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tra
         return VPLs.empty()
     n = settings.vpl_count
     u = scrambled_halton(n, START_DIMENSIONS + 2 * max(0, settings.bounces - 1), settings.seed)
-    paths = _start_paths(emitters, u[:, :START_DIMENSIONS])
+    paths = start_paths(emitters, u[:, :START_DIMENSIONS])
     alive = np.flatnonzero(np.any(paths.flux != 0, axis=1))
-    first = _trace(tracer, geometry, paths.origin[alive], paths.direction[alive],
+    first = trace_hits(tracer, geometry, paths.origin[alive], paths.direction[alive],
                    paths.flux[alive], alive, 1e-5 * radius)
     return propagate(first, n, u[:, START_DIMENSIONS:], settings, tracer, geometry, radius)

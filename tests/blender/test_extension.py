@@ -68,7 +68,7 @@ def test_zip_is_valid_and_holds_linux_wheels(extension_zip: Path) -> None:
     with zipfile.ZipFile(extension_zip) as archive:
         names = archive.namelist()
     wheels = [n for n in names if n.endswith(".whl")]
-    for package in ("moderngl", "glcontext", "xatlas"):
+    for package in ("moderngl", "glcontext", "xatlas", "scipy"):
         for python in ("cp311", "cp313"):
             assert any(
                 n.startswith(f"wheels/{package}-") and f"-{python}-{python}-" in n for n in wheels
@@ -125,7 +125,7 @@ sys.meta_path.insert(0, HideDevVenv)
 import bpy  # noqa: E402
 
 result = {"errors": []}
-preloaded = sorted({"moderngl", "glcontext", "xatlas"} & set(sys.modules))
+preloaded = sorted({"moderngl", "glcontext", "xatlas", "scipy"} & set(sys.modules))
 result["preloaded"] = preloaded
 result["extensions_dir"] = bpy.utils.user_resource("EXTENSIONS")
 
@@ -148,7 +148,7 @@ except TypeError as exc:
     result["engine_enum_error"] = str(exc)
 
 modules = {}
-for name in ("moderngl", "glcontext", "xatlas"):
+for name in ("moderngl", "glcontext", "xatlas", "scipy"):
     try:
         module = __import__(name)
         modules[name] = module.__file__

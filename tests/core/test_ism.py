@@ -219,6 +219,34 @@ def test_points_follow_moved_triangles_and_depth_scales(maps):
     np.testing.assert_allclose(maps.read_atlas(), np.minimum(base * 1000, ism.FAR), rtol=1e-4)
 
 
+def test_partial_update_equals_a_full_render(maps):
+    """Re-rendering two tiles of eight (their VPLs moved) gives the atlas a full render of the
+    new set gives, bit for bit, and leaves the other six tiles alone."""
+    tris = occluder_scene()
+    rng = np.random.default_rng(4)
+    positions = np.column_stack([rng.uniform(-0.8, 0.8, (8, 2)), np.full(8, 0.05)])
+    normals = np.tile([0.0, 0.0, 1.0], (8, 1))
+    maps.prepare(tris, 8, 1024, seed=3)
+    maps.render(tris, positions, normals, 32, 5)
+    before = maps.read_atlas()
+    moved = positions.copy()
+    moved[[2, 5]] += [0.3, -0.2, 0.0]
+    maps.render(tris, moved[[2, 5]], normals[[2, 5]], 32, 5, tiles=np.array([2, 5]),
+                tile_count=8)
+    partial = maps.read_atlas()
+    maps.render(tris, moved, normals, 32, 5)
+    np.testing.assert_array_equal(partial, maps.read_atlas())
+    changed = [not np.array_equal(tile_of(partial, k, 32, maps.columns),
+                                  tile_of(before, k, 32, maps.columns)) for k in range(8)]
+    assert changed == [k in (2, 5) for k in range(8)]
+
+
+def tile_of(atlas: np.ndarray, k: int, resolution: int, columns: int) -> np.ndarray:
+    row, column = divmod(k, columns)
+    return atlas[row * resolution:(row + 1) * resolution,
+                 column * resolution:(column + 1) * resolution]
+
+
 def test_empty_scene_and_vpl_facing_nothing_are_all_lit(maps):
     lights = np.array([[0.0, 0.0, 0.5], [0.0, 0.0, 0.5]])
     normals = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])  # the second faces the empty sky

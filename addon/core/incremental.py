@@ -1,0 +1,521 @@
+"""Incremental Instant Radiosity (Laine et al. 2007; the seed's "Incremental Instant Radiosity"
+and "How To Reuse VPLs"): VPLs that survive from frame to frame while lights move.
+
+Each light keeps *anchors*: points of its 2D emission domain (``LightDomain``) with the surface
+point their path first hit. Every frame, per light:
+
+1. Invalid anchors are deleted: their hit is now behind the light (outside a spot's cone, behind
+   an area light or the surface faces away) or hidden from it (a ray from the light is blocked).
+   Anchors whose path missed the scene keep their domain point and are traced again.
+2. The survivors are reprojected into the domain from the light's new pose.
+3. Missing anchors are created at once (so illumination never lags behind the light), greedily
+   at the point farthest from all others: the largest empty circle, whose centre is a vertex of
+   the Voronoi diagram (a circumcentre of the Delaunay triangulation; on the sphere, of the
+   convex hull of the unit vectors), or a point of a dense uniform candidate set (which covers
+   the domain's border). Then, up to ``incremental_budget`` times, the worst anchor (an end of
+   the shortest Delaunay edge) moves to the best spot while that widens the closest spacing.
+4. Each anchor's path carries the light's flux through its Voronoi cell (the integral of the
+   light's flux density over the cell, by a deterministic uniform quadrature of the domain), so
+   an uneven set still integrates the light exactly.
+
+Domains: point and spot lights use unit directions in the light's frame (the whole sphere, or
+the spot's cone cap); area lights the unit disc of the Nusselt analog (uniform on the disc =
+cosine-distributed directions), each anchor with its own fixed point on the light's shape;
+suns a disc across the scene's bounding sphere, perpendicular to the light (parallel rays; the
+sun's angular size is ignored for the VPLs). World and emissive surfaces do not move with
+lights: their paths are the same seeded paths every frame (traced again only when geometry
+changes).
+
+Continuing bounces are traced from each anchor's hit with the direction samples of the path's
+rank (a fixed random permutation of its slot), so a surviving anchor keeps its whole path and
+each VPL keeps its identity (``VPLs.key``) while its geometry holds still: shadow maps are
+needed only for VPLs with new keys.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
+
+from .geometry import WorldGeometry
+from .lights import concentric_disk, spot_mask, spot_parameters
+from .raytrace import RayTracer
+from .scene import Light, LightKind, Scene
+from .sequences import scrambled_halton
+from .settings import Settings
+from .vpl import (
+    START_DIMENSIONS,
+    SurfaceHits,
+    VPLs,
+    environment_emitters,
+    light_emitter,
+    propagate,
+    start_paths,
+    trace_hits,
+)
+
+QUADRATURE_PER_ANCHOR = 128  # quadrature points per anchor for the Voronoi cell integrals
+MAX_QUADRATURE = 1 << 18
+CANDIDATES_PER_ANCHOR = 8  # uniform candidate points per anchor for the best spot
+GENERATION_STRIDE = 128  # VPL key = path id * stride + generation (bounces <= 64)
+GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
+
+
+@dataclass
+class LightDomain:
+    """The 2D domain a light's paths start from, in the light's current pose.
+
+    ``kind`` is "sphere" (unit 3-vectors: directions in the light's frame, restricted to a cap
+    of half-angle acos(cos_half) around -Z for spots), "disc" (2-vectors in the unit disc: the
+    Nusselt projection of directions around -Z; area lights) or "parallel" (2-vectors in the
+    unit disc: ray origins across the scene's bounding sphere; suns). ``density`` is the RGB
+    flux per unit of the domain's measure (W/sr for spheres, W per unit disc area otherwise)."""
+
+    kind: str
+    light: Light
+    origin: np.ndarray  # (3,) light position (sphere, disc) or scene centre (parallel)
+    frame: np.ndarray  # (3, 3) orthonormal columns: the light's x, y, z axes
+    flux: np.ndarray  # (3,) RGB scale of ``density``
+    cos_half: float = -1.0
+    smooth: float = 0.0
+    radius: float = 1.0  # parallel: the disc radius (the scene's bounding radius)
+
+    @property
+    def dimensions(self) -> int:
+        return 3 if self.kind == "sphere" else 2
+
+    @property
+    def measure(self) -> float:
+        if self.kind == "sphere":
+            return 2 * np.pi * (1 - self.cos_half)
+        return np.pi
+
+    def contains(self, coords: np.ndarray) -> np.ndarray:
+        if self.kind == "sphere":
+            return -coords[:, 2] >= self.cos_half
+        return (coords**2).sum(axis=1) <= 1.0 + 1e-9
+
+    def density(self, coords: np.ndarray) -> np.ndarray:
+        """(n, 3) flux per unit measure at domain points."""
+        weight = np.ones(len(coords))
+        if self.kind == "sphere" and self.cos_half > -1:
+            weight = spot_mask(-coords[:, 2], self.cos_half, self.smooth) \
+                if self.smooth > 0 else weight
+        return weight[:, None] * self.flux[None]
+
+    def uniform_points(self, count: int, rotation: float = 0.0) -> np.ndarray:
+        """``count`` deterministic, evenly spread points of the domain (Fibonacci lattices:
+        area-uniform on the cap and on the disc), turned by ``rotation`` radians."""
+        i = np.arange(count) + 0.5
+        phi = GOLDEN_ANGLE * i + rotation
+        if self.kind == "sphere":
+            cos_t = 1 - (1 - self.cos_half) * i / count  # angle from -Z
+            sin_t = np.sqrt(np.maximum(0.0, 1 - cos_t**2))
+            return np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), -cos_t], axis=1)
+        r = np.sqrt(i / count)
+        return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
+
+    def shape_points(self, offsets: np.ndarray) -> np.ndarray:
+        """World start points of paths with the given [0,1)² offsets on the light's shape."""
+        n = len(offsets)
+        if self.kind != "disc":
+            return np.repeat(self.origin[None], n, 0)
+        light = self.light
+        unit = 0.5 * concentric_disk(offsets) if light.is_round else offsets - 0.5
+        local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
+        return local @ light.matrix[:3, :3].T + light.matrix[:3, 3]
+
+    def rays(self, coords: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World origins and unit directions of paths leaving domain points."""
+        n = len(coords)
+        if self.kind == "sphere":
+            return self.shape_points(offsets), _unit(coords @ self.frame.T)
+        if self.kind == "disc":
+            z = -np.sqrt(np.maximum(0.0, 1 - (coords**2).sum(axis=1)))
+            local = np.hstack([coords, z[:, None]])
+            return self.shape_points(offsets), _unit(local @ self.frame.T)
+        travel = -self.frame[:, 2]
+        origin = self.origin - 1.01 * self.radius * travel + self.radius * (
+            coords[:, :1] * self.frame[:, 0] + coords[:, 1:] * self.frame[:, 1])
+        return origin, np.repeat(travel[None], n, 0)
+
+    def project(self, points: np.ndarray, offsets: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Domain points of world points (the reprojection), the world origin of each path
+        towards them, and whether the point lies in front of the light (inside the domain)."""
+        if self.kind == "parallel":
+            d = points - self.origin
+            coords = np.stack([d @ self.frame[:, 0], d @ self.frame[:, 1]], axis=1) / self.radius
+            origin, _ = self.rays(coords, offsets)
+            return coords, origin, self.contains(coords)
+        origin = self.shape_points(offsets)
+        local = _unit(points - origin) @ self.frame
+        if self.kind == "sphere":
+            return local, origin, self.contains(local)
+        return local[:, :2], origin, local[:, 2] < 0
+
+
+def light_domain(light: Light, centre: np.ndarray, radius: float) -> LightDomain | None:
+    """The domain of a light with power, or None (no power, or a non-finite pose)."""
+    if light.power == 0 or not np.isfinite(light.matrix).all():
+        return None
+    m = light.matrix[:3, :3]
+    x = _unit(m[:, 0][None])[0]
+    z = _unit(m[:, 2][None])[0]
+    y = _unit(np.cross(z, x)[None])[0]
+    frame = np.stack([x, y, z], axis=1)
+    color = np.asarray(light.color, np.float64) * light.power
+    position = light.matrix[:3, 3].astype(np.float64)
+    if light.kind in (LightKind.POINT, LightKind.SPOT):
+        cos_half, smooth = spot_parameters(light)
+        return LightDomain("sphere", light, position, frame, color / (4 * np.pi),
+                           cos_half=max(-1.0, cos_half), smooth=smooth)
+    if light.kind is LightKind.AREA:
+        return LightDomain("disc", light, position, frame, color / np.pi)
+    return LightDomain("parallel", light, np.asarray(centre, np.float64), frame,
+                       color * radius**2, radius=radius)
+
+
+@dataclass
+class _Anchors:
+    """One light's anchors: domain points, shape offsets and the surface their path hit."""
+
+    coords: np.ndarray
+    offsets: np.ndarray
+    hit: np.ndarray  # (n,) bool
+    position: np.ndarray
+    normal: np.ndarray
+    albedo: np.ndarray
+    slot: np.ndarray  # (n,) int, global path slot
+    path_id: np.ndarray  # (n,) int, unique id of the path (new id = new VPLs)
+
+    @classmethod
+    def empty(cls, dimensions: int) -> _Anchors:
+        return cls(np.zeros((0, dimensions)), np.zeros((0, 2)), np.zeros(0, bool),
+                   np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int),
+                   np.zeros(0, int))
+
+    def __len__(self) -> int:
+        return len(self.slot)
+
+    def keep(self, mask: np.ndarray) -> _Anchors:
+        return _Anchors(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
+
+    def append(self, other: _Anchors) -> _Anchors:
+        return _Anchors(*(np.concatenate([getattr(self, f), getattr(other, f)])
+                          for f in self.__dataclass_fields__))
+
+
+@dataclass
+class IncrementalStats:
+    """What one update did: anchors kept, deleted as invalid, moved by the budget, created."""
+
+    kept: int = 0
+    invalid: int = 0
+    redistributed: int = 0
+    created: int = 0
+    reset: str = ""  # why everything was regenerated, '' when nothing was
+    new_vpls: int = 0
+    reused_vpls: int = 0
+
+
+def shortest_edge(coords: np.ndarray) -> tuple[int, int] | None:
+    """The ends of the shortest Delaunay edge of points on the disc (2D) or the sphere (3D),
+    or None for fewer than 2 points. The closest pair of a point set is always an edge of its
+    Delaunay triangulation (on the sphere: of the convex hull of the unit vectors), so a k-d
+    tree finds it without triangulating, including for sets Qhull refuses (coincident or
+    collinear points, fewer than 3 or 4)."""
+    if len(coords) < 2:
+        return None
+    distance, index = cKDTree(coords).query(coords, k=2)
+    a = int(np.argmin(distance[:, 1]))
+    b = int(index[a, 1]) if index[a, 1] != a else int(index[a, 0])
+    return a, b
+
+
+def voronoi_vertices(coords: np.ndarray) -> np.ndarray:
+    """Circumcentres of the Delaunay triangles (disc) or hull facets (sphere): the vertices of
+    the Voronoi diagram, where the largest empty circles are centred (empty when degenerate)."""
+    dims = coords.shape[1]
+    try:
+        if dims == 3:
+            hull = ConvexHull(coords)
+            return _unit(hull.equations[:, :3])
+        tri = Delaunay(coords)
+    except (QhullError, ValueError):
+        return np.zeros((0, dims))
+    a, b, c = (coords[tri.simplices[:, k]] for k in range(3))
+    ab, ac = b - a, c - a
+    d = 2 * (ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0])
+    ok = np.abs(d) > 1e-12
+    ab2, ac2 = (ab**2).sum(axis=1), (ac**2).sum(axis=1)
+    ux = (ac[:, 1] * ab2 - ab[:, 1] * ac2)[ok] / d[ok]
+    uy = (ab[:, 0] * ac2 - ac[:, 0] * ab2)[ok] / d[ok]
+    return a[ok] + np.stack([ux, uy], axis=1)
+
+
+def cell_integrals(domain: LightDomain, coords: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The measure of each point's Voronoi cell within the domain and the light's flux through
+    it (n, 3), by a deterministic uniform quadrature of the domain (exact in the sums: the
+    measures add up to the domain's measure)."""
+    n = len(coords)
+    if n == 0:
+        return np.zeros(0), np.zeros((0, 3))
+    count = int(min(MAX_QUADRATURE, max(4096, QUADRATURE_PER_ANCHOR * n)))
+    quadrature = domain.uniform_points(count)
+    _, owner = cKDTree(coords).query(quadrature)
+    weight = domain.measure / count
+    measure = np.bincount(owner, minlength=n) * weight
+    density = domain.density(quadrature)
+    flux = np.stack([np.bincount(owner, density[:, c], minlength=n) for c in range(3)],
+                    axis=1) * weight
+    return measure, flux
+
+
+def _farthest_points(domain: LightDomain, coords: np.ndarray, count: int,
+                     rotation: float) -> np.ndarray:
+    """``count`` new domain points, each in turn the candidate farthest from every point so far
+    (greedy largest empty circle over the Voronoi vertices and a uniform candidate set)."""
+    candidates = domain.uniform_points(
+        max(256, CANDIDATES_PER_ANCHOR * (len(coords) + count)), rotation)
+    vertices = voronoi_vertices(coords) if len(coords) >= domain.dimensions + 1 else None
+    if vertices is not None and len(vertices):
+        candidates = np.concatenate([vertices[domain.contains(vertices)], candidates])
+    nearest = (cKDTree(coords).query(candidates)[0] if len(coords)
+               else np.full(len(candidates), np.inf))
+    chosen = []
+    for _ in range(count):
+        best = int(np.argmax(nearest))
+        chosen.append(candidates[best])
+        nearest = np.minimum(nearest, np.linalg.norm(candidates - candidates[best], axis=1))
+    return np.array(chosen).reshape(-1, domain.dimensions)
+
+
+@dataclass
+class _LightState:
+    anchors: _Anchors
+    target: int = 0
+
+
+@dataclass
+class IncrementalVPLs:
+    """VPLs reused between frames (create one per render session; ``update`` per frame)."""
+
+    lights: dict[str, _LightState] = field(default_factory=dict)
+    stats: IncrementalStats = field(default_factory=IncrementalStats)
+    _key: tuple | None = None
+    _geometry: tuple[np.ndarray, np.ndarray] | None = None
+    _next_id: int = 0
+    _frame: int = 0
+    _previous_keys: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    _environment_slots: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    _environment_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    def update(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
+               tracer: RayTracer, centre: np.ndarray, radius: float) -> VPLs:
+        """This frame's VPLs, reusing last frame's where they are still valid."""
+        self.stats = IncrementalStats()
+        self._frame += 1
+        key = (settings.vpl_count, settings.bounces, settings.seed, settings.termination)
+        geometry_key = (geometry.positions, geometry.albedo)
+        same_geometry = self._geometry is not None and all(
+            a.shape == b.shape and np.array_equal(a, b)
+            for a, b in zip(self._geometry, geometry_key, strict=True))
+        if key != self._key:
+            self.lights.clear()
+            self.stats.reset = "settings changed" if self._key else "first frame"
+        elif not same_geometry:
+            self.stats.reset = "geometry changed"
+        self._key = key
+        self._geometry = (geometry.positions.copy(), geometry.albedo.copy())
+        n = settings.vpl_count
+        domains = {light.name: d for light in scene.lights
+                   if (d := light_domain(light, centre, radius)) is not None}
+        environment = environment_emitters(scene, geometry, centre, radius)
+        targets = _allocate(n, [light_emitter(d.light, centre, radius).power
+                                for d in domains.values()]
+                            + [sum(e.power for e in environment)])
+        for name in list(self.lights):
+            if name not in domains:
+                del self.lights[name]
+        epsilon = 1e-5 * radius
+        for (name, domain), target in zip(domains.items(), targets, strict=False):
+            state = self.lights.setdefault(name, _LightState(_Anchors.empty(domain.dimensions)))
+            if state.anchors.coords.shape[1] != domain.dimensions:
+                state.anchors = _Anchors.empty(domain.dimensions)
+            state.target = target
+            state.anchors = self._validate(state.anchors, domain, tracer, geometry, epsilon,
+                                           retrace_all=not same_geometry)
+            while len(state.anchors) > target:
+                state.anchors = self._delete_worst(state.anchors)
+        free = np.setdiff1d(np.arange(n), np.concatenate(
+            [s.anchors.slot for s in self.lights.values()] + [np.zeros(0, int)]))
+        hits: list[tuple[SurfaceHits, np.ndarray]] = []
+        permutation = np.random.default_rng(settings.seed).permutation(n)
+        for name, domain in domains.items():
+            state = self.lights[name]
+            missing = state.target - len(state.anchors)
+            slots, free = free[:missing], free[missing:]
+            state.anchors = self._create(state.anchors, domain, slots, tracer, geometry,
+                                         epsilon, settings.seed)
+            state.anchors = self._redistribute(state.anchors, domain, tracer, geometry, epsilon,
+                                               settings)
+            hits.append(self._anchor_hits(state.anchors, domain, permutation))
+        if environment and len(free):
+            hits.append(self._environment_hits(environment, free, n, permutation, tracer,
+                                               geometry, epsilon, settings.seed))
+        self.stats.kept = sum(len(s.anchors) for s in self.lights.values()) \
+            - self.stats.created - self.stats.redistributed
+        if not hits or settings.bounces == 0 or geometry.vertex_count == 0:
+            return VPLs.empty()
+        first = SurfaceHits(*(np.concatenate([getattr(h, f) for h, _ in hits])
+                              for f in SurfaceHits.__dataclass_fields__))
+        directions = scrambled_halton(n, 2 * max(0, settings.bounces - 1), settings.seed)
+        vpls = propagate(first, n, directions, settings, tracer, geometry, radius)
+        path_of_rank = np.zeros(n, np.int64)
+        path_of_rank[first.rank] = np.concatenate([ids for _, ids in hits])
+        vpls.key = path_of_rank[vpls.rank] * GENERATION_STRIDE + vpls.generation
+        reused = np.isin(vpls.key, self._previous_keys)
+        self.stats.reused_vpls, self.stats.new_vpls = int(reused.sum()), int((~reused).sum())
+        self._previous_keys = vpls.key.copy()
+        return vpls
+
+    # -- steps ------------------------------------------------------------------------------
+    def _ids(self, count: int) -> np.ndarray:
+        ids = np.arange(self._next_id, self._next_id + count)
+        self._next_id += count
+        return ids
+
+    def _validate(self, anchors: _Anchors, domain: LightDomain, tracer: RayTracer,
+                  geometry: WorldGeometry, epsilon: float, retrace_all: bool) -> _Anchors:
+        """Drop anchors whose hit the light no longer reaches; trace missed (and, after a
+        geometry change, all) paths again from their domain points."""
+        if len(anchors) == 0:
+            return anchors
+        coords, origin, in_front = domain.project(anchors.position, anchors.offsets)
+        towards = anchors.position - origin
+        distance = np.linalg.norm(towards, axis=1)
+        faces = (towards * anchors.normal).sum(axis=1) < 0
+        check = anchors.hit & in_front & faces & (not retrace_all)
+        visible = np.zeros(len(anchors), bool)
+        if check.any():
+            rows = np.flatnonzero(check)
+            found = tracer.intersect(origin[rows], _unit(towards[rows]), epsilon, np.inf)
+            visible[rows] = found.distance >= distance[rows] * (1 - 1e-4) - 2 * epsilon
+        valid = check & visible
+        retrace = ~anchors.hit | retrace_all
+        self.stats.invalid += int((anchors.hit & ~valid & ~retrace).sum())
+        anchors.coords = np.where(valid[:, None], coords, anchors.coords)
+        kept = anchors.keep(valid | retrace)
+        again = ~kept.hit | retrace_all
+        if again.any():
+            kept = kept.keep(~again).append(self._trace(domain, kept.coords[again],
+                                                        kept.offsets[again], kept.slot[again],
+                                                        tracer, geometry, epsilon))
+        return kept
+
+    def _trace(self, domain: LightDomain, coords: np.ndarray, offsets: np.ndarray,
+               slots: np.ndarray, tracer: RayTracer, geometry: WorldGeometry,
+               epsilon: float) -> _Anchors:
+        """New anchors: paths from domain points traced to their first hit (misses kept)."""
+        n = len(coords)
+        origin, direction = domain.rays(coords, offsets)
+        found = trace_hits(tracer, geometry, origin, direction, np.zeros((n, 3)),
+                           np.arange(n), epsilon)
+        hit = np.zeros(n, bool)
+        hit[found.rank] = True
+        position, normal, albedo = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+        position[found.rank], normal[found.rank] = found.position, found.normal
+        albedo[found.rank] = found.albedo
+        return _Anchors(coords, offsets, hit, position, normal, albedo, slots, self._ids(n))
+
+    def _create(self, anchors: _Anchors, domain: LightDomain, slots: np.ndarray,
+                tracer: RayTracer, geometry: WorldGeometry, epsilon: float,
+                seed: int) -> _Anchors:
+        if len(slots) == 0:
+            return anchors
+        coords = _farthest_points(domain, anchors.coords, len(slots), self._frame * 0.61803)
+        rng = np.random.default_rng((seed, self._frame, len(anchors)))
+        offsets = rng.uniform(size=(len(slots), 2))
+        self.stats.created += len(slots)
+        return anchors.append(self._trace(domain, coords, offsets, slots, tracer, geometry,
+                                          epsilon))
+
+    def _delete_worst(self, anchors: _Anchors) -> _Anchors:
+        """Remove the end of the shortest Delaunay edge that lies in the denser place."""
+        edge = shortest_edge(anchors.coords)
+        if edge is None:
+            return anchors.keep(np.arange(len(anchors)) != 0)
+        tree = cKDTree(anchors.coords)
+        second = [tree.query(anchors.coords[i], k=min(3, len(anchors)))[0][-1] for i in edge]
+        worst = edge[int(np.argmin(second))]
+        return anchors.keep(np.arange(len(anchors)) != worst)
+
+    def _redistribute(self, anchors: _Anchors, domain: LightDomain, tracer: RayTracer,
+                      geometry: WorldGeometry, epsilon: float, settings: Settings) -> _Anchors:
+        """Up to ``incremental_budget`` times: move the worst anchor to the best spot while the
+        best spot is farther from its neighbours than the shortest edge is long."""
+        for _ in range(settings.incremental_budget):
+            if len(anchors) < domain.dimensions + 2:
+                break
+            a, b = shortest_edge(anchors.coords)
+            edge = np.linalg.norm(anchors.coords[a] - anchors.coords[b])
+            remaining = self._delete_worst(anchors)
+            spot = _farthest_points(domain, remaining.coords, 1, self._frame * 0.61803)
+            gap = cKDTree(remaining.coords).query(spot)[0][0]
+            if gap <= edge * 1.05:
+                break
+            slot = np.setdiff1d(anchors.slot, remaining.slot)
+            rng = np.random.default_rng((settings.seed, self._frame, int(slot[0])))
+            anchors = remaining.append(self._trace(domain, spot, rng.uniform(size=(1, 2)),
+                                                   slot, tracer, geometry, epsilon))
+            self.stats.redistributed += 1
+        return anchors
+
+    def _anchor_hits(self, anchors: _Anchors, domain: LightDomain,
+                     permutation: np.ndarray) -> tuple[SurfaceHits, np.ndarray]:
+        """Surface hits of the anchors whose path met a surface, carrying their cell's flux,
+        and their path ids."""
+        _, flux = cell_integrals(domain, anchors.coords)
+        hit = anchors.hit
+        return SurfaceHits(anchors.position[hit], anchors.normal[hit], anchors.albedo[hit],
+                           flux[hit], permutation[anchors.slot[hit]]), anchors.path_id[hit]
+
+    def _environment_hits(self, emitters: list, slots: np.ndarray, count: int,
+                          permutation: np.ndarray, tracer: RayTracer, geometry: WorldGeometry,
+                          epsilon: float, seed: int) -> tuple[SurfaceHits, np.ndarray]:
+        """First hits of the world's and emissive surfaces' paths: the same seeded path for a
+        slot every frame (ids change only with the geometry or the slot set)."""
+        u = scrambled_halton(count, START_DIMENSIONS, seed + 7)[slots]
+        paths = start_paths(emitters, u)
+        found = trace_hits(tracer, geometry, paths.origin, paths.direction, paths.flux,
+                           np.arange(len(slots)), epsilon)
+        if self.stats.reset or not np.array_equal(slots, self._environment_slots):
+            self._environment_slots, self._environment_ids = slots, self._ids(len(slots))
+        return (SurfaceHits(found.position, found.normal, found.albedo, found.flux,
+                            permutation[slots[found.rank]]), self._environment_ids[found.rank])
+
+
+def _allocate(total: int, powers: list[float]) -> list[int]:
+    """Split ``total`` paths over emitters by power (largest remainders; every emitter with
+    power gets at least one path while paths last)."""
+    power = np.maximum(np.asarray(powers, np.float64), 0.0)
+    if power.sum() <= 0:
+        return [0] * len(power)
+    share = total * power / power.sum()
+    counts = np.floor(share).astype(int)
+    counts[(power > 0) & (counts == 0)] = 1
+    while counts.sum() > total:
+        counts[int(np.argmax(counts))] -= 1
+    order = np.argsort(-(share - np.floor(share)), kind="stable")
+    for index in order[: total - counts.sum()]:
+        counts[index] += 1
+    return [int(c) for c in counts]
+

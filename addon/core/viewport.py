@@ -1,0 +1,368 @@
+"""The interactive viewport's frame logic, free of Blender so it runs (and is tested) headless.
+
+A ``ViewportSession`` owns a worker thread with its own OpenGL context and Renderer. The
+Blender side hands it edits (a new scene export, a new view camera, new settings or display
+mode) and draws the latest finished frame; it never waits for the GPU. Per edit the worker
+renders a few levels of increasing resolution (a quick first frame, then refinement) and then
+sleeps until the next edit. An edit arriving mid-frame cancels that frame.
+
+What an edit costs follows from the Renderer's reuse between frames: geometry that did not
+change keeps its ray-tracing upload, VPLs are regenerated only when lights, world, geometry or
+their settings changed (and then incrementally, reusing the VPLs the lights still reach), and
+the imperfect shadow maps only when the VPLs or the geometry changed. A camera-only edit
+therefore runs the g-buffer and shading alone. ``records`` keeps, per edit, its kind, the
+latency to its first frame and which stages ran or were skipped.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .frame import Frame, Stats
+from .gl import GLUnavailableError, create_context
+from .pipeline import RenderCancelled, Renderer, RenderError
+from .scene import Camera, Scene
+from .settings import Settings, SettingsError
+
+DISPLAY_MODES = ("combined", "direct", "indirect", "vpls", "ism")
+LEVEL_DIVISORS = (4, 2, 1)  # resolution divisors of the refinement levels
+MIN_LEVEL_PIXELS = 96  # a level is skipped when its shorter edge would be smaller
+GENERATION_COLOURS = np.array([[1.0, 0.9, 0.2], [1.0, 0.4, 0.1], [0.9, 0.1, 0.5],
+                               [0.4, 0.2, 1.0], [0.1, 0.7, 1.0]], np.float32)
+GEOMETRY_OBJECTS = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES", "POINTCLOUD",
+                    "VOLUME"}
+GEOMETRY_DATA = {"MESH", "CURVE", "METABALL", "CURVES", "POINTCLOUD", "VOLUME", "TEXT"}
+
+
+@dataclass(frozen=True)
+class Update:
+    """One entry of Blender's ``depsgraph.updates``, reduced to what decides the work."""
+
+    id_type: str  # Blender's ID type: OBJECT, MESH, LIGHT, MATERIAL, WORLD, SCENE, ...
+    name: str
+    object_type: str = ""  # for objects: MESH, LIGHT, CAMERA, ...
+    geometry: bool = False
+    transform: bool = False
+    shading: bool = False
+
+
+@dataclass
+class Changes:
+    """What an edit changed, as far as the renderer is concerned."""
+
+    camera: bool = False
+    lights: bool = False
+    geometry: set[str] = field(default_factory=set)  # objects/meshes whose geometry to re-read
+    transforms: bool = False
+    materials: bool = False
+    world: bool = False
+    settings: bool = False
+    display: bool = False
+
+    @property
+    def needs_export(self) -> bool:
+        """Whether the scene must be exported again (anything beyond camera and display)."""
+        return bool(self.lights or self.geometry or self.transforms or self.materials
+                    or self.world or self.settings)
+
+    def describe(self) -> str:
+        parts = [name for name in ("camera", "lights", "transforms", "materials", "world",
+                                   "settings", "display") if getattr(self, name)]
+        if self.geometry:
+            parts.append("geometry")
+        return "+".join(parts) or "nothing"
+
+
+def classify(updates: Iterable[Update]) -> Changes:
+    """Sort depsgraph updates into the kinds of change the renderer reacts to."""
+    changes = Changes()
+    for u in updates:
+        if u.id_type == "OBJECT":
+            if u.object_type == "LIGHT":
+                changes.lights = True
+            elif u.object_type == "CAMERA":
+                changes.camera = True
+            elif u.object_type in GEOMETRY_OBJECTS or u.object_type == "EMPTY":
+                if u.geometry:
+                    changes.geometry.add(u.name)
+                if u.transform:
+                    changes.transforms = True
+                if u.shading:
+                    changes.materials = True
+                if not (u.geometry or u.transform or u.shading):  # visibility, parenting, ...
+                    changes.transforms = True
+        elif u.id_type == "LIGHT":
+            changes.lights = True
+        elif u.id_type == "CAMERA":
+            changes.camera = True
+        elif u.id_type in GEOMETRY_DATA:
+            changes.geometry.add(u.name)
+        elif u.id_type in ("MATERIAL", "NODETREE", "IMAGE", "TEXTURE"):
+            changes.materials = True
+        elif u.id_type == "WORLD":
+            changes.world = True
+        elif u.id_type == "COLLECTION":
+            changes.transforms = True
+        elif u.id_type == "SCENE":
+            changes.settings = True
+    return changes
+
+
+def view_camera(view_matrix: np.ndarray, window_matrix: np.ndarray, width: int, height: int,
+                is_perspective: bool) -> Camera:
+    """The camera of a 3D viewport region (its view and projection matrices and size)."""
+    return Camera(np.asarray(view_matrix, np.float64), np.asarray(window_matrix, np.float64),
+                  max(1, int(width)), max(1, int(height)), is_orthographic=not is_perspective)
+
+
+def scaled_camera(camera: Camera, divisor: int) -> Camera:
+    """The same view at 1/divisor of the resolution (at least one pixel)."""
+    return replace(camera, width=max(1, camera.width // divisor),
+                   height=max(1, camera.height // divisor))
+
+
+def refinement_levels(camera: Camera) -> list[int]:
+    """Resolution divisors of the levels of one edit, coarse to fine (always ending at 1)."""
+    shorter = min(camera.width, camera.height)
+    return [d for d in LEVEL_DIVISORS if d == 1 or shorter // d >= MIN_LEVEL_PIXELS]
+
+
+def display_image(frame: Frame, mode: str, camera: Camera, vpls=None,
+                  ism_atlas: np.ndarray | None = None) -> np.ndarray:
+    """The (h, w, 4) scene-linear RGBA image a display mode shows: the combined pass, direct or
+    indirect light alone, VPL positions (coloured by bounce) over the combined pass, or the
+    ISM atlas (depth as grey, nearest texels)."""
+    p = frame.passes
+    alpha = p["Combined"][..., 3:4]
+    if mode == "direct":
+        return np.concatenate([p["DiffDir"] * p["DiffCol"] + p["Emit"], alpha], axis=-1)
+    if mode == "indirect":
+        return np.concatenate([p["DiffInd"] * p["DiffCol"], alpha], axis=-1)
+    if mode == "ism" and ism_atlas is not None and ism_atlas.size:
+        return _atlas_image(ism_atlas, frame.width, frame.height)
+    image = p["Combined"].copy()
+    if mode == "vpls" and vpls is not None and len(vpls):
+        _draw_points(image, camera, vpls.position, GENERATION_COLOURS[
+            np.minimum(vpls.generation - 1, len(GENERATION_COLOURS) - 1)])
+    return image
+
+
+def _draw_points(image: np.ndarray, camera: Camera, points: np.ndarray,
+                 colours: np.ndarray) -> None:
+    """Paint 3×3-pixel dots at the projections of world points in front of the camera."""
+    h, w = image.shape[:2]
+    clip = np.hstack([points, np.ones((len(points), 1))]) @ (
+        camera.projection_matrix @ camera.view_matrix).T
+    front = clip[:, 3] > 1e-9
+    ndc = clip[front, :2] / clip[front, 3:4]
+    x = np.floor((ndc[:, 0] * 0.5 + 0.5) * w).astype(int)
+    y = np.floor((ndc[:, 1] * 0.5 + 0.5) * h).astype(int)
+    colours = colours[front]
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            xs, ys = x + dx, y + dy
+            inside = (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
+            image[ys[inside], xs[inside], :3] = colours[inside]
+            image[ys[inside], xs[inside], 3] = 1.0
+
+
+def _atlas_image(atlas: np.ndarray, width: int, height: int) -> np.ndarray:
+    """The atlas scaled (nearest) into a width × height image, near = white, far = black."""
+    finite = atlas[np.isfinite(atlas) & (atlas < 1e30)]
+    scale = float(finite.max()) if finite.size else 1.0
+    grey = np.where(atlas < 1e30, 1.0 - np.clip(atlas / max(scale, 1e-30), 0, 1), 0.0)
+    rows = (np.arange(height) * atlas.shape[0] // max(1, height)).clip(0, atlas.shape[0] - 1)
+    cols = (np.arange(width) * atlas.shape[1] // max(1, width)).clip(0, atlas.shape[1] - 1)
+    picked = grey[rows][:, cols].astype(np.float32)
+    return np.dstack([picked, picked, picked, np.ones_like(picked)])
+
+
+@dataclass
+class ViewportFrame:
+    """A finished frame for display: scene-linear RGBA at the level's resolution."""
+
+    image: np.ndarray
+    number: int  # increases with every published frame
+    edit: int  # the edit it shows
+    level: int  # 0 = the quick first frame
+    levels: int
+    stats: Stats
+
+
+@dataclass
+class EditRecord:
+    """What one edit triggered: its kind, the seconds to its first and last frame, and the
+    stages that ran (with seconds) or were skipped in the first frame, with its counts."""
+
+    edit: int
+    kind: str
+    latency: float | None = None
+    converged: float | None = None
+    ran: dict[str, float] = field(default_factory=dict)
+    skipped: dict[str, str] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+class ViewportSession:
+    """Renders the viewport in a worker thread with its own OpenGL context; see the module
+    docstring. ``on_frame`` is called from the worker after each published frame (it must only
+    set flags: Blender's API is not thread-safe)."""
+
+    def __init__(self, on_frame: Callable[[], None] | None = None,
+                 renderer_factory: Callable[[], Renderer] | None = None) -> None:
+        self._on_frame = on_frame or (lambda: None)
+        self._factory = renderer_factory or (lambda: Renderer(create_context()))
+        self._cond = threading.Condition()
+        self._scene: Scene | None = None
+        self._camera: Camera | None = None
+        self._settings = Settings()
+        self._display = "combined"
+        self._changes = Changes()
+        self._edit = 0
+        self._finished_edit = 0
+        self._closed = False
+        self._latest: ViewportFrame | None = None
+        self._frames = 0
+        self._started: dict[int, float] = {}
+        self.records: list[EditRecord] = []
+        self.status = "VPL GI | Starting"
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._run, name="VPL GI viewport", daemon=True)
+        self._thread.start()
+
+    # -- the Blender side -----------------------------------------------------------------
+    def edit(self, changes: Changes, scene: Scene | None = None, camera: Camera | None = None,
+             settings: Settings | None = None, display: str | None = None) -> None:
+        """Hand over what changed; the worker starts over with it."""
+        if display is not None and display not in DISPLAY_MODES:
+            raise ValueError(f"display mode {display!r} is not one of {DISPLAY_MODES}")
+        with self._cond:
+            if scene is not None:
+                self._scene = scene
+            if camera is not None:
+                self._camera = camera
+            if settings is not None:
+                self._settings = settings
+            if display is not None:
+                self._display = display
+            self._changes = changes
+            self._edit += 1
+            self._started[self._edit] = time.perf_counter()
+            self.records.append(EditRecord(self._edit, changes.describe()))
+            self._cond.notify_all()
+
+    @property
+    def camera(self) -> Camera | None:
+        return self._camera
+
+    def latest(self) -> ViewportFrame | None:
+        """The newest finished frame (None before the first)."""
+        with self._cond:
+            return self._latest
+
+    @property
+    def idle(self) -> bool:
+        """True when every edit has been rendered to its last level (no work, no CPU)."""
+        with self._cond:
+            return self._finished_edit == self._edit
+
+    def wait_idle(self, timeout: float) -> bool:
+        """Block until idle or ``timeout`` seconds; True when idle."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._finished_edit == self._edit
+                                       or self._closed, timeout)
+
+    def close(self, timeout: float = 30.0) -> None:
+        """Stop the worker (cancelling its frame) and release its GPU resources."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join(timeout)
+
+    @property
+    def alive(self) -> bool:
+        return self._thread.is_alive()
+
+    # -- the worker -----------------------------------------------------------------------
+    def _run(self) -> None:
+        try:
+            renderer = self._factory()
+        except (GLUnavailableError, RuntimeError) as exc:
+            self.error = str(exc)
+            self.status = f"VPL GI | Error: {exc}"
+            with self._cond:
+                self._closed = True
+                self._cond.notify_all()
+            return
+        try:
+            while True:
+                with self._cond:
+                    self._cond.wait_for(lambda: self._closed or self._edit != self._finished_edit)
+                    if self._closed:
+                        return
+                    edit, scene, camera = self._edit, self._scene, self._camera
+                    settings, display, changes = self._settings, self._display, self._changes
+                if scene is not None and camera is not None:
+                    self._render_edit(renderer, edit, scene, camera, settings, display, changes)
+                with self._cond:
+                    if self._edit == edit:
+                        self._finished_edit = edit
+                        self._cond.notify_all()
+        finally:
+            renderer.release()
+            renderer.ctx.release()
+
+    def _superseded(self, edit: int) -> bool:
+        return self._closed or self._edit != edit
+
+    def _render_edit(self, renderer: Renderer, edit: int, scene: Scene, camera: Camera,
+                     settings: Settings, display: str, changes: Changes) -> None:
+        levels = refinement_levels(camera)
+        if changes.display and not (changes.needs_export or changes.camera):
+            levels = levels[-1:]
+        view_settings = replace(settings, antialiasing=1, incremental=True)
+        record = self.records[edit - 1]
+        for level, divisor in enumerate(levels):
+            if self._superseded(edit):
+                return
+            level_camera = scaled_camera(camera, divisor)
+            self.status = f"VPL GI | Rendering {level + 1}/{len(levels)}"
+            try:
+                frame, stats = renderer.render(replace(scene, camera=level_camera),
+                                               view_settings,
+                                               cancelled=lambda: self._superseded(edit))
+            except RenderCancelled:
+                return
+            except (RenderError, SettingsError, GLUnavailableError) as exc:
+                self.error = str(exc)
+                self.status = f"VPL GI | Error: {exc}"
+                return
+            self.error = None
+            vpls = renderer.last_vpls if display == "vpls" else None
+            atlas = renderer.ism.read_atlas() if display == "ism" and renderer.has_ism else None
+            image = display_image(frame, display, level_camera, vpls, atlas)
+            with self._cond:
+                if self._edit != edit:
+                    return
+                self._frames += 1
+                self._latest = ViewportFrame(image, self._frames, edit, level, len(levels),
+                                             stats)
+                elapsed = time.perf_counter() - self._started[edit]
+                if level == 0:
+                    record.latency = elapsed
+                    record.ran = dict(stats.timings)
+                    record.skipped = dict(stats.skipped)
+                    record.counts = dict(stats.counts)
+                record.converged = elapsed
+            last = level == len(levels) - 1
+            self.status = (f"VPL GI | {stats.summary()}" if last else
+                           f"VPL GI | Refining {level + 2}/{len(levels)}")
+            for warning in stats.warnings:
+                self.status += f" | {warning}"
+            self._on_frame()

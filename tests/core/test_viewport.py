@@ -1,0 +1,145 @@
+"""The viewport session, headless: change classification, progressive frames, what each kind
+of edit re-runs, display modes, cancellation and release."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.pipeline import Renderer
+from addon.core.scene import Instance, LightKind, Material
+from addon.core.settings import Settings
+from addon.core.viewport import (
+    Changes,
+    Update,
+    ViewportSession,
+    classify,
+    display_image,
+    refinement_levels,
+)
+from tests.core.builders import floor_scene, icosphere, light, top_down_camera, translation
+
+SETTINGS = Settings(vpl_count=128, bounces=2, ism_points=1024, interleave=1)
+
+
+def scene(light_x: float = 0.0, ball_colour=(0.8, 0.2, 0.2)):
+    ball = Instance(icosphere(0.5, 2), translation(0.5, 0.5, 0.5), [Material("ball",
+                                                                          ball_colour)])
+    return floor_scene([light(LightKind.POINT, translation(light_x, 0, 2), power=100.0)],
+                       extra=[ball], size=192)
+
+
+@pytest.mark.parametrize(("updates", "expected"), [
+    ([Update("OBJECT", "Camera", "CAMERA", transform=True)], "camera"),
+    ([Update("OBJECT", "Lamp", "LIGHT", transform=True), Update("SCENE", "Scene")],
+     "lights+settings"),
+    ([Update("LIGHT", "Lamp")], "lights"),
+    ([Update("OBJECT", "Cube", "MESH", transform=True)], "transforms"),
+    ([Update("OBJECT", "Cube", "MESH", geometry=True), Update("MESH", "Cube.001")], "geometry"),
+    ([Update("MATERIAL", "Red", shading=True),
+      Update("OBJECT", "Wall", "MESH", shading=True)], "materials"),
+    ([Update("OBJECT", "Wall", "MESH")], "transforms"),
+    ([Update("WORLD", "World")], "world"),
+    ([], "nothing"),
+])
+def test_depsgraph_updates_are_classified(updates, expected):
+    changes = classify(updates)
+    assert changes.describe() == expected
+    assert changes.needs_export == (expected not in ("camera", "nothing"))
+    if expected == "geometry":
+        assert changes.geometry == {"Cube", "Cube.001"}
+
+
+def test_levels_refine_to_full_resolution():
+    assert refinement_levels(top_down_camera(800)) == [4, 2, 1]
+    assert refinement_levels(top_down_camera(200)) == [2, 1]
+    assert refinement_levels(top_down_camera(50)) == [1]
+
+
+@pytest.fixture
+def session():
+    s = ViewportSession()
+    yield s
+    s.close()
+    assert not s.alive
+
+
+def run(session: ViewportSession, changes: Changes, **kwargs):
+    session.edit(changes, **kwargs)
+    assert session.wait_idle(300), "the viewport did not finish"
+    assert session.error is None, session.error
+    return session.records[-1], session.latest()
+
+
+def test_edits_rerun_only_what_they_change(session):
+    first, frame = run(session, Changes(settings=True), scene=scene(), camera=scene().camera,
+                       settings=SETTINGS)
+    assert frame.level == frame.levels - 1 == 1 and frame.image.shape == (192, 192, 4)
+    assert "vpl generation (incremental)" in first.ran and "ism splat" in first.ran
+    assert np.isfinite(frame.image).all() and frame.image[..., :3].mean() > 0
+
+    moved_view = top_down_camera(192, extent=5.0)
+    camera_only, frame = run(session, Changes(camera=True), camera=moved_view)
+    assert not any(k.startswith(("vpl", "ism", "ray tracing")) for k in camera_only.ran)
+    assert {"vpl generation", "ism", "ray tracing setup"} <= set(camera_only.skipped)
+    assert camera_only.latency < first.latency
+
+    light_move, frame = run(session, Changes(lights=True), scene=scene(light_x=0.05))
+    assert "vpl generation (incremental)" in light_move.ran
+    assert "ray tracing setup" in light_move.skipped
+    assert light_move.counts["vpls_reused"] > light_move.counts["vpls_new"]
+    assert light_move.counts["isms_rendered"] == light_move.counts["vpls_new"]
+
+    recolour, _ = run(session, Changes(materials=True),
+                      scene=scene(light_x=0.05, ball_colour=(0.2, 0.8, 0.2)))
+    assert "ray tracing setup" in recolour.ran  # albedo is part of the traced geometry
+
+
+def test_display_modes_split_the_combined_image(session):
+    _, frame = run(session, Changes(settings=True), scene=scene(), camera=scene().camera,
+                   settings=SETTINGS)
+    combined = frame.image
+    _, direct = run(session, Changes(display=True), display="direct")
+    _, indirect = run(session, Changes(display=True), display="indirect")
+    total = direct.image[..., :3] + indirect.image[..., :3]
+    assert np.allclose(total, combined[..., :3], rtol=1e-4, atol=1e-6)
+    _, dots = run(session, Changes(display=True), display="vpls")
+    changed = np.any(dots.image != combined, axis=-1)
+    assert changed.sum() > 100  # VPL dots painted
+    _, atlas = run(session, Changes(display=True), display="ism")
+    assert atlas.image.shape == combined.shape and 0 < atlas.image[..., 0].mean() < 1
+
+
+def test_a_new_edit_cancels_the_frame_in_progress(session):
+    slow = Settings(vpl_count=2048, bounces=3, visibility="exact", interleave=1)
+    session.edit(Changes(settings=True), scene=scene(), camera=scene().camera, settings=slow)
+    session.edit(Changes(settings=True), settings=SETTINGS)
+    assert session.wait_idle(300)
+    assert session.latest().edit == 2
+    assert session.records[0].converged is None  # the first edit never finished
+
+
+def test_close_releases_the_worker_and_its_gpu_objects():
+    made: list[Renderer] = []
+
+    def factory() -> Renderer:
+        from addon.core.gl import create_context
+        made.append(Renderer(create_context()))
+        return made[-1]
+
+    session = ViewportSession(renderer_factory=factory)
+    run(session, Changes(settings=True), scene=scene(), camera=scene().camera,
+        settings=SETTINGS)
+    session.close()
+    assert not session.alive
+    assert made[0]._helpers == {} and made[0].last_vpls is None
+
+
+def test_display_image_rejects_nothing_and_keeps_alpha():
+    frame_passes = {name: np.ones((4, 4, c), np.float32) for name, c in
+                    {"Combined": 4, "DiffDir": 3, "DiffInd": 3, "DiffCol": 3, "Emit": 3}.items()}
+    from addon.core.frame import Frame
+    frame = Frame(4, 4, frame_passes)
+    for mode in ("combined", "direct", "indirect", "vpls", "ism"):
+        image = display_image(frame, mode, top_down_camera(4))
+        assert image.shape == (4, 4, 4) and np.all(image[..., 3] == 1)
