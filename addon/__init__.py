@@ -8,17 +8,19 @@ from __future__ import annotations
 
 def register() -> None:
     """Register the engine, its properties and its panels with Blender."""
-    from . import engine, properties, ui
+    from . import engine, properties, ui, viewport
 
     properties.register()
     ui.register()
+    viewport.register()
     engine.register()
 
 
 def unregister() -> None:
     """Undo register(); a bpy process must call this before it exits, or it hangs."""
-    from . import engine, properties, ui
+    from . import engine, properties, ui, viewport
 
     engine.unregister()
+    viewport.unregister()
     ui.unregister()
     properties.unregister()

@@ -15,6 +15,7 @@ from .core.pipeline import RenderCancelled, Renderer, RenderError
 from .core.settings import SettingsError
 from .export import export_scene
 from .ui import ENGINE_ID
+from .viewport import ViewportState
 
 # Pass name -> (channels, channel ids, type, view-layer toggle that enables it).
 OPTIONAL_PASSES = {
@@ -58,13 +59,35 @@ def release_renderer() -> None:
 
 
 class VPLGIRenderEngine(bpy.types.RenderEngine):
-    """Global illumination with virtual point lights (this release: direct light)."""
+    """Global illumination with virtual point lights: final renders and the Rendered
+    viewport."""
 
     bl_idname = ENGINE_ID
     bl_label = "VPL GI"
     bl_use_preview = False
-    bl_use_eevee_viewport = True
+    bl_use_eevee_viewport = True  # Material Preview shading uses EEVEE; Rendered uses ours
     bl_use_shading_nodes_custom = False
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._viewport: ViewportState | None = None
+
+    def __del__(self) -> None:
+        viewport = getattr(self, "_viewport", None)
+        if viewport is not None:
+            viewport.close()
+
+    def view_update(self, context: bpy.types.Context, depsgraph: bpy.types.Depsgraph) -> None:
+        """Scene edits in a Rendered viewport: hand what changed to its session."""
+        if self._viewport is None:
+            self._viewport = ViewportState(self)
+        self._viewport.update(context, depsgraph)
+
+    def view_draw(self, context: bpy.types.Context, depsgraph: bpy.types.Depsgraph) -> None:
+        """Draw the session's latest frame; never waits for rendering."""
+        if self._viewport is None:
+            self.view_update(context, depsgraph)
+        self._viewport.draw(self, context)
 
     def render(self, depsgraph: bpy.types.Depsgraph) -> None:
         monitor.last_error, monitor.last_stats, monitor.last_warnings = None, None, []
@@ -103,6 +126,8 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         frame, stats = shared_renderer().render(exported, settings, progress, cancelled)
         self._write_result(frame)
         monitor.last_stats, monitor.last_warnings = stats, list(stats.warnings)
+        for note in exported.notes:
+            self.report({"INFO"}, f"VPL GI: {note}")
         for warning in stats.warnings:
             self.report({"WARNING"}, f"VPL GI: {warning}")
         self.update_stats("", f"VPL GI | {stats.summary()}")

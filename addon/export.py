@@ -1,8 +1,15 @@
-"""Blender -> core.Scene: reads the evaluated depsgraph into numpy arrays with foreach_get."""
+"""Blender -> core.Scene: reads the evaluated depsgraph into numpy arrays with foreach_get.
+
+Each mesh is read once per export and shared by all its instances; an ExportCache keeps meshes
+between exports (the viewport), so only geometry the caller forgets is read again. Blender's
+unit scale (``scene.unit_settings.scale_length``) is ignored, as Cycles ignores it: one Blender
+unit is one metre for light falloff (measured with Cycles 4.5, tests/blender/test_export.py).
+"""
 
 from __future__ import annotations
 
-import math
+from dataclasses import dataclass, field
+from itertools import chain
 
 import bpy
 import numpy as np
@@ -11,6 +18,8 @@ from .core.scene import AreaShape, Camera, Instance, Light, LightKind, Material,
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 DEFAULT_MATERIAL = Material("(no material)")
+RAY_FLAGS = {"visible_camera": "camera", "visible_diffuse": "diffuse",
+             "visible_shadow": "shadow"}
 
 
 def _matrix(m) -> np.ndarray:
@@ -21,24 +30,152 @@ def _rgb(value) -> tuple[float, float, float]:
     return (float(value[0]), float(value[1]), float(value[2]))
 
 
-def _mesh_arrays(mesh: bpy.types.Mesh, name: str) -> Mesh:
-    """Triangles of an evaluated mesh as corner arrays."""
-    mesh.calc_loop_triangles()
-    tris = mesh.loop_triangles
-    count = len(tris)
-    corner = np.empty(count * 3, dtype=np.int32)
-    tris.foreach_get("loops", corner)
-    slots = np.empty(count, dtype=np.int32)
-    tris.foreach_get("material_index", slots)
-    vertex_of_corner = np.empty(len(mesh.loops), dtype=np.int32)
-    mesh.loops.foreach_get("vertex_index", vertex_of_corner)
+# -- meshes ---------------------------------------------------------------------------------
+
+def _int_attribute(mesh: bpy.types.Mesh, name: str, size: int) -> np.ndarray | None:
+    attribute = mesh.attributes.get(name)
+    if attribute is None or attribute.data_type != "INT" or len(attribute.data) != size:
+        return None
+    values = np.empty(size, dtype=np.int32)
+    attribute.data.foreach_get("value", values)
+    return values
+
+
+def _quad_flip(v0: np.ndarray, v1: np.ndarray, v2: np.ndarray, v3: np.ndarray) -> np.ndarray:
+    """Blender's is_quad_flip_v3_first_third_fast: quads split along 1-3 instead of 0-2."""
+    d12, d13, d14 = v1 - v0, v2 - v0, v3 - v0
+    a = np.cross(d12, d13)
+    a *= np.cross(d14, d13)
+    return a.sum(axis=1) > 0
+
+
+QUAD_SPLIT = np.array([[0, 1, 2, 0, 2, 3], [0, 1, 3, 1, 2, 3]], dtype=np.int32)
+
+
+def _triangles(mesh: bpy.types.Mesh, co: np.ndarray, corner_vert: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (T*3) and face (T) of each triangle, as Blender's loop triangles.
+
+    Triangles and quads are split in numpy with Blender's own rule (about 20× faster than
+    reading loop_triangles through RNA); meshes with n-gons use Blender's triangulation."""
+    faces, corners = len(mesh.polygons), len(corner_vert)
+    start = np.empty(faces, dtype=np.int32)
+    mesh.polygons.foreach_get("loop_start", start)
+    size = np.diff(start, append=np.int32(corners))
+    if faces and size.max() > 4:
+        mesh.calc_loop_triangles()
+        tris = mesh.loop_triangles
+        corner = np.empty(len(tris) * 3, dtype=np.int32)
+        tris.foreach_get("loops", corner)
+        face = np.empty(len(tris), dtype=np.int32)
+        tris.foreach_get("polygon_index", face)
+        return corner, face
+    is_quad = size == 4
+    tri = np.flatnonzero(~is_quad)
+    quad = np.flatnonzero(is_quad)
+    q = start[quad]
+    flip = _quad_flip(*(co[corner_vert[q + k]] for k in range(4)))
+    quad_corners = q[:, None] + QUAD_SPLIT[flip.view(np.int8)]
+    corner = np.concatenate([(start[tri, None] + np.arange(3, dtype=np.int32)).ravel(),
+                             quad_corners.ravel()])
+    return corner, np.concatenate([tri, np.repeat(quad, 2)]).astype(np.int32)
+
+
+def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bool
+                 ) -> tuple[Mesh, list[str]]:
+    """Triangles of an evaluated mesh as corner arrays, and what was wrong with them.
+
+    Triangles with NaN/Inf corners or zero area are left out (one warning each kind); a mesh
+    object with vertices but no faces gets a warning (curves without bevel do not)."""
+    problems: list[str] = []
     co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    mesh.vertices.foreach_get("co", co)
+    position = mesh.attributes.get("position")  # the fast path; vertices' co is per element
+    if position is None:
+        mesh.vertices.foreach_get("co", co)
+    else:
+        position.data.foreach_get("vector", co)
+    co = co.reshape(-1, 3)
+    corner_vert = _int_attribute(mesh, ".corner_vert", len(mesh.loops))
+    if corner_vert is None:
+        corner_vert = np.empty(len(mesh.loops), dtype=np.int32)
+        mesh.loops.foreach_get("vertex_index", corner_vert)
+    corner, face = _triangles(mesh, co, corner_vert)
+    count = len(face)
+    if count == 0:
+        if faces_expected and len(mesh.vertices):
+            problems.append(f"{label} has no faces ({len(mesh.vertices)} vertices): "
+                            f"nothing to render")
+        empty = np.zeros((0, 3), dtype=np.float32)
+        return Mesh(name, empty, empty, np.zeros(0, dtype=np.int32)), problems
+    material_index = _int_attribute(mesh, "material_index", len(mesh.polygons))
+    slots = np.zeros(count, np.int32) if material_index is None else material_index[face]
     normals = np.empty(len(mesh.loops) * 3, dtype=np.float32)
     mesh.corner_normals.foreach_get("vector", normals)
-    positions = co.reshape(-1, 3)[vertex_of_corner[corner]]
-    return Mesh(name, positions, normals.reshape(-1, 3)[corner], slots)
+    positions = co[corner_vert[corner]]
+    normals = normals.reshape(-1, 3)[corner]
+    corners = positions.reshape(-1, 3, 3)
+    keep = np.ones(count, dtype=bool)
+    if not np.isfinite(co).all():
+        keep = np.isfinite(corners).all(axis=(1, 2))
+        problems.append(f"{label}: {count - int(keep.sum())} of {count} triangles have NaN/Inf "
+                        f"vertices and were left out")
+    with np.errstate(invalid="ignore"):
+        cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    degenerate = keep & ~cross.any(axis=1)
+    if degenerate.any():
+        keep &= ~degenerate
+        problems.append(f"{label}: {int(degenerate.sum())} of {count} triangles have zero area "
+                        f"and were left out")
+    if not keep.all():
+        per_corner = np.repeat(keep, 3)
+        positions, normals, slots = positions[per_corner], normals[per_corner], slots[keep]
+    return Mesh(name, positions, normals, slots), problems
 
+
+@dataclass
+class _Entry:
+    """A mesh read from Blender, the names whose change invalidates it, and its problems."""
+
+    mesh: Mesh
+    names: set[str]
+    fingerprint: tuple[int, ...]
+    problems: list[str] = field(default_factory=list)
+
+
+class ExportCache:
+    """Meshes of earlier exports, reused by ``export_scene`` until forgotten.
+
+    Keys: an unmodified mesh object's mesh datablock (shared by every object using it), an
+    evaluated object otherwise, and an instancer for geometry it generates (geometry nodes).
+    The caller (the viewport) forgets what Blender reports as changed; meshes no export used
+    are dropped at the end of each export."""
+
+    def __init__(self) -> None:
+        self._entries: dict[tuple, _Entry] = {}
+        self.stats: dict[str, int] = {"meshes_read": 0, "meshes_reused": 0}
+
+    def forget(self, name: str) -> None:
+        """Read the geometry of the object, mesh datablock or instancer ``name`` again."""
+        self._entries = {k: e for k, e in self._entries.items() if name not in e.names}
+
+    def clear(self) -> None:
+        """Forget every mesh."""
+        self._entries.clear()
+
+
+def _no_mesh(name: str) -> Mesh:
+    empty = np.zeros((0, 3), dtype=np.float32)
+    return Mesh(name, empty, empty, np.zeros(0, dtype=np.int32))
+
+
+def _fingerprint(obj: bpy.types.Object) -> tuple[int, ...]:
+    data = obj.data
+    if obj.type != "MESH":
+        return ()
+    return len(data.vertices), len(data.loops), len(data.polygons)
+
+
+# -- materials ------------------------------------------------------------------------------
 
 def _surface_node(tree: bpy.types.NodeTree | None, output_type: str):
     """The shader node linked to the active output's Surface socket, or None."""
@@ -57,28 +194,92 @@ def _input_value(node, name: str, default):
     return default if socket is None else socket.default_value
 
 
-def export_material(material: bpy.types.Material | None, warnings: list[str]) -> Material:
-    """Base colour and emission of a material's surface shader (constant values)."""
+class _Unsupported(Exception):
+    """A shader tree the export cannot turn into constant values (the reason is the text)."""
+
+
+def _constant(node, name: str, default):
+    """An input's value; a linked input (texture, math …) is unsupported."""
+    socket = node.inputs.get(name)
+    if socket is None:
+        return default
+    if socket.is_linked:
+        raise _Unsupported(f"input '{name}' of '{node.bl_label}' is linked to "
+                           f"'{socket.links[0].from_node.bl_label}'")
+    return socket.default_value
+
+
+def _linked_shader(socket):
+    return socket.links[0].from_node if socket.is_linked else None
+
+
+def _shader(node, name: str, glossy: set[str]) -> Material:
+    """Constant diffuse values of a shader node (recursing through Mix and Add Shader).
+
+    An empty shader socket is black, as in Cycles. Materials with a specular or metallic
+    (glossy) part are added to ``glossy``."""
+    if node is None:
+        return Material(name, (0.0, 0.0, 0.0))
+    if node.type == "REROUTE":
+        return _shader(_linked_shader(node.inputs[0]), name, glossy)
+    if node.type == "BSDF_PRINCIPLED":
+        if _input_value(node, "Metallic", 0.0) > 0 or \
+                _input_value(node, "Specular IOR Level", 0.0) > 0:
+            glossy.add(name)
+        strength = float(_constant(node, "Emission Strength", 0.0))
+        emission = np.array(_rgb(_constant(node, "Emission Color", (0, 0, 0)))) * strength
+        return Material(name, _rgb(_constant(node, "Base Color", (0.8,) * 3)), tuple(emission),
+                        roughness=float(_constant(node, "Roughness", 0.5)),
+                        metallic=float(_constant(node, "Metallic", 0.0)))
+    if node.type == "BSDF_DIFFUSE":
+        return Material(name, _rgb(_constant(node, "Color", (0.8,) * 3)), roughness=1.0)
+    if node.type == "EMISSION":
+        strength = float(_constant(node, "Strength", 1.0))
+        color = np.array(_rgb(_constant(node, "Color", (1, 1, 1)))) * strength
+        return Material(name, (0.0, 0.0, 0.0), tuple(color), roughness=1.0)
+    if node.type in ("MIX_SHADER", "ADD_SHADER"):
+        first_socket, second_socket = (node.inputs[1], node.inputs[2]) \
+            if node.type == "MIX_SHADER" else (node.inputs[0], node.inputs[1])
+        a = _shader(_linked_shader(first_socket), name, glossy)
+        b = _shader(_linked_shader(second_socket), name, glossy)
+        if node.type == "ADD_SHADER":
+            wa = wb = 1.0
+        else:
+            wb = float(np.clip(_constant(node, "Fac", 0.5), 0.0, 1.0))
+            wa = 1.0 - wb
+        mix = [tuple(wa * np.array(x) + wb * np.array(y)) for x, y in
+               ((a.base_color, b.base_color), (a.emission, b.emission))]
+        weight = max(wa + wb, 1e-30)
+        return Material(name, mix[0], mix[1],
+                        roughness=(wa * a.roughness + wb * b.roughness) / weight,
+                        metallic=(wa * a.metallic + wb * b.metallic) / weight)
+    raise _Unsupported(f"shader '{node.bl_label}' is not supported")
+
+
+def export_material(material: bpy.types.Material | None, warnings: list[str],
+                    glossy: set[str] | None = None) -> Material:
+    """Base colour, emission, roughness and metallic of a material's surface (constant values).
+
+    A material without nodes is diffuse in its viewport colour (as in Cycles), with a warning;
+    an unsupported node tree falls back to the viewport colour with one warning. Names of
+    materials with a glossy part are added to ``glossy``."""
     if material is None:
         return DEFAULT_MATERIAL
-    node = _surface_node(material.node_tree, "OUTPUT_MATERIAL") if material.use_nodes else None
-    if node is None:
-        return Material(material.name, _rgb(material.diffuse_color))
-    if node.type == "BSDF_PRINCIPLED":
-        strength = float(_input_value(node, "Emission Strength", 0.0))
-        emission = np.array(_rgb(_input_value(node, "Emission Color", (0, 0, 0)))) * strength
-        return Material(material.name, _rgb(_input_value(node, "Base Color", (0.8,) * 3)),
-                        tuple(emission))
-    if node.type == "BSDF_DIFFUSE":
-        return Material(material.name, _rgb(_input_value(node, "Color", (0.8,) * 3)))
-    if node.type == "EMISSION":
-        strength = float(_input_value(node, "Strength", 1.0))
-        color = np.array(_rgb(_input_value(node, "Color", (1, 1, 1)))) * strength
-        return Material(material.name, (0.0, 0.0, 0.0), tuple(color))
-    warnings.append(f"material '{material.name}': shader '{node.bl_label}' is not supported, "
-                    f"using its viewport colour")
-    return Material(material.name, _rgb(material.diffuse_color))
+    viewport = Material(material.name, _rgb(material.diffuse_color),
+                        roughness=float(material.roughness), metallic=float(material.metallic))
+    if not material.use_nodes or material.node_tree is None:
+        warnings.append(f"material '{material.name}' has no shader nodes: rendered as a "
+                        f"diffuse surface in its viewport colour (as Cycles does)")
+        return viewport
+    node = _surface_node(material.node_tree, "OUTPUT_MATERIAL")
+    try:
+        return _shader(node, material.name, set() if glossy is None else glossy)
+    except _Unsupported as reason:
+        warnings.append(f"material '{material.name}': {reason}; using its viewport colour")
+        return viewport
 
+
+# -- lights, world, camera ------------------------------------------------------------------
 
 def export_light(obj: bpy.types.Object, matrix) -> Light:
     data = obj.data
@@ -132,41 +333,157 @@ def render_size(scene: bpy.types.Scene) -> tuple[int, int]:
     return max(1, int(r.resolution_x * scale)), max(1, int(r.resolution_y * scale))
 
 
-def export_scene(depsgraph: bpy.types.Depsgraph) -> Scene:
-    """Everything the renderer needs from the evaluated depsgraph."""
-    scene_eval = depsgraph.scene_eval
-    result = Scene()
-    warnings = result.warnings
-    meshes: dict[str, Mesh] = {}
-    materials: dict[str, Material] = {}
-    for inst in depsgraph.object_instances:
-        obj = inst.object
-        matrix = inst.matrix_world
-        if not all(math.isfinite(v) for row in matrix for v in row):
-            warnings.append(f"object '{obj.name}' has a non-finite transform and was skipped")
-            continue
-        if obj.type == "LIGHT":
-            result.lights.append(export_light(obj, matrix))
-            continue
-        if obj.type not in GEOMETRY_TYPES:
-            continue
-        mesh = meshes.get(obj.name)
-        if mesh is None:
-            evaluated_mesh = obj.to_mesh()
-            if evaluated_mesh is None:
-                continue
-            try:
-                mesh = _mesh_arrays(evaluated_mesh, obj.name)
-            finally:
-                obj.to_mesh_clear()
-            meshes[obj.name] = mesh
-        slot_materials = []
+# -- the scene ------------------------------------------------------------------------------
+
+class _Export:
+    """State of one export: per-pointer memos (valid for this depsgraph evaluation only)."""
+
+    def __init__(self, depsgraph: bpy.types.Depsgraph, cache: ExportCache, result: Scene):
+        self.depsgraph = depsgraph
+        self.cache = cache
+        self.result = result
+        self.used: dict[tuple, _Entry] = {}
+        self.meshes: dict[tuple, _Entry] = {}
+        self.materials: dict[str, Material] = {}
+        self.visibility: dict[int, bool] = {}
+        self.glossy: set[str] = set()
+        self.generated: dict[str, dict[int, int]] = {}
+
+    def include(self, obj: bpy.types.Object) -> bool:
+        """False for geometry no ray sees; warns once per object about flags not honoured."""
+        original = obj.original
+        pointer = original.as_pointer()
+        known = self.visibility.get(pointer)
+        if known is not None:
+            return known
+        off = [label for flag, label in RAY_FLAGS.items() if not getattr(obj, flag, True)]
+        include = len(off) < len(RAY_FLAGS)
+        unsupported = []
+        if include and off:
+            unsupported.append(f"ray visibility {', '.join(off)} off")
+        if include and original.holdout_get(view_layer=self.depsgraph.view_layer):
+            unsupported.append("holdout")
+        if unsupported:
+            self.result.warnings.append(
+                f"object '{original.name}': {' and '.join(unsupported)} is not supported "
+                f"(rendered as a visible surface)")
+        self.visibility[pointer] = include
+        return include
+
+    def _key(self, inst, obj: bpy.types.Object, pointer: int) -> tuple[tuple, set[str]]:
+        """The cache key of an instance's geometry and the names that invalidate it."""
+        original = obj.original
+        parent = inst.parent
+        if inst.is_instance and parent is not None and \
+                parent.original.as_pointer() == original.as_pointer():
+            ordinals = self.generated.setdefault(original.name, {})
+            ordinal = ordinals.setdefault(pointer, len(ordinals))
+            return ("generated", original.name_full, ordinal), {original.name}
+        if obj.type == "MESH" and not original.modifiers and original.data.shape_keys is None:
+            mesh = original.data
+            return ("mesh", mesh.name_full), {mesh.name, mesh.name_full, original.name}
+        names = {original.name, original.name_full}
+        if obj.type == "MESH":
+            names.add(original.data.name)
+        return ("object", original.name_full), names
+
+    def mesh(self, inst, obj: bpy.types.Object) -> Mesh:
+        """The instance's mesh: from this export, from the cache, or read now."""
+        pointer = obj.data.as_pointer()
+        memo = (pointer,) if obj.type == "MESH" else (obj.original.as_pointer(), pointer)
+        known = self.meshes.get(memo)
+        if known is not None:
+            known.names.add(obj.original.name)
+            self.cache.stats["meshes_reused"] += 1
+            return known.mesh
+        key, names = self._key(inst, obj, pointer)
+        fingerprint = _fingerprint(obj) if key[0] == "generated" else ()
+        entry = self.used.get(key) or self.cache._entries.get(key)
+        if entry is not None and entry.fingerprint == fingerprint:
+            entry.names |= names
+            self.cache.stats["meshes_reused"] += 1
+        else:
+            mesh, problems = self._read(obj, key)
+            entry = _Entry(mesh, names, fingerprint, problems)
+            self.cache.stats["meshes_read"] += 1
+        if key not in self.used:
+            self.result.warnings.extend(entry.problems)
+        self.used[key] = entry
+        self.meshes[memo] = entry
+        return entry.mesh
+
+    def _read(self, obj: bpy.types.Object, key: tuple) -> tuple[Mesh, list[str]]:
+        label = f"mesh '{key[1]}'" if key[0] == "mesh" else f"object '{obj.original.name}'"
+        if obj.type == "MESH":
+            return _mesh_arrays(obj.data, obj.name, label, faces_expected=True)
+        evaluated_mesh = obj.to_mesh()
+        if evaluated_mesh is None:
+            return _no_mesh(obj.name), []
+        try:
+            return _mesh_arrays(evaluated_mesh, obj.name, label, faces_expected=False)
+        finally:
+            obj.to_mesh_clear()
+
+    def materials_of(self, obj: bpy.types.Object) -> list[Material]:
+        found = []
         for slot in obj.material_slots:
             key = slot.material.name_full if slot.material else ""
-            if key not in materials:
-                materials[key] = export_material(slot.material, warnings)
-            slot_materials.append(materials[key])
-        result.instances.append(Instance(mesh, _matrix(matrix), slot_materials))
+            if key not in self.materials:
+                self.materials[key] = export_material(slot.material, self.result.warnings,
+                                                      self.glossy)
+            found.append(self.materials[key])
+        return found
+
+
+def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = None) -> Scene:
+    """Everything the renderer needs from the evaluated depsgraph.
+
+    With a cache, meshes read by earlier exports are reused unless forgotten (see ExportCache);
+    ``cache.stats`` counts the meshes this export read and reused."""
+    scene_eval = depsgraph.scene_eval
+    result = Scene()
+    cache = cache if cache is not None else ExportCache()
+    cache.stats.update(meshes_read=0, meshes_reused=0)
+    state = _Export(depsgraph, cache, result)
+    placed: list[tuple[Mesh, list[Material], str]] = []
+    # Per (object, data): its mesh and materials, or None when no ray sees it.
+    placements: dict[tuple[int, int], tuple[Mesh, list[Material]] | None] = {}
+    flat: list[float] = []  # matrices, converted to numpy at once (much faster than one by one)
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        kind = obj.type
+        if kind == "LIGHT":
+            matrix = _matrix(inst.matrix_world)
+            if np.isfinite(matrix).all():
+                result.lights.append(export_light(obj, matrix))
+            else:
+                result.warnings.append(f"light '{obj.name}' has a non-finite transform and was "
+                                       f"skipped")
+            continue
+        if kind not in GEOMETRY_TYPES or not inst.show_self:
+            continue
+        memo = (obj.original.as_pointer(), obj.data.as_pointer())
+        known = placements.get(memo)
+        if known is None:
+            known = placements[memo] = (state.mesh(inst, obj), state.materials_of(obj)) \
+                if state.include(obj) else None
+        elif known:
+            cache.stats["meshes_reused"] += 1
+        if known and known[0].triangle_count:
+            flat.extend(chain.from_iterable(inst.matrix_world))
+            placed.append((*known, obj.name))
+    matrices = np.array(flat, dtype=np.float64).reshape(-1, 4, 4)
+    finite = np.isfinite(matrices).all(axis=(1, 2))
+    for (mesh, materials, name), matrix, ok in zip(placed, matrices, finite, strict=True):
+        if ok:
+            result.instances.append(Instance(mesh, matrix, materials))
+        else:
+            result.warnings.append(f"object '{name}' has a non-finite transform and was skipped")
+    cache._entries = state.used
+    if state.glossy:
+        result.notes.append(f"specular and metallic reflection is not rendered yet: "
+                            f"{len(state.glossy)} material(s) with a glossy part (e.g. "
+                            f"'{min(state.glossy)}') are lit as diffuse in their base colour")
     result.world = export_world(scene_eval.world)
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval))

@@ -2,7 +2,9 @@
 // average of the valid texels among its 2x2 finer texels of the same tile (each valid texel
 // weighs the same), or empty (ISM_EMPTY) when none is valid. All tiles in one dispatch: one
 // invocation per coarse texel of the whole atlas. ISM_FINE_SPLAT: the finer level is the r32ui
-// splat image (empty = ISM_EMPTY_BITS), else an r32f level.
+// splat image (empty = ISM_EMPTY_BITS), else an r32f level. ISM_TILE_LIST: listed tiles only.
+#include "ism_tile_list_lib.glsl"
+
 #define ISM_EMPTY -1.0
 #define ISM_EMPTY_BITS 0xFFFFFFFFu
 
@@ -29,8 +31,8 @@ uniform int u_coarse_resolution;  // (u_fine_resolution + 1) / 2
 uniform ivec2 u_coarse_size;      // the coarse level's size: tiles * u_coarse_resolution
 
 void main() {
-    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(p, u_coarse_size))) return;
+    ivec2 p = ism_pass_texel(u_coarse_resolution, u_coarse_size);
+    if (p.x < 0) return;
     ivec2 tile = p / u_coarse_resolution;
     ivec2 local = p - tile * u_coarse_resolution;
     float sum = 0.0;

@@ -5,8 +5,9 @@
 // ISM_FAR on the finest: lit). All tiles in one dispatch: one invocation per texel.
 // ISM_FINE_SPLAT: the finest level, read from the r32ui splat image (which is reset to empty for
 // the next frame as it is read) and written to the r32f atlas; else an r32f level in place.
-// ISM_PARTIAL (with ISM_FINE_SPLAT): only tiles flagged in ism_dirty are written to the atlas;
-// the others keep the depths of an earlier frame.
+// ISM_TILE_LIST: only the listed tiles (a partial update); the others keep the depths of an
+// earlier frame.
+#include "ism_tile_list_lib.glsl"
 
 #define ISM_EMPTY -1.0
 #define ISM_EMPTY_BITS 0xFFFFFFFFu
@@ -38,9 +39,6 @@ void put_depth(ivec2 p, float depth) {
 }
 #endif
 layout(r32f, binding = 1) uniform readonly image2D u_coarse;
-#ifdef ISM_PARTIAL
-layout(std430, binding = ISM_PARTIAL) readonly buffer IsmDirty { uint ism_dirty[]; };
-#endif
 
 uniform int u_resolution;         // texels per tile edge of this level
 uniform int u_coarse_resolution;  // of the coarser level; 0: none (no pull-push)
@@ -69,12 +67,8 @@ float coarse_depth(ivec2 tile, vec2 c) {
 }
 
 void main() {
-    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(p, u_size))) return;
-#if defined(ISM_FINE_SPLAT) && defined(ISM_PARTIAL)
-    ivec2 t = p / u_resolution;
-    if (ism_dirty[t.y * (u_size.x / u_resolution) + t.x] == 0u) return;  // splat texel is empty
-#endif
+    ivec2 p = ism_pass_texel(u_resolution, u_size);
+    if (p.x < 0) return;
     float depth = take_depth(p);
     if (depth >= 0.0) {
         put_depth(p, depth);

@@ -35,22 +35,22 @@ def _transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ matrix[:3, :3].T + matrix[:3, 3]
 
 
-def _transform_normals(matrix: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    linear = matrix[:3, :3]
-    det = np.linalg.det(linear)
-    normal_matrix = np.linalg.inv(linear).T if abs(det) > 1e-300 else linear
-    out = normals @ normal_matrix.T
-    length = np.linalg.norm(out, axis=1, keepdims=True)
-    return np.divide(out, length, out=np.zeros_like(out), where=length > 0)
+def _normal_matrices(linear: np.ndarray) -> np.ndarray:
+    """Matrices that carry normals through (k, 3, 3) linear maps: the cofactor matrices (the
+    inverse transposes times the determinant), signed so that mirroring keeps the side; they
+    stay defined for singular maps. Normals are normalised afterwards."""
+    c0, c1, c2 = linear[:, :, 0], linear[:, :, 1], linear[:, :, 2]
+    cofactor = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=2)
+    det = np.einsum("ki,ki->k", c0, cofactor[:, :, 0])
+    return cofactor * np.where(det < 0, -1.0, 1.0)[:, None, None]
 
 
 MAX_ALBEDO = 1.0  # a diffuse surface cannot reflect more than it receives
 
 
-def _albedo_table(inst: Instance, warnings: list[str]) -> np.ndarray:
+def _albedo_table(materials: list[Material], warnings: list[str]) -> np.ndarray:
     """Base colours per material slot, capped to [0, MAX_ALBEDO] with one warning per material
     (Blender allows colours above 1; with them every bounce would add energy)."""
-    materials = inst.materials or [Material("(no material)")]
     table = np.array([m.base_color for m in materials], dtype=np.float64)
     table = np.where(np.isfinite(table), table, 0.0)
     for material, row in zip(materials, table, strict=True):
@@ -62,42 +62,74 @@ def _albedo_table(inst: Instance, warnings: list[str]) -> np.ndarray:
     return np.clip(table, 0.0, MAX_ALBEDO)
 
 
+def _material_tables(materials: list[Material], warnings: list[str]
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Albedo (capped, see ``_albedo_table``) and emission (finite, >= 0) per material slot."""
+    albedo = _albedo_table(materials, warnings)
+    emission = np.array([m.emission for m in materials] or [(0.0, 0.0, 0.0)], np.float64)
+    return albedo, np.where(np.isfinite(emission), np.maximum(emission, 0), 0)
+
+
+def _flatten_group(members: list[Instance], tables: dict, warnings: list[str]
+                   ) -> tuple[np.ndarray, ...]:
+    """World positions, normals, albedo and emission of every instance of one shared mesh,
+    transformed together (float32, as the GPU gets them)."""
+    mesh = members[0].mesh
+    k, vertices = len(members), len(mesh.positions)
+    matrices = np.stack([inst.matrix for inst in members]).astype(np.float64)
+    with np.errstate(all="ignore"):
+        world = np.matmul(mesh.positions.astype(np.float32)[None],
+                          matrices[:, :3, :3].transpose(0, 2, 1).astype(np.float32)) \
+            + matrices[:, None, :3, 3].astype(np.float32)
+    finite = np.isfinite(world).all(axis=2).reshape(k, -1, 3).all(axis=2)
+    for row in np.flatnonzero(~finite.all(axis=1)):
+        warnings.append(f"mesh '{mesh.name}': {int((~finite[row]).sum())} of {finite.shape[1]} "
+                        f"triangles have NaN/Inf positions and were left out")
+    with np.errstate(all="ignore"):
+        normal_matrices = _normal_matrices(np.nan_to_num(matrices[:, :3, :3]))
+        normals = np.matmul(np.nan_to_num(mesh.normals.astype(np.float32))[None],
+                            normal_matrices.transpose(0, 2, 1).astype(np.float32))
+        length = np.linalg.norm(normals, axis=2, keepdims=True)
+        normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+    slots_per_vertex = np.repeat(mesh.material_slots, 3)
+    width = max(1, int(slots_per_vertex.max(initial=0)) + 1)
+    albedo_tables = np.zeros((k, width, 3), np.float32)
+    emission_tables = np.zeros((k, width, 3), np.float32)
+    for row, inst in enumerate(members):
+        key = tuple(id(m) for m in inst.materials)
+        if key not in tables:
+            tables[key] = _material_tables(inst.materials or [Material("(no material)")],
+                                           warnings)
+        albedo, emission = tables[key]
+        clipped = np.minimum(np.arange(width), len(albedo) - 1)
+        albedo_tables[row], emission_tables[row] = albedo[clipped], emission[clipped]
+    slots = np.clip(slots_per_vertex, 0, width - 1)
+    columns = (world, normals, albedo_tables[:, slots], emission_tables[:, slots])
+    if finite.all():
+        return tuple(c.reshape(k * vertices, 3) for c in columns)
+    keep = np.repeat(finite, 3, axis=1)
+    return tuple(c[keep] for c in columns)
+
+
 def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
     """All instances in world space, with each triangle's material spread to its vertices.
+    Instances of one mesh are transformed together (the order is by each mesh's first
+    instance).
 
     Triangles whose world positions are not finite (NaN/Inf vertices or transforms) are left
     out, with one warning per instance."""
-    parts: list[tuple[np.ndarray, ...]] = []
+    groups: dict[int, list[Instance]] = {}
     for inst in scene.instances:
-        mesh = inst.mesh
-        if mesh.triangle_count == 0:
-            continue
-        with np.errstate(all="ignore"):
-            world = _transform_points(inst.matrix, mesh.positions.astype(np.float64))
-        finite = np.isfinite(world).all(axis=1).reshape(-1, 3).all(axis=1)
-        if not finite.all():
-            warnings.append(f"mesh '{mesh.name}': {int((~finite).sum())} of {len(finite)} "
-                            f"triangles have NaN/Inf positions and were left out")
-            if not finite.any():
-                continue
-        albedo_table = _albedo_table(inst, warnings)
-        emission_table = np.array([m.emission for m in inst.materials] or [(0.0, 0.0, 0.0)],
-                                  dtype=np.float64)
-        emission_table = np.where(np.isfinite(emission_table), np.maximum(emission_table, 0), 0)
-        slots = np.clip(mesh.material_slots, 0, len(albedo_table) - 1)
-        keep = np.repeat(finite, 3)
-        per_vertex = np.repeat(slots, 3)[keep]
-        normals = np.nan_to_num(mesh.normals[keep].astype(np.float64))
-        parts.append((
-            world[keep],
-            _transform_normals(inst.matrix, normals),
-            albedo_table[per_vertex],
-            emission_table[per_vertex],
-        ))
+        if inst.mesh.triangle_count:
+            groups.setdefault(id(inst.mesh), []).append(inst)
+    tables: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+    parts = [_flatten_group(members, tables, warnings) for members in groups.values()]
+    parts = [p for p in parts if len(p[0])]
     if not parts:
         empty = np.zeros((0, 3), dtype=np.float32)
         return WorldGeometry(empty, empty, empty, empty)
-    columns = [np.concatenate(c).astype(np.float32) for c in zip(*parts, strict=True)]
+    columns = [np.ascontiguousarray(np.concatenate(c), dtype=np.float32)
+               for c in zip(*parts, strict=True)]
     return WorldGeometry(*columns)
 
 

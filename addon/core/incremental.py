@@ -193,6 +193,7 @@ class _Anchors:
     position: np.ndarray
     normal: np.ndarray
     albedo: np.ndarray
+    triangle: np.ndarray  # (n,) int, the triangle hit (-1 for a miss)
     slot: np.ndarray  # (n,) int, global path slot
     path_id: np.ndarray  # (n,) int, unique id of the path (new id = new VPLs)
 
@@ -200,7 +201,7 @@ class _Anchors:
     def empty(cls, dimensions: int) -> _Anchors:
         return cls(np.zeros((0, dimensions)), np.zeros((0, 2)), np.zeros(0, bool),
                    np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int),
-                   np.zeros(0, int))
+                   np.zeros(0, int), np.zeros(0, int))
 
     def __len__(self) -> int:
         return len(self.slot)
@@ -311,7 +312,7 @@ class IncrementalVPLs:
     lights: dict[str, _LightState] = field(default_factory=dict)
     stats: IncrementalStats = field(default_factory=IncrementalStats)
     _key: tuple | None = None
-    _geometry: tuple[np.ndarray, np.ndarray] | None = None
+    _geometry: np.ndarray | None = None  # last frame's triangle positions
     _next_id: int = 0
     _frame: int = 0
     _previous_keys: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -324,17 +325,16 @@ class IncrementalVPLs:
         self.stats = IncrementalStats()
         self._frame += 1
         key = (settings.vpl_count, settings.bounces, settings.seed, settings.termination)
-        geometry_key = (geometry.positions, geometry.albedo)
-        same_geometry = self._geometry is not None and all(
-            a.shape == b.shape and np.array_equal(a, b)
-            for a, b in zip(self._geometry, geometry_key, strict=True))
+        same_geometry = self._geometry is not None and \
+            self._geometry.shape == geometry.positions.shape and \
+            np.array_equal(self._geometry, geometry.positions)
         if key != self._key:
             self.lights.clear()
             self.stats.reset = "settings changed" if self._key else "first frame"
         elif not same_geometry:
             self.stats.reset = "geometry changed"
         self._key = key
-        self._geometry = (geometry.positions.copy(), geometry.albedo.copy())
+        self._geometry = geometry.positions.copy()
         n = settings.vpl_count
         domains = {light.name: d for light in scene.lights
                    if (d := light_domain(light, centre, radius)) is not None}
@@ -399,6 +399,9 @@ class IncrementalVPLs:
         geometry change, all) paths again from their domain points."""
         if len(anchors) == 0:
             return anchors
+        if not retrace_all:  # materials may have changed: read the albedo again
+            anchors.albedo[anchors.hit] = geometry.albedo.reshape(-1, 3, 3)[
+                anchors.triangle[anchors.hit], 0]
         coords, origin, in_front = domain.project(anchors.position, anchors.offsets)
         towards = anchors.position - origin
         distance = np.linalg.norm(towards, axis=1)
@@ -434,7 +437,10 @@ class IncrementalVPLs:
         position, normal, albedo = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
         position[found.rank], normal[found.rank] = found.position, found.normal
         albedo[found.rank] = found.albedo
-        return _Anchors(coords, offsets, hit, position, normal, albedo, slots, self._ids(n))
+        triangle = np.full(n, -1)
+        triangle[found.rank] = found.triangle
+        return _Anchors(coords, offsets, hit, position, normal, albedo, triangle, slots,
+                        self._ids(n))
 
     def _create(self, anchors: _Anchors, domain: LightDomain, slots: np.ndarray,
                 tracer: RayTracer, geometry: WorldGeometry, epsilon: float,
@@ -486,7 +492,8 @@ class IncrementalVPLs:
         _, flux = cell_integrals(domain, anchors.coords)
         hit = anchors.hit
         return SurfaceHits(anchors.position[hit], anchors.normal[hit], anchors.albedo[hit],
-                           flux[hit], permutation[anchors.slot[hit]]), anchors.path_id[hit]
+                           flux[hit], permutation[anchors.slot[hit]],
+                           anchors.triangle[hit]), anchors.path_id[hit]
 
     def _environment_hits(self, emitters: list, slots: np.ndarray, count: int,
                           permutation: np.ndarray, tracer: RayTracer, geometry: WorldGeometry,
@@ -500,7 +507,8 @@ class IncrementalVPLs:
         if self.stats.reset or not np.array_equal(slots, self._environment_slots):
             self._environment_slots, self._environment_ids = slots, self._ids(len(slots))
         return (SurfaceHits(found.position, found.normal, found.albedo, found.flux,
-                            permutation[slots[found.rank]]), self._environment_ids[found.rank])
+                            permutation[slots[found.rank]], found.triangle),
+                self._environment_ids[found.rank])
 
 
 def _allocate(total: int, powers: list[float]) -> list[int]:

@@ -51,7 +51,7 @@ BINDING_VERTICES = 21  # ISM_BINDING_VERTICES in ism_splat_comp.glsl
 BINDING_VPLS = 22  # ISM_BINDING_VPLS in ism_splat_comp.glsl and ism_lookup_comp.glsl
 BINDING_QUERIES = 23  # ISM_BINDING_QUERIES in ism_lookup_comp.glsl
 BINDING_RESULTS = 24  # ISM_BINDING_RESULTS in ism_lookup_comp.glsl
-BINDING_DIRTY = 25  # ISM_PARTIAL in ism_push_comp.glsl: tiles a partial update writes
+BINDING_TILE_LIST = 25  # ISM_TILE_LIST of ism_tile_list_lib.glsl: tiles a partial update does
 POINT_LOCAL_SIZE = 64  # local_size_x of ism_splat_comp.glsl and ism_lookup_comp.glsl
 IMAGE_LOCAL_SIZE = 8  # local_size_x and _y of ism_pull_comp.glsl and ism_push_comp.glsl
 FAR = float(np.float32(3.0e38))  # ISM_FAR in ism_lib.glsl: the depth of texels left empty
@@ -209,6 +209,7 @@ class ImperfectShadowMaps:
         self._atlas: moderngl.Texture | None = None
         self._levels: list[moderngl.Texture] = []
         self._scene_sphere: tuple[np.ndarray, float] = (np.zeros(3), 1.0)
+        self._listed = 0  # tiles of the tile list the current pull-push runs on (0: all)
 
     # -- point pool ----------------------------------------------------------------------------
 
@@ -262,18 +263,19 @@ class ImperfectShadowMaps:
         self._allocate(max(vpl_count, tile_count), resolution, pull_push_levels)
         self._write(BINDING_VERTICES, _vertices(tris))
         self._write(BINDING_VPLS, _vpl_data(positions, vpl_normal, directional, tiles))
-        dirty = None
+        listed = 0
         if tiles is not None:
-            dirty = np.zeros(self.columns * (self._atlas.height // resolution), np.uint32)
-            dirty[np.asarray(tiles, int)] = 1
-            self._write(BINDING_DIRTY, dirty)
+            listed = len(tiles)
+            self._write(BINDING_TILE_LIST, np.asarray(tiles, np.int32).reshape(-1) if listed
+                        else np.zeros(1, np.int32))
         self.ctx.finish()
         uploaded = time.perf_counter()
         if self._points_per_vpl and vpl_count:
             self._run_splat(vpl_count, triangle_areas(tris).sum())
         self.ctx.finish()
         splatted = time.perf_counter()
-        self._run_pull_push(pull_push_levels, partial=dirty is not None)
+        if tiles is None or listed:
+            self._run_pull_push(pull_push_levels, listed if tiles is not None else 0)
         self.ctx.finish()
         self.timings = {"upload": uploaded - start, "splat": splatted - uploaded,
                         "pull_push": time.perf_counter() - splatted}
@@ -408,44 +410,46 @@ class ImperfectShadowMaps:
         shader.run(-(-self._points_per_vpl // POINT_LOCAL_SIZE), vpl_count)
         self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
 
-    def _run_pull_push(self, levels: int, partial: bool = False) -> None:
+    def _run_pull_push(self, levels: int, listed: int = 0) -> None:
         """Pull into each coarser level, push back down to each finer level in place, and
-        last into the atlas (which resets the splat image to empty for the next frame; only
-        the dirty tiles when ``partial``)."""
+        last into the atlas (which resets the splat image to empty for the next frame); with
+        ``listed`` > 0, only the first ``listed`` tiles of the tile list."""
         images = [self._splat, *self._levels]
         sizes = level_resolutions(self.resolution, levels)
+        self._listed = listed
+        if listed:
+            self._buffers[BINDING_TILE_LIST].bind_to_storage_buffer(BINDING_TILE_LIST)
         for level in range(len(sizes) - 1):
             self._pull(level, images[level], images[level + 1], sizes[level], sizes[level + 1])
         for level in range(len(sizes) - 2, 0, -1):
             self._push(images[level], images[level], images[level + 1], sizes[level],
                        sizes[level + 1], -1.0)
         coarse = (images[1], sizes[1]) if len(sizes) > 1 else (self._atlas, 0)
-        if partial:
-            self._buffers[BINDING_DIRTY].bind_to_storage_buffer(BINDING_DIRTY)
-        self._push(self._splat, self._atlas, coarse[0], sizes[0], coarse[1], FAR, partial)
+        self._push(self._splat, self._atlas, coarse[0], sizes[0], coarse[1], FAR)
+
+    def _defines(self, fine_splat: bool) -> dict[str, object] | None:
+        """Defines of a pull or push pass: the splat image as input, a partial update."""
+        defines: dict[str, object] = {"ISM_FINE_SPLAT": 1} if fine_splat else {}
+        if self._listed:
+            defines["ISM_TILE_LIST"] = BINDING_TILE_LIST
+        return defines or None
 
     def _pull(self, level: int, fine: moderngl.Texture, coarse: moderngl.Texture,
               fine_resolution: int, coarse_resolution: int) -> None:
-        shader = self.programs.compute("ism_pull_comp.glsl",
-                                       {"ISM_FINE_SPLAT": 1} if level == 0 else None)
+        shader = self.programs.compute("ism_pull_comp.glsl", self._defines(level == 0))
         fine.bind_to_image(0, read=True, write=False)
         coarse.bind_to_image(1, read=False, write=True)
         shader["u_fine_resolution"] = fine_resolution
         shader["u_coarse_resolution"] = coarse_resolution
         shader["u_coarse_size"] = coarse.size
-        self._run_image_pass(shader, coarse.size)
+        self._run_image_pass(shader, coarse.size, coarse_resolution)
 
     def _push(self, fine: moderngl.Texture, target: moderngl.Texture, coarse: moderngl.Texture,
-              resolution: int, coarse_resolution: int, unfilled: float,
-              partial: bool = False) -> None:
+              resolution: int, coarse_resolution: int, unfilled: float) -> None:
         """Fill the empty texels of ``fine`` from ``coarse`` (none if ``coarse_resolution`` is
-        0) into ``target``: ``fine`` itself, or the atlas when ``fine`` is the splat image
-        (only the dirty tiles when ``partial``)."""
+        0) into ``target``: ``fine`` itself, or the atlas when ``fine`` is the splat image."""
         from_splat = fine is self._splat
-        defines: dict[str, object] = {"ISM_FINE_SPLAT": 1} if from_splat else {}
-        if partial:
-            defines["ISM_PARTIAL"] = BINDING_DIRTY
-        shader = self.programs.compute("ism_push_comp.glsl", defines or None)
+        shader = self.programs.compute("ism_push_comp.glsl", self._defines(from_splat))
         fine.bind_to_image(0, read=True, write=True)
         coarse.bind_to_image(1, read=True, write=False)
         if from_splat:
@@ -454,8 +458,14 @@ class ImperfectShadowMaps:
         shader["u_coarse_resolution"] = coarse_resolution
         shader["u_size"] = fine.size
         shader["u_unfilled"] = unfilled
-        self._run_image_pass(shader, fine.size)
+        self._run_image_pass(shader, fine.size, resolution)
 
-    def _run_image_pass(self, shader: moderngl.ComputeShader, size: tuple[int, int]) -> None:
-        shader.run(-(-size[0] // IMAGE_LOCAL_SIZE), -(-size[1] // IMAGE_LOCAL_SIZE))
+    def _run_image_pass(self, shader: moderngl.ComputeShader, size: tuple[int, int],
+                        resolution: int) -> None:
+        """One invocation per texel of the level, or of each listed tile's part of it."""
+        if self._listed:
+            groups = -(-resolution // IMAGE_LOCAL_SIZE)
+            shader.run(groups, groups, self._listed)
+        else:
+            shader.run(-(-size[0] // IMAGE_LOCAL_SIZE), -(-size[1] // IMAGE_LOCAL_SIZE))
         self.ctx.memory_barrier()  # all bits: the atlas is next fetched, read or written

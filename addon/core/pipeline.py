@@ -199,9 +199,11 @@ class Renderer:
         self.incremental = IncrementalVPLs()
         self._geometry: tuple[np.ndarray, ...] | None = None  # last frame's, to spot changes
         self._geometry_version = 0
-        self._traced_version = -1  # geometry version the ray tracer holds
+        self._shape_version = 0
+        self._traced_version = -1  # shape version the ray tracer holds
         self._vpl_cache: tuple[tuple, VPLs] | None = None  # (inputs, VPLs) of the last frame
         self._ism_atlas = ReusedISMAtlas()
+        self._kept_atlases: dict[tuple, list] = {}  # shadow atlases of the last frame
 
     def release(self) -> None:
         for helper in self._helpers.values():
@@ -215,7 +217,17 @@ class Renderer:
         self.incremental = IncrementalVPLs()
         self._geometry, self._vpl_cache = None, None
         self._ism_atlas.forget()
+        self._keep_atlases(None)
         self._traced_version = -1
+
+    def _keep_atlases(self, kept: _KeptAtlases | None) -> None:
+        """Keep the shadow atlases the last frame used; release the others."""
+        now = kept.used if kept is not None else {}
+        for key, objects in self._kept_atlases.items():
+            if key not in now:
+                for obj in objects:
+                    obj.release()
+        self._kept_atlases = now
 
     @property
     def last_vpls(self) -> VPLs | None:
@@ -229,12 +241,15 @@ class Renderer:
         return helper is not None and helper.atlas is not None
 
     def _note_geometry(self, geometry: WorldGeometry) -> None:
-        """Bump the geometry version when surfaces differ from the last frame's."""
+        """Bump the shape version when triangle positions differ from the last frame's (the
+        ray tracer's BVH and the imperfect shadow maps depend on them), and the geometry
+        version when positions or materials do (VPLs depend on both)."""
         arrays = (geometry.positions, geometry.albedo, geometry.emission)
-        same = self._geometry is not None and all(
-            a.shape == b.shape and np.array_equal(a, b)
-            for a, b in zip(self._geometry, arrays, strict=True))
-        if not same:
+        same = [self._geometry is not None and a.shape == b.shape and np.array_equal(a, b)
+                for a, b in zip(self._geometry or arrays, arrays, strict=True)]
+        if not same[0]:
+            self._shape_version += 1
+        if not all(same):
             self._geometry = tuple(a.copy() for a in arrays)
             self._geometry_version += 1
 
@@ -316,7 +331,9 @@ class Renderer:
                  for y in range(0, height, MAX_TILE) for x in range(0, width, MAX_TILE)]
         output = {name: np.zeros((camera.height, camera.width, c), np.float32)
                   for name, c in PASS_CHANNELS.items()}
-        resources = _FrameResources(self.ctx, geometry, shapes, self.programs)
+        kept = _KeptAtlases(self._kept_atlases, self._shape_version) if len(tiles) == 1 \
+            else None
+        resources = _FrameResources(self.ctx, geometry, shapes, self.programs, kept)
         if mode == "exact" or compensation is not None:
             self.tracer.bind()
         try:
@@ -359,6 +376,10 @@ class Renderer:
                                   indirect_light, scene, aa, x0, y0)
         finally:
             resources.release()
+            self._keep_atlases(kept)
+        if resources.kept_hits:
+            stats.skipped["shadow maps"] = (f"{resources.kept_hits} atlas(es) of unchanged "
+                                            f"lights and triangles kept from the last frame")
         self._sanitize(output, stats)
         return Frame(camera.width, camera.height, output), stats
 
@@ -379,15 +400,15 @@ class Renderer:
         except GLUnavailableError as exc:
             stats.warnings.append(f"indirect light skipped: {exc}")
             return VPLs.empty()
-        if self._traced_version != self._geometry_version:
+        if self._traced_version != self._shape_version:
             with stats.timed("ray tracing setup"):
                 try:
                     tracer.upload(geometry.positions.reshape(-1, 3, 3))
                 except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
                     raise RenderError(f"indirect light: {exc}") from None
-            self._traced_version = self._geometry_version
+            self._traced_version = self._shape_version
         else:
-            stats.skipped["ray tracing setup"] = "geometry unchanged"
+            stats.skipped["ray tracing setup"] = "triangle positions unchanged"
         if settings.vpl_source == "rsm":
             with stats.timed("vpl generation (rsm)"):
                 vpls = self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
@@ -436,7 +457,9 @@ class Renderer:
         ``keyed_batch``, and only maps of VPLs with new keys are rendered."""
         ism = self.ism
         triangles = geometry.positions.reshape(-1, 3, 3)
-        subsets = min(ISM_POINT_SUBSETS, max(len(b.samples) for b in batches))
+        most = max(len(b.samples) for b in batches)  # rounded up to a power of two, so that
+        subsets = min(ISM_POINT_SUBSETS, 1 << max(0, most - 1).bit_length())  # counts that
+        # vary a little from frame to frame (Incremental Instant Radiosity) keep the pool
         start = time.perf_counter()
         try:
             sampled = ism.prepare(triangles, subsets, settings.ism_points, settings.seed)
@@ -452,7 +475,7 @@ class Renderer:
             return lambda batch: ism.render(triangles, np.zeros((0, 3)), np.zeros((0, 3)),
                                             settings.ism_resolution, levels)
         cache: dict[int, moderngl.Texture] = {}
-        settings_key = (self._geometry_version, settings.ism_points, settings.ism_resolution,
+        settings_key = (self._shape_version, settings.ism_points, settings.ism_resolution,
                         levels, settings.seed)
         max_tiles = max(1, min(MAX_BATCH, ATLAS_TEXELS // settings.ism_resolution**2))
 
@@ -534,12 +557,39 @@ class Renderer:
                 image[bad] = 0.0
 
 
+class _KeptAtlases:
+    """Shadow atlases kept between frames (single-tile frames: the viewport, small renders):
+    an atlas whose samples and triangle positions repeat is not rendered again."""
+
+    def __init__(self, previous: dict[tuple, list], shape_version: int) -> None:
+        self.previous = previous
+        self.shape_version = shape_version
+        self.used: dict[tuple, list] = {}
+        self.texels = 0
+
+    def key(self, batch: _Batch, centre: np.ndarray, radius: float) -> tuple:
+        s = batch.samples
+        return (self.shape_version, batch.resolution, batch.columns, batch.rows,
+                s.position.tobytes(), s.axis.tobytes(), s.kind.tobytes(),
+                s.casts_shadow.tobytes(), batch.first_tile.tobytes(), tuple(centre), radius)
+
+    def room_for(self, batch: _Batch) -> bool:
+        """Whether the atlas fits the budget of kept atlases (twice one batch's)."""
+        texels = batch.columns * batch.rows * batch.resolution**2
+        return self.texels + texels <= 2 * ATLAS_TEXELS
+
+    def keep(self, key: tuple, objects: list, batch: _Batch) -> None:
+        self.used[key] = objects
+        self.texels += batch.columns * batch.rows * batch.resolution**2
+
+
 class _FrameResources:
     """GPU objects of one frame: vertex buffers, g-buffer, shadow atlas and accumulator."""
 
     def __init__(self, ctx: moderngl.Context, geometry: WorldGeometry, shapes: WorldGeometry,
-                 programs: ProgramCache) -> None:
+                 programs: ProgramCache, kept: _KeptAtlases | None = None) -> None:
         self.ctx = ctx
+        self.kept = kept
         self.programs = programs
         self._objects: list = []
         self._tile_objects: list = []
@@ -551,6 +601,7 @@ class _FrameResources:
         self.geometry = geometry
         self._surfaces: tuple[moderngl.Buffer, moderngl.Buffer] | None = None
         self._atlas: tuple[moderngl.Texture, _Batch] | None = None
+        self.kept_hits = 0  # atlases taken from an earlier frame
         self._light_table: moderngl.Texture | None = None
 
     def _own(self, obj):
@@ -624,13 +675,22 @@ class _FrameResources:
     # -- shadows --------------------------------------------------------------------------
     def atlas(self, batch: _Batch, centre: np.ndarray, radius: float, reuse: bool
               ) -> moderngl.Texture:
-        """Render the batch's shadow maps into one atlas of tiles (cube faces or directional)."""
+        """Render the batch's shadow maps into one atlas of tiles (cube faces or directional),
+        or return the kept atlas of the same samples and triangles."""
         if reuse and self._atlas is not None and self._atlas[1] is batch:
             return self._atlas[0]
+        key = self.kept.key(batch, centre, radius) if self.kept is not None else None
+        if key is not None and key in self.kept.previous:
+            objects = self.kept.previous[key]
+            self.kept.keep(key, objects, batch)
+            self.kept_hits += 1
+            return objects[0]
         for obj in self._atlas_objects:
             obj.release()
         self._atlas_objects.clear()
-        keep = self._atlas_objects.append
+        keeping = key is not None and self.kept.room_for(batch)
+        objects: list = []
+        keep = objects.append if keeping else self._atlas_objects.append
         res = batch.resolution
         size = (batch.columns * res, batch.rows * res)
         texture = self.ctx.texture(size, 1, dtype="f4")
@@ -638,6 +698,8 @@ class _FrameResources:
         fbo = self.ctx.framebuffer([texture], depth)
         for obj in (texture, depth, fbo):
             keep(obj)
+        if keeping:
+            self.kept.keep(key, objects, batch)
         fbo.use()
         fbo.clear(3.0e38, 0.0, 0.0, 0.0, depth=1.0)
         self._atlas = (texture, batch)

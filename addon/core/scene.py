@@ -17,11 +17,16 @@ Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
 
 @dataclass
 class Material:
-    """A diffuse material: base colour (albedo) and emitted radiance (colour × strength)."""
+    """A diffuse material: base colour (albedo) and emitted radiance (colour × strength).
+
+    Roughness and metallic are Principled BSDF's values, carried for glossy transport; the
+    renderer is diffuse only and does not use them yet."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    roughness: float = 0.5
+    metallic: float = 0.0
 
 
 @dataclass
@@ -138,3 +143,4 @@ class Scene:
     camera: Camera | None = None
     film_transparent: bool = False
     warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # informational, not problems

@@ -101,7 +101,10 @@ def classify(updates: Iterable[Update]) -> Changes:
         elif u.id_type == "CAMERA":
             changes.camera = True
         elif u.id_type in GEOMETRY_DATA:
-            changes.geometry.add(u.name)
+            if u.geometry:
+                changes.geometry.add(u.name)
+            elif u.shading:  # a material assigned or changed
+                changes.materials = True
         elif u.id_type in ("MATERIAL", "NODETREE", "IMAGE", "TEXTURE"):
             changes.materials = True
         elif u.id_type == "WORLD":

@@ -254,6 +254,7 @@ class SurfaceHits:
     albedo: np.ndarray  # (m, 3)
     flux: np.ndarray  # (m, 3) incident flux carried by the path
     rank: np.ndarray  # (m,) int in [0, n)
+    triangle: np.ndarray | None = None  # (m,) int, the triangle hit (where known)
 
 
 def trace_hits(tracer: RayTracer, geometry: WorldGeometry, origin: np.ndarray,
@@ -268,7 +269,7 @@ def trace_hits(tracer: RayTracer, geometry: WorldGeometry, origin: np.ndarray,
     normal = _unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
     normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
     albedo = geometry.albedo.reshape(-1, 3, 3)[tri, 0].astype(np.float64)
-    return SurfaceHits(position, normal, albedo, flux[hit], rank[hit])
+    return SurfaceHits(position, normal, albedo, flux[hit], rank[hit], tri)
 
 
 def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: Settings,

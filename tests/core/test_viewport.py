@@ -35,7 +35,9 @@ def scene(light_x: float = 0.0, ball_colour=(0.8, 0.2, 0.2)):
      "lights+settings"),
     ([Update("LIGHT", "Lamp")], "lights"),
     ([Update("OBJECT", "Cube", "MESH", transform=True)], "transforms"),
-    ([Update("OBJECT", "Cube", "MESH", geometry=True), Update("MESH", "Cube.001")], "geometry"),
+    ([Update("OBJECT", "Cube", "MESH", geometry=True),
+      Update("MESH", "Cube.001", geometry=True)], "geometry"),
+    ([Update("MESH", "Cube.001", shading=True)], "materials"),
     ([Update("MATERIAL", "Red", shading=True),
       Update("OBJECT", "Wall", "MESH", shading=True)], "materials"),
     ([Update("OBJECT", "Wall", "MESH")], "transforms"),
@@ -81,7 +83,8 @@ def test_edits_rerun_only_what_they_change(session):
     moved_view = top_down_camera(192, extent=5.0)
     camera_only, frame = run(session, Changes(camera=True), camera=moved_view)
     assert not any(k.startswith(("vpl", "ism", "ray tracing")) for k in camera_only.ran)
-    assert {"vpl generation", "ism", "ray tracing setup"} <= set(camera_only.skipped)
+    assert {"vpl generation", "ism", "ray tracing setup", "shadow maps"} <= set(
+        camera_only.skipped)
     assert camera_only.latency < first.latency
 
     light_move, frame = run(session, Changes(lights=True), scene=scene(light_x=0.05))
@@ -92,7 +95,8 @@ def test_edits_rerun_only_what_they_change(session):
 
     recolour, _ = run(session, Changes(materials=True),
                       scene=scene(light_x=0.05, ball_colour=(0.2, 0.8, 0.2)))
-    assert "ray tracing setup" in recolour.ran  # albedo is part of the traced geometry
+    assert "ray tracing setup" in recolour.skipped  # triangle positions are unchanged
+    assert recolour.counts["isms_rendered"] < recolour.counts["vpls"] // 2
 
 
 def test_display_modes_split_the_combined_image(session):
@@ -143,3 +147,14 @@ def test_display_image_rejects_nothing_and_keeps_alpha():
     for mode in ("combined", "direct", "indirect", "vpls", "ism"):
         image = display_image(frame, mode, top_down_camera(4))
         assert image.shape == (4, 4, 4) and np.all(image[..., 3] == 1)
+
+
+def test_kept_shadow_maps_give_the_same_image(renderer):
+    renderer.forget_frames()
+    first, _ = renderer.render(scene(), SETTINGS)
+    again, stats = renderer.render(scene(), SETTINGS)
+    assert "shadow maps" in stats.skipped
+    np.testing.assert_array_equal(first.passes["Combined"], again.passes["Combined"])
+    _, moved = renderer.render(scene(light_x=0.3), SETTINGS)
+    assert "shadow maps" not in moved.skipped
+    renderer.forget_frames()

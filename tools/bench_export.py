@@ -1,0 +1,175 @@
+"""Benchmark of the scene export against Cycles' scene sync, measured in the same run.
+
+For each scene (a tessellated grid of N triangles under a sun, or 10k instances of a small
+mesh scattered by geometry nodes) it prints: our export time (cold, and again with a warm
+ExportCache), our upload time (core.geometry.flatten_instances plus one moderngl buffer of
+WorldGeometry.interleaved(), as the renderer uploads), Cycles' time to its first sample (a
+1-sample 8×8 render minus the same render of an empty scene, median of --repeat), and peak RSS
+after building the scene and of our export + upload and of Cycles, each measured in its own
+process (so each peak is its own).
+
+    .venv/bin/python tools/bench_export.py [--scenes 100k 1M 5M inst10k] [--repeat 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = {"100k": 100_000, "1M": 1_000_000, "5M": 5_000_000, "inst10k": 10_000}
+
+
+def peak_rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def build_scene(bpy, name: str) -> None:
+    """The named benchmark scene in a fresh file: camera, sun, and the geometry."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0, -12, 8)
+    camera.rotation_euler = (0.98, 0, 0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(sun)
+    if name == "empty":
+        return
+    if name == "inst10k":
+        bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=2, radius=0.05)  # 320 triangles
+        ball = bpy.context.object
+        ball.location.z = -100  # the original out of sight; its instances are on the grid
+        bpy.ops.mesh.primitive_grid_add(x_subdivisions=100, y_subdivisions=100, size=10)
+        grid = bpy.context.object
+        tree = bpy.data.node_groups.new("Scatter", "GeometryNodeTree")
+        tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+        group_in, group_out = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+        info = tree.nodes.new("GeometryNodeObjectInfo")
+        info.inputs["Object"].default_value = ball
+        info.inputs["As Instance"].default_value = True
+        on_points = tree.nodes.new("GeometryNodeInstanceOnPoints")
+        tree.links.new(group_in.outputs[0], on_points.inputs["Points"])
+        tree.links.new(info.outputs["Geometry"], on_points.inputs["Instance"])
+        tree.links.new(on_points.outputs["Instances"], group_out.inputs[0])
+        grid.modifiers.new("Scatter", "NODES").node_group = tree
+        return
+    side = max(1, round((SCENES[name] / 2) ** 0.5))  # side² quads = 2 side² triangles
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=side, y_subdivisions=side, size=10)
+
+
+def cycles_render_seconds(bpy) -> float:
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = 1
+    scene.cycles.use_denoising = False
+    scene.cycles.use_adaptive_sampling = False
+    scene.render.resolution_x = scene.render.resolution_y = 8
+    scene.render.resolution_percentage = 100
+    start = time.perf_counter()
+    bpy.ops.render.render()
+    return time.perf_counter() - start
+
+
+def measure_ours(name: str, repeat: int) -> dict[str, float]:
+    """Export (cold and with a warm cache) and upload of one scene, in this process."""
+    import bpy
+
+    from addon.core.geometry import flatten_instances
+    from addon.core.gl import create_context
+    from addon.export import ExportCache, export_scene
+
+    build_scene(bpy, name)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    row: dict[str, float] = {"rss_scene": peak_rss_mib()}
+    exports, cached, uploads = [], [], []
+    ctx = create_context()
+    for _ in range(repeat):
+        start = time.perf_counter()
+        exported = export_scene(depsgraph)
+        exports.append(time.perf_counter() - start)
+        start = time.perf_counter()
+        geometry = flatten_instances(exported, [])
+        buffer = ctx.buffer(geometry.interleaved().tobytes())
+        ctx.finish()
+        uploads.append(time.perf_counter() - start)
+        buffer.release()
+        del exported, geometry
+        cache = ExportCache()
+        export_scene(depsgraph, cache)
+        start = time.perf_counter()
+        export_scene(depsgraph, cache)
+        cached.append(time.perf_counter() - start)
+    ctx.release()
+    row.update(triangles=sum(i.mesh.triangle_count for i in export_scene(depsgraph).instances),
+               export=statistics.median(exports), export_cached=statistics.median(cached),
+               upload=statistics.median(uploads), rss=peak_rss_mib())
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return row
+
+
+def measure_cycles(name: str, repeat: int) -> dict[str, float]:
+    """Cycles' time to its first sample on one scene, in this process."""
+    import bpy
+
+    build_scene(bpy, "empty")
+    empty = statistics.median(cycles_render_seconds(bpy) for _ in range(repeat))
+    build_scene(bpy, name)
+    bpy.context.evaluated_depsgraph_get()
+    row = {"rss_scene": peak_rss_mib()}
+    full = statistics.median(cycles_render_seconds(bpy) for _ in range(repeat))
+    row.update(cycles_sync=full - empty, cycles_empty=empty, rss=peak_rss_mib())
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return row
+
+
+def run_part(part: str, name: str, repeat: int) -> dict[str, float]:
+    """One measurement in its own process, so that each peak RSS is its own."""
+    out = subprocess.run([sys.executable, __file__, "--part", part, name, "--repeat",
+                          str(repeat)], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", choices=list(SCENES), default=list(SCENES))
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--part", nargs=2, metavar=("PART", "SCENE"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.part:
+        sys.path.insert(0, str(ROOT))
+        part, name = args.part
+        measure = measure_ours if part == "ours" else measure_cycles
+        print(json.dumps(measure(name, args.repeat)))
+        return
+    header = (f"{'scene':>8} {'triangles':>10} {'export':>8} {'cached':>8} {'upload':>8} "
+              f"{'ours':>8} {'Cycles':>8} {'ratio':>6} {'RSS scene':>10} {'RSS ours':>9} "
+              f"{'RSS Cycles':>10}")
+    print(header)
+    print("-" * len(header))
+    for name in args.scenes:
+        row = run_part("ours", name, args.repeat)
+        cycles = run_part("cycles", name, args.repeat)
+        ours = row["export"] + row["upload"]
+        print(f"{name:>8} {int(row['triangles']):>10,} {row['export']:>7.3f}s "
+              f"{row['export_cached']:>7.3f}s {row['upload']:>7.3f}s {ours:>7.3f}s "
+              f"{cycles['cycles_sync']:>7.3f}s {ours / cycles['cycles_sync']:>6.2f} "
+              f"{row['rss_scene']:>7.0f}MiB {row['rss']:>6.0f}MiB "
+              f"{cycles['rss']:>7.0f}MiB", flush=True)
+    print("export/cached: export_scene cold / with a warm ExportCache; upload: "
+          "flatten_instances + buffer; ours = export + upload; Cycles: 1-sample 8×8 render minus "
+          "an empty scene's (its sync + BVH); ratio = ours / Cycles; RSS: peak after building "
+          "the scene, and peak of the process that ran ours / Cycles (separate processes)")
+
+
+if __name__ == "__main__":
+    main()
