@@ -10,7 +10,9 @@ What an edit costs follows from the Renderer's reuse between frames: geometry th
 change keeps its ray-tracing upload, VPLs are regenerated only when lights, world, geometry or
 their settings changed (and then incrementally, reusing the VPLs the lights still reach), and
 the imperfect shadow maps only when the VPLs or the geometry changed. A camera-only edit
-therefore runs the g-buffer and shading alone. ``records`` keeps, per edit, its kind, the
+therefore runs the g-buffer and shading alone. An edit that must make every VPL afresh
+(geometry, world or settings changed) renders its quick first frame with fewer light paths.
+``records`` keeps, per edit, its kind, the
 latency to its first frame and which stages ran or were skipped.
 """
 
@@ -70,6 +72,12 @@ class Changes:
         return bool(self.lights or self.geometry or self.transforms or self.materials
                     or self.world or self.settings)
 
+    @property
+    def regenerates(self) -> bool:
+        """Whether VPLs must be made from scratch (nothing to reuse incrementally): geometry
+        moved or changed, the world or the settings changed."""
+        return bool(self.geometry or self.transforms or self.world or self.settings)
+
     def describe(self) -> str:
         parts = [name for name in ("camera", "lights", "transforms", "materials", "world",
                                    "settings", "display") if getattr(self, name)]
@@ -121,6 +129,13 @@ def view_camera(view_matrix: np.ndarray, window_matrix: np.ndarray, width: int, 
     """The camera of a 3D viewport region (its view and projection matrices and size)."""
     return Camera(np.asarray(view_matrix, np.float64), np.asarray(window_matrix, np.float64),
                   max(1, int(width)), max(1, int(height)), is_orthographic=not is_perspective)
+
+
+def quick_settings(settings: Settings) -> Settings:
+    """The first frame's settings after an edit that regenerates every VPL: an eighth of the
+    light paths (at least 64) and a quarter of the ISM points, so it comes quickly."""
+    return replace(settings, vpl_count=min(settings.vpl_count, max(64, settings.vpl_count // 8)),
+                   ism_points=max(16, settings.ism_points // 4))
 
 
 def scaled_camera(camera: Camera, divisor: int) -> Camera:
@@ -330,6 +345,8 @@ class ViewportSession:
         if changes.display and not (changes.needs_export or changes.camera):
             levels = levels[-1:]
         view_settings = replace(settings, antialiasing=1, incremental=True)
+        quick = quick_settings(view_settings) if changes.regenerates and len(levels) > 1 \
+            else view_settings
         record = self.records[edit - 1]
         for level, divisor in enumerate(levels):
             if self._superseded(edit):
@@ -338,7 +355,7 @@ class ViewportSession:
             self.status = f"VPL GI | Rendering {level + 1}/{len(levels)}"
             try:
                 frame, stats = renderer.render(replace(scene, camera=level_camera),
-                                               view_settings,
+                                               quick if level == 0 else view_settings,
                                                cancelled=lambda: self._superseded(edit))
             except RenderCancelled:
                 return

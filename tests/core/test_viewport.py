@@ -158,3 +158,12 @@ def test_kept_shadow_maps_give_the_same_image(renderer):
     _, moved = renderer.render(scene(light_x=0.3), SETTINGS)
     assert "shadow maps" not in moved.skipped
     renderer.forget_frames()
+
+
+def test_an_edit_that_regenerates_starts_with_fewer_paths(session):
+    first, frame = run(session, Changes(settings=True), scene=scene(), camera=scene().camera,
+                       settings=SETTINGS)
+    assert Changes(settings=True).regenerates and not Changes(lights=True).regenerates
+    assert first.counts["vpls"] < 0.75 * frame.stats.counts["vpls"]  # 64 paths, then 128
+    light_move, _ = run(session, Changes(lights=True), scene=scene(light_x=0.05))
+    assert light_move.counts["vpls_reused"] > 0  # full count from its first frame: reused
