@@ -9,6 +9,12 @@ from addon.core.gl import ProgramCache, shared_context
 from addon.core.pipeline import Renderer
 
 
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--full-sweep", action="store_true", default=False,
+                     help="stability suite: the slow, wide parametrisations (scales, powers, "
+                          "albedos, bounce counts, wedge angles, more random scenes)")
+
+
 @pytest.fixture(scope="session")
 def programs() -> ProgramCache:
     cache = ProgramCache(shared_context())

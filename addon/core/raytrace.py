@@ -252,8 +252,17 @@ class RayTracer:
         self.upload(np.zeros((0, 3, 3), np.float32))
 
     def upload(self, triangles: np.ndarray, leaf_size: int = 4) -> None:
-        """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene."""
+        """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene.
+        Raises ValueError before building when the triangles cannot fit a storage buffer."""
+        count = len(np.asarray(triangles).reshape(-1, 3, 3))
+        self._check_size(count, count * TRIANGLE_DTYPE.itemsize)
         self.upload_bvh(build_bvh(triangles, leaf_size))
+
+    def _check_size(self, triangles: int, nbytes: int) -> None:
+        limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+        if nbytes > limit:
+            raise ValueError(f"{triangles} triangles need {nbytes >> 20} MiB of storage buffer; "
+                             f"this GPU allows {limit >> 20} MiB")
 
     def upload_bvh(self, bvh: BVH) -> None:
         """Upload a BVH from ``build_bvh``, replacing the scene."""
@@ -264,10 +273,7 @@ class RayTracer:
         used = tris[:len(bvh.triangles)]
         used["v0"], used["v1"], used["v2"] = bvh.triangles.transpose(1, 0, 2)
         used["id"] = bvh.triangle_ids
-        limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
-        if max(nodes.nbytes, tris.nbytes) > limit:
-            raise ValueError(f"{len(bvh.triangles)} triangles need {tris.nbytes >> 20} MiB of "
-                             f"storage buffer; this GPU allows {limit >> 20} MiB")
+        self._check_size(len(bvh.triangles), max(nodes.nbytes, tris.nbytes))
         self._release_scene()
         self._nodes, self._triangles = self.ctx.buffer(nodes), self.ctx.buffer(tris)
 

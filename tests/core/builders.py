@@ -18,6 +18,20 @@ def quad(half_x: float, half_y: float, z: float = 0.0, flip: bool = False) -> Me
     return Mesh("quad", p, np.tile(normal, (6, 1)), np.zeros(2, dtype=np.int32))
 
 
+def grid(cells: int, size: float = 1.0) -> Mesh:
+    """A size × size square centred at the origin of cells × cells quads (2 triangles each) in
+    the XY plane, normal +Z."""
+    edge = np.linspace(-size / 2, size / 2, cells + 1, dtype=np.float32)
+    x, y = np.meshgrid(edge, edge)
+    corner = np.stack([x, y, np.zeros_like(x)], axis=-1)
+    a, b = corner[:-1, :-1].reshape(-1, 3), corner[:-1, 1:].reshape(-1, 3)
+    c, d = corner[1:, 1:].reshape(-1, 3), corner[1:, :-1].reshape(-1, 3)
+    positions = np.stack([a, b, c, a, c, d], axis=1).reshape(-1, 3)
+    normals = np.zeros_like(positions)
+    normals[:, 2] = 1.0
+    return Mesh("grid", positions, normals, np.zeros(len(positions) // 3, np.int32))
+
+
 def translation(x: float, y: float, z: float) -> np.ndarray:
     m = np.eye(4)
     m[:3, 3] = (x, y, z)
