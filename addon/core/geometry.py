@@ -10,6 +10,7 @@ import numpy as np
 from .scene import Instance, Light, LightKind, Material, Scene
 
 DISK_SEGMENTS = 48
+MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
 
 
 @dataclass
@@ -173,6 +174,7 @@ def light_shapes(scene: Scene) -> WorldGeometry:
             continue
         facing = -light.matrix[:3, 2] / max(np.linalg.norm(light.matrix[:3, 2]), 1e-300)
         radiance = np.asarray(light.color) * light.power / (np.pi * area)
+        radiance = np.clip(np.nan_to_num(radiance), 0.0, MAX_SHAPE_RADIANCE)
         positions.append(world)
         normals.append(np.repeat(facing[None], len(world), axis=0))
         emission.append(np.repeat(radiance[None], len(world), axis=0))
