@@ -16,6 +16,7 @@ from .core.viewport import Changes, Update, ViewportSession, classify, view_came
 from .export import ExportCache, export_scene
 
 _sessions: weakref.WeakSet[ViewportSession] = weakref.WeakSet()
+_states: weakref.WeakSet[ViewportState] = weakref.WeakSet()
 
 
 def depsgraph_updates(depsgraph: bpy.types.Depsgraph) -> list[Update]:
@@ -58,6 +59,7 @@ class ViewportState:
         self._drawn = -1
         engine_ref = weakref.ref(engine)
         session = self.session
+        _states.add(self)
 
         def poll() -> float | None:
             engine = engine_ref()
@@ -71,6 +73,7 @@ class ViewportState:
                     session.close()
                     return None
             return 0.05 if not session.idle else 0.25
+        self._poll = poll
         bpy.app.timers.register(poll, first_interval=0.05)
 
     def update(self, context: bpy.types.Context, depsgraph: bpy.types.Depsgraph) -> None:
@@ -119,12 +122,18 @@ class ViewportState:
         gpu.state.blend_set("NONE")
 
     def close(self) -> None:
+        """Stop the session and its redraw timer (a registered timer keeps a bpy process from
+        exiting)."""
         self.session.close()
+        if bpy.app.timers.is_registered(self._poll):
+            bpy.app.timers.unregister(self._poll)
         self._texture = None
 
 
 def close_all() -> None:
-    """Stop every viewport session (add-on disabled, file closed)."""
+    """Stop every viewport session and its timer (add-on disabled, file closed)."""
+    for state in list(_states):
+        state.close()
     for session in list(_sessions):
         session.close()
 
