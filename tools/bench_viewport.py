@@ -48,15 +48,13 @@ def replay(scene_file: Path, size: int) -> None:
     from addon.core.geometry import bounding_sphere, flatten_instances
     from addon.core.viewport import Changes, Update, ViewportSession, classify
     from addon.export import ExportCache, export_camera, export_scene
+    from addon.viewport import depsgraph_updates
 
     bpy.ops.wm.open_mainfile(filepath=str(scene_file), load_ui=False)
     caught: list[Update] = []
 
     def catch(_scene, depsgraph) -> None:
-        caught.extend(Update(u.id.id_type, u.id.name, getattr(u.id, "type", "") if
-                             isinstance(u.id, bpy.types.Object) else "", u.is_updated_geometry,
-                             u.is_updated_transform, u.is_updated_shading)
-                      for u in depsgraph.updates)
+        caught.extend(depsgraph_updates(depsgraph))
     bpy.app.handlers.depsgraph_update_post.append(catch)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     settings = bpy.context.scene.vpl_gi.to_settings()

@@ -312,7 +312,7 @@ class IncrementalVPLs:
     lights: dict[str, _LightState] = field(default_factory=dict)
     stats: IncrementalStats = field(default_factory=IncrementalStats)
     _key: tuple | None = None
-    _geometry: np.ndarray | None = None  # last frame's triangle positions
+    _shape_version: int | None = None  # the caller's version of last frame's positions
     _next_id: int = 0
     _frame: int = 0
     _previous_keys: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -320,21 +320,22 @@ class IncrementalVPLs:
     _environment_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def update(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
-               tracer: RayTracer, centre: np.ndarray, radius: float) -> VPLs:
-        """This frame's VPLs, reusing last frame's where they are still valid."""
+               tracer: RayTracer, centre: np.ndarray, radius: float,
+               shape_version: int) -> VPLs:
+        """This frame's VPLs, reusing last frame's where they are still valid.
+        ``shape_version`` is the caller's version of the triangle positions: a new value means
+        surfaces moved, and every path is traced again."""
         self.stats = IncrementalStats()
         self._frame += 1
         key = (settings.vpl_count, settings.bounces, settings.seed, settings.termination)
-        same_geometry = self._geometry is not None and \
-            self._geometry.shape == geometry.positions.shape and \
-            np.array_equal(self._geometry, geometry.positions)
+        same_geometry = shape_version == self._shape_version
         if key != self._key:
             self.lights.clear()
             self.stats.reset = "settings changed" if self._key else "first frame"
         elif not same_geometry:
             self.stats.reset = "geometry changed"
         self._key = key
-        self._geometry = geometry.positions.copy()
+        self._shape_version = shape_version
         n = settings.vpl_count
         domains = {light.name: d for light in scene.lights
                    if (d := light_domain(light, centre, radius)) is not None}

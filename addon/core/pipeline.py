@@ -151,9 +151,14 @@ def _samples_per_draw(exact: bool, compensation: _Compensation | None) -> int:
     return 4096 if rays_per_sample == 0 else max(1, 48 // rays_per_sample)
 
 
+def _ism_tiles_per_atlas(resolution: int) -> int:
+    """Imperfect shadow maps of ``resolution``² that one atlas holds."""
+    return max(1, min(MAX_BATCH, ATLAS_TEXELS // (resolution * resolution)))
+
+
 def _plan_ism_batches(samples: LightSamples, resolution: int) -> list[_Batch]:
     """VPLs in groups whose imperfect shadow maps fit one atlas (tile k = VPL k)."""
-    size = max(1, min(MAX_BATCH, ATLAS_TEXELS // (resolution * resolution)))
+    size = _ism_tiles_per_atlas(resolution)
     batches = []
     for start in range(0, len(samples), size):
         index = np.arange(start, min(start + size, len(samples)))
@@ -414,7 +419,8 @@ class Renderer:
                 vpls = self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
         elif settings.incremental:
             with stats.timed("vpl generation (incremental)"):
-                vpls = self.incremental.update(scene, geometry, settings, tracer, centre, radius)
+                vpls = self.incremental.update(scene, geometry, settings, tracer, centre, radius,
+                                               self._shape_version)
             s = self.incremental.stats
             stats.counts.update(vpls_new=s.new_vpls, vpls_reused=s.reused_vpls,
                                 anchors_invalid=s.invalid, anchors_created=s.created,
@@ -477,7 +483,7 @@ class Renderer:
         cache: dict[int, moderngl.Texture] = {}
         settings_key = (self._shape_version, settings.ism_points, settings.ism_resolution,
                         levels, settings.seed)
-        max_tiles = max(1, min(MAX_BATCH, ATLAS_TEXELS // settings.ism_resolution**2))
+        max_tiles = _ism_tiles_per_atlas(settings.ism_resolution)
 
         def render(batch: _Batch) -> moderngl.Texture:
             if id(batch) in cache:
