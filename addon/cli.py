@@ -244,6 +244,10 @@ def run_render(args: argparse.Namespace) -> int:
                 return 1
             for warning in monitor.last_warnings:
                 print(f"warning: {warning}", file=sys.stderr)
+            if monitor.last_stats is not None:
+                for note in monitor.last_stats.notes:
+                    print(f"note: {note}")
+                print(f"stages: {monitor.last_stats.summary()}")
             # Written only after a finished render, with the scene's colour management for
             # PNG (as Blender's -o does) and linear float for EXR.
             bpy.data.images["Render Result"].save_render(filepath=str(path.resolve()),

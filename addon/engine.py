@@ -123,10 +123,13 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         def cancelled() -> bool:
             return monitor.cancel_requested or self.test_break()
 
-        frame, stats = shared_renderer().render(exported, settings, progress, cancelled)
+        layer = depsgraph.view_layer
+        passes = frozenset(name for name, (*_, toggle) in OPTIONAL_PASSES.items()
+                           if getattr(layer, toggle, False))
+        frame, stats = shared_renderer().render(exported, settings, progress, cancelled, passes)
         self._write_result(frame)
         monitor.last_stats, monitor.last_warnings = stats, list(stats.warnings)
-        for note in exported.notes:
+        for note in [*exported.notes, *stats.notes]:
             self.report({"INFO"}, f"VPL GI: {note}")
         for warning in stats.warnings:
             self.report({"WARNING"}, f"VPL GI: {warning}")

@@ -131,6 +131,29 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
         soft_max=64, description="VPLs per light moved each frame from the most crowded spot "
                                  "to the emptiest one (invalid VPLs are always replaced)")
 
+    auto_parameters: bpy.props.EnumProperty(
+        name="Automatic Parameters", default=_DEFAULTS.auto_parameters,
+        items=[("off", "Off", "Use the VPL and imperfect-shadow-map settings as set"),
+               ("time", "Time Budget", "Choose VPL count, points per VPL, ISM resolution, "
+                                       "interleaving and blur for the least error within the "
+                                       "time budget per frame"),
+               ("error", "Target Error", "Choose them for the least time that reaches the "
+                                         "target error")],
+        description="Choose the VPL and imperfect-shadow-map parameters from a cost model "
+                    "measured once on this machine and an error model fitted on reports")
+    time_budget: bpy.props.FloatProperty(
+        name="Time Budget", default=_DEFAULTS.time_budget, min=0.01, max=86400.0,
+        soft_max=600.0, unit="TIME_ABSOLUTE", description="Seconds per frame to aim at")
+    target_error: bpy.props.FloatProperty(
+        name="Target Error", default=_DEFAULTS.target_error, min=0.001, max=10.0, soft_max=1.0,
+        subtype="FACTOR", description="Relative RMSE against a converged image to aim at")
+    planner: bpy.props.BoolProperty(
+        name="Leave Out Unneeded Work", default=_DEFAULTS.planner,
+        description="Skip what a frame does not need: lights that cannot reach the view, a "
+                    "black world, pull-push levels the point density does not need, passes "
+                    "not enabled, work kept from the last frame (off: run every stage, for "
+                    "comparisons)")
+
     viewport_display: bpy.props.EnumProperty(
         name="Viewport Display", default="combined",
         items=[("combined", "Combined", "The full image"),

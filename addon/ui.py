@@ -85,6 +85,15 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
         col.prop(settings, "shadow_resolution")
         col.prop(settings, "sample_shadow_resolution")
         col.prop(settings, "shadow_bias")
+        col = layout.column(heading="Performance")
+        col.prop(settings, "auto_parameters")
+        sub = col.column()
+        sub.active = settings.auto_parameters == "time"
+        sub.prop(settings, "time_budget")
+        sub = col.column()
+        sub.active = settings.auto_parameters == "error"
+        sub.prop(settings, "target_error")
+        col.prop(settings, "planner")
         col = layout.column(heading="Viewport")
         col.prop(settings, "viewport_display")
         col = layout.column(heading="Image")

@@ -33,6 +33,7 @@ class Stats:
     counts: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     skipped: dict[str, str] = field(default_factory=dict)  # stage -> why it was not needed
+    notes: list[str] = field(default_factory=list)  # choices made for the user, not problems
 
     @contextmanager
     def timed(self, stage: str) -> Iterator[None]:
@@ -43,8 +44,9 @@ class Stats:
             self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - start
 
     def summary(self) -> str:
-        """One line for Blender's stats bar and the CLI."""
+        """One line for Blender's stats bar and the CLI: counts, every stage that ran with its
+        time, and every stage left out with the reason."""
         counts = ", ".join(f"{k} {v}" for k, v in self.counts.items())
         times = ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in self.timings.items())
         skipped = ", ".join(f"{k} ({v})" for k, v in self.skipped.items())
-        return f"{counts} | {times}" + (f" | skipped: {skipped}" if skipped else "")
+        return f"{counts} | ran: {times}" + (f" | skipped: {skipped}" if skipped else "")

@@ -193,8 +193,6 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
 
 def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator) -> None:
     radiance = scene.world.radiance
-    if not np.any(radiance > 0):
-        return
     n = s.world_samples
     sky = fibonacci_sphere(n, rng)
     b.add(position=np.zeros((n, 3)), axis=-sky, kind=KIND_DIRECTIONAL,
@@ -240,8 +238,9 @@ def _light_problem(light: Light) -> str | None:
 
 
 def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Settings,
-                        warnings: list[str]) -> LightSamples:
-    """All direct-light samples of the scene, deterministic for ``settings.seed``."""
+                        warnings: list[str], include_dark: bool = False) -> LightSamples:
+    """All direct-light samples of the scene, deterministic for ``settings.seed``; lights of
+    zero power and a black world have none unless ``include_dark``."""
     rng = np.random.default_rng(settings.seed)
     b = _Builder()
     for light in scene.lights:
@@ -252,8 +251,9 @@ def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Setting
         if light.kind is LightKind.AREA and min(light.area_size) <= 0:
             warnings.append(f"area light '{light.name}' has zero or negative size: lit as a "
                             f"point emitter of the same power")
-        if light.power != 0 and any(c != 0 for c in light.color):
+        if include_dark or (light.power != 0 and any(c != 0 for c in light.color)):
             _add_light(b, light, settings, rng)
-    _add_world(b, scene, settings, rng)
+    if include_dark or np.any(scene.world.radiance > 0):
+        _add_world(b, scene, settings, rng)
     _add_emission(b, geometry, settings, rng)
     return b.build()

@@ -6,11 +6,13 @@ from __future__ import annotations
 import pickle
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import moderngl
 import numpy as np
 
+from . import autotune
 from .atlas import draw_tiles, near_far, tile_table
 from .frame import PASS_CHANNELS, Frame, Stats
 from .geometry import WorldGeometry, bounding_sphere, flatten_instances, light_shapes
@@ -19,6 +21,7 @@ from .incremental import IncrementalVPLs
 from .ism import ImperfectShadowMaps, atlas_grid
 from .ism_reuse import ReusedISMAtlas
 from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
+from .planner import Bounds, plan_frame, reaches_bounds, visible_bounds
 from .raytrace import RayTracer
 from .rsm import render_rsm, rsm_hits, rsm_light_samples
 from .scene import Camera, Scene
@@ -38,6 +41,7 @@ ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see core/ism.py
 ISM_POINT_SUBSETS = 512  # stratified point sets sampled on the CPU (~0.4 µs a point); VPL k uses
 # set k % 512, moved within its triangles by a per-VPL random shift beyond the first 512
 SURFACE_VERTICES_BINDING, SURFACE_ALBEDO_BINDING = 4, 5  # SSBOs of direct_frag.glsl
+PROBE_PATHS = 64  # light paths the automatic mode traces to learn how many VPLs a path leaves
 
 
 class RenderError(RuntimeError):
@@ -108,20 +112,6 @@ def _plan_batches(samples: LightSamples, max_texture: int) -> list[_Batch]:
                                   -(-used // columns)))
             start = stop
     return batches
-
-
-def _no_indirect_reason(scene: Scene, geometry: WorldGeometry, settings: Settings) -> str:
-    """Why the scene needs no indirect light, or '' when it does."""
-    if settings.bounces == 0:
-        return "bounces = 0"
-    if geometry.vertex_count == 0:
-        return "no surfaces"
-    if not np.any(geometry.albedo > 0):
-        return "every albedo is 0"
-    lit = any(light.power != 0 and any(c != 0 for c in light.color) for light in scene.lights)
-    if not lit and not np.any(scene.world.radiance > 0) and not np.any(geometry.emission > 0):
-        return "nothing emits light"
-    return ""
 
 
 def _vpl_inputs(scene: Scene, settings: Settings) -> bytes:
@@ -209,6 +199,8 @@ class Renderer:
         self._vpl_cache: tuple[tuple, VPLs] | None = None  # (inputs, VPLs) of the last frame
         self._ism_atlas = ReusedISMAtlas()
         self._kept_atlases: dict[tuple, list] = {}  # shadow atlases of the last frame
+        self.cost_cache: Path | None = autotune.default_cost_cache()
+        """Where the automatic mode's measured cost model is kept (None: measure each time)."""
 
     def release(self) -> None:
         for helper in self._helpers.values():
@@ -260,8 +252,10 @@ class Renderer:
 
     # -- one frame ------------------------------------------------------------------------
     def render(self, scene: Scene, settings: Settings, progress: ProgressCallback | None = None,
-               cancelled: CancelCallback | None = None) -> tuple[Frame, Stats]:
-        """Render all passes of ``scene``. Raises RenderError or RenderCancelled."""
+               cancelled: CancelCallback | None = None, passes: frozenset[str] | None = None
+               ) -> tuple[Frame, Stats]:
+        """Render ``scene``: the Combined pass and ``passes`` (all by default; the others come
+        back zero when the planner is on). Raises RenderError or RenderCancelled."""
         settings.validate()
         camera = scene.camera
         if camera is None:
@@ -283,10 +277,32 @@ class Renderer:
             shapes = light_shapes(scene)
             centre, radius = bounding_sphere(geometry.positions)
             self._note_geometry(geometry)
+        with stats.timed("planning"):
+            plan = plan_frame(scene, geometry, settings, passes)
+            stats.skipped.update(plan.skipped)
+            settings = replace(settings, pull_push_levels=plan.pull_push_levels)
+            if not settings.planner:
+                self._forget_reuse()
+            in_view = visible_bounds(camera, geometry.positions) if plan.cull_to_view else None
+            if plan.cull_to_view and in_view is None and plan.indirect:
+                plan.indirect = False
+                stats.skipped["indirect light"] = "the camera sees no surface"
         with stats.timed("light samples"):
-            samples = build_light_samples(scene, geometry, settings, stats.warnings)
-        vpls = self._virtual_point_lights(scene, geometry, settings, centre, radius, stats)
+            samples = build_light_samples(scene, geometry, settings, stats.warnings,
+                                          plan.sample_dark)
+            if plan.cull_to_view:
+                samples = self._cull(samples, in_view, "light samples", stats)
+        if settings.auto_parameters != "off" and plan.indirect:
+            settings = self._automatic(scene, settings, geometry, samples, stats, report,
+                                       (centre, radius, in_view))
+        vpls = self._virtual_point_lights(scene, geometry, settings, centre, radius, stats,
+                                          plan.indirect)
+        keys = vpls.key
         vpl_samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
+        if plan.cull_to_view and len(vpls):
+            reach = reaches_bounds(vpl_samples, in_view)
+            keys = keys[reach] if keys is not None else None
+            vpl_samples = self._cull(vpl_samples, in_view, "VPLs", stats, reach)
         mode = settings.visibility
         if mode == "exact":
             vpl_samples.casts_shadow[:] = False
@@ -310,13 +326,7 @@ class Renderer:
         clamp = max(settings.clamp_distance * radius, radius * 1e-6)
         work += [_LightPass("indirect light", b, clamp, visibility=mode,
                             interleave=settings.interleave) for b in vpl_batches]
-        blur_radius = _blur_radius(settings) if len(vpls) else 0
-        if len(vpls) and not blur_radius:
-            stats.skipped["blur"] = "interleaving off"
-        if not np.any(scene.world.radiance > 0):
-            stats.skipped["world light"] = "black world"
-        if len(vpls) and not settings.bias_compensation:
-            stats.skipped["bias compensation"] = "off"
+        blur_radius = _blur_radius(settings) if len(vpl_samples) else 0
         compensation = None
         if settings.bias_compensation and len(vpls) and settings.clamp_distance > 0:
             compensation = _Compensation(settings.clamp_distance * radius, settings.bias_samples,
@@ -324,7 +334,7 @@ class Renderer:
         ism_batches = [p.batch for p in work if p.visibility == "ism"]
         keyed = vpl_batches[0] if mode == "ism" and len(vpl_batches) == 1 else None
         ism = self._ism_renderer(geometry, settings, ism_batches, centre, radius, stats, keyed,
-                                 vpls.key) if ism_batches else None
+                                 keys) if ism_batches else None
         stats.counts.update(triangles=geometry.vertex_count // 3, light_samples=len(samples),
                             vpls=len(vpls), shadow_maps=int(sum(
                                 p.batch.samples.tiles_per_sample.sum() for p in work
@@ -378,7 +388,7 @@ class Renderer:
                     indirect_light = resources.read_accumulator(indirect)
                 with stats.timed("compose"):
                     self._compose(output, gbuffer, resources.read_accumulator(direct),
-                                  indirect_light, scene, aa, x0, y0)
+                                  indirect_light, scene, aa, x0, y0, plan.passes)
         finally:
             resources.release()
             self._keep_atlases(kept)
@@ -388,12 +398,88 @@ class Renderer:
         self._sanitize(output, stats)
         return Frame(camera.width, camera.height, output), stats
 
+    def _automatic(self, scene: Scene, settings: Settings, geometry: WorldGeometry,
+                   samples: LightSamples, stats: Stats, report: ProgressCallback,
+                   bounds: tuple[np.ndarray, float, Bounds | None]) -> Settings:
+        """Settings with the parameters the automatic mode chooses for this frame."""
+        name = str(self.ctx.info["GL_RENDERER"])
+
+        def measure() -> autotune.CostModel:
+            report(0.0, "Measuring this machine's cost model (once)")
+            with stats.timed("cost model calibration"):
+                model = autotune.calibrate(self._calibration_frame, name,
+                                           Settings(antialiasing=1))
+            self._forget_reuse()
+            return model
+
+        cost = autotune.cached_cost_model(self.cost_cache, name, measure)
+        camera = scene.camera
+        with stats.timed("automatic parameters"):
+            work = autotune.Workload(
+                pixels=camera.width * camera.height * settings.antialiasing**2,
+                triangles=geometry.vertex_count // 3,
+                shadow_tiles=int(samples.tiles_per_sample.sum()),
+                vpls_per_path=self._vpls_per_path(scene, geometry, settings, *bounds),
+                bounces=settings.bounces)
+        choice = autotune.choose(settings, work, cost, autotune.load_error_model())
+        stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
+                           f"{choice.describe()}")
+        stats.counts.update(auto_vpl_count=choice.settings.vpl_count)
+        return choice.settings
+
+    def _vpls_per_path(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
+                       centre: np.ndarray, radius: float, in_view: Bounds | None) -> float:
+        """VPLs that can light the view per light path, from a probe of PROBE_PATHS paths."""
+        probe = replace(settings, vpl_count=PROBE_PATHS, incremental=False)
+        try:
+            tracer = self.tracer
+        except GLUnavailableError:
+            return float(settings.bounces)
+        if self._traced_version != self._shape_version:
+            tracer.upload(geometry.positions.reshape(-1, 3, 3))
+            self._traced_version = self._shape_version
+        vpls = generate_vpls(scene, geometry, probe, tracer, centre, radius)
+        samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
+        in_view_count = int(reaches_bounds(samples, in_view).sum()) if in_view is not None \
+            else len(vpls)
+        return max(in_view_count, 1) / PROBE_PATHS
+
+    def _calibration_frame(self, settings: Settings) -> dict[str, float | int]:
+        """Stage timings and counts of one frame of the calibration scene."""
+        self._forget_reuse()
+        scene = autotune.calibration_scene()
+        _, stats = self.render(scene, settings)
+        camera = scene.camera
+        return {**stats.timings, "vpls": stats.counts["vpls"],
+                "pixels": camera.width * camera.height * settings.antialiasing**2,
+                "triangles": stats.counts["triangles"],
+                "shadow_tiles": stats.counts["shadow_maps"]}
+
+    def _forget_reuse(self) -> None:
+        """Drop what the planner would reuse from the last frame (VPLs, BVH, ISM and shadow
+        atlases); Incremental Instant Radiosity keeps its anchors."""
+        self._vpl_cache = None
+        self._traced_version = -1
+        self._ism_atlas.forget()
+        self._keep_atlases(None)
+
+    @staticmethod
+    def _cull(samples: LightSamples, in_view: Bounds | None, what: str, stats: Stats,
+              reach: np.ndarray | None = None) -> LightSamples:
+        """The samples that can light a surface in view; the others are counted as skipped."""
+        reach = reaches_bounds(samples, in_view) if reach is None else reach
+        left_out = len(samples) - int(reach.sum())
+        if left_out:
+            stats.skipped[f"{left_out} of {len(samples)} {what}"] = (
+                "cannot light any surface in view")
+            return samples.subset(np.flatnonzero(reach))
+        return samples
+
     def _virtual_point_lights(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
-                              centre: np.ndarray, radius: float, stats: Stats) -> VPLs:
-        """Trace light paths for the indirect light (none when no bounce can carry light)."""
-        reason = _no_indirect_reason(scene, geometry, settings)
-        if reason:
-            stats.skipped["indirect light"] = reason
+                              centre: np.ndarray, radius: float, stats: Stats, needed: bool
+                              ) -> VPLs:
+        """Trace light paths for the indirect light (none when the plan needs none)."""
+        if not needed:
             return VPLs.empty()
         inputs = (self._geometry_version, _vpl_inputs(scene, settings))
         if self._vpl_cache is not None and self._vpl_cache[0] == inputs:
@@ -533,8 +619,9 @@ class Renderer:
     @staticmethod
     def _compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray],
                  direct: np.ndarray, indirect: np.ndarray, scene: Scene, aa: int, x0: int,
-                 y0: int) -> None:
-        """Turn one supersampled tile's buffers into Blender's passes at output resolution."""
+                 y0: int, passes: frozenset[str]) -> None:
+        """Turn one supersampled tile's buffers into Blender's ``passes`` at output
+        resolution."""
         covered = gbuffer["normal"][..., 3:4]
         albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
         diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
@@ -542,16 +629,17 @@ class Renderer:
             np.append(scene.world.radiance, 1.0)
         combined = np.concatenate([(diff_dir + diff_ind) * albedo + emission, covered], axis=-1)
         combined += (1.0 - covered) * background
-        depth = np.where(covered > 0, gbuffer["position"][..., 3:4], BACKGROUND_DEPTH)
         h, w = covered.shape[0] // aa, covered.shape[1] // aa
         region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
-        output["Combined"][region] = _downsample(combined, aa)
-        output["DiffDir"][region] = _downsample(diff_dir, aa)
-        output["DiffInd"][region] = _downsample(diff_ind, aa)
-        output["DiffCol"][region] = _downsample(albedo, aa)
-        output["Emit"][region] = _downsample(emission, aa)
-        output["Normal"][region] = _downsample(gbuffer["normal"][..., :3], aa)
-        output["Depth"][region] = depth.reshape(h, aa, w, aa, 1).min(axis=(1, 3))
+        images = {"Combined": lambda: combined, "DiffDir": lambda: diff_dir,
+                  "DiffInd": lambda: diff_ind, "DiffCol": lambda: albedo,
+                  "Emit": lambda: emission, "Normal": lambda: gbuffer["normal"][..., :3]}
+        for name, image in images.items():
+            if name in passes:
+                output[name][region] = _downsample(image(), aa)
+        if "Depth" in passes:
+            depth = np.where(covered > 0, gbuffer["position"][..., 3:4], BACKGROUND_DEPTH)
+            output["Depth"][region] = depth.reshape(h, aa, w, aa, 1).min(axis=(1, 3))
 
     @staticmethod
     def _sanitize(output: dict[str, np.ndarray], stats: Stats) -> None:

@@ -80,6 +80,18 @@ class Settings:
     pull_push_levels: int = 7
     """Pull-push levels that fill the holes between splatted points (capped at
     log2(ism_resolution), which fills every hole)."""
+    auto_parameters: str = "off"
+    """Choose vpl_count, ism_points, ism_resolution, interleave and blur_radius automatically:
+    'off', 'time' (least predicted error within time_budget) or 'error' (least predicted
+    time within target_error), from a cost model measured once on this machine."""
+    time_budget: float = 2.0
+    """Seconds per frame the automatic mode 'time' aims at."""
+    target_error: float = 0.1
+    """Relative RMSE against a converged image that the automatic mode 'error' aims at."""
+    planner: bool = True
+    """Leave out work the frame does not need (lights that cannot reach the view, a black
+    world, pull-push levels the point density does not need, passes not asked for, work kept
+    from the last frame). Off runs every stage: for comparisons only."""
 
     _RANGES: ClassVar[dict[str, tuple[float, float]]] = {
         "light_samples": (1, 1024),
@@ -99,6 +111,8 @@ class Settings:
         "ism_points": (16, 1 << 16),
         "pull_push_levels": (0, 12),
         "incremental_budget": (0, 1024),
+        "time_budget": (0.01, 86400.0),
+        "target_error": (0.001, 10.0),
     }
     _CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "termination": ("fractional", "roulette"),
@@ -107,6 +121,7 @@ class Settings:
         "interleave": (1, 2, 4, 8),
         "vpl_source": ("paths", "rsm"),
         "rsm_resolution": (32, 64, 128, 256, 512),
+        "auto_parameters": ("off", "time", "error"),
     }
 
     def validate(self) -> Settings:

@@ -32,6 +32,9 @@ from .scene import Camera, Scene
 from .settings import Settings, SettingsError
 
 DISPLAY_MODES = ("combined", "direct", "indirect", "vpls", "ism")
+DISPLAY_PASSES = {"direct": frozenset({"DiffDir", "DiffCol", "Emit"}),
+                  "indirect": frozenset({"DiffInd", "DiffCol"})}
+"""Passes a display mode reads besides Combined."""
 LEVEL_DIVISORS = (4, 2, 1)  # resolution divisors of the refinement levels
 MIN_LEVEL_PIXELS = 96  # a level is skipped when its shorter edge would be smaller
 GENERATION_COLOURS = np.array([[1.0, 0.9, 0.2], [1.0, 0.4, 0.1], [0.9, 0.1, 0.5],
@@ -356,7 +359,8 @@ class ViewportSession:
             try:
                 frame, stats = renderer.render(replace(scene, camera=level_camera),
                                                quick if level == 0 else view_settings,
-                                               cancelled=lambda: self._superseded(edit))
+                                               cancelled=lambda: self._superseded(edit),
+                                               passes=DISPLAY_PASSES.get(display, frozenset()))
             except RenderCancelled:
                 return
             except (RenderError, SettingsError, GLUnavailableError) as exc:

@@ -1,0 +1,260 @@
+"""Automatic parameters: VPL count, points per VPL, ISM resolution, interleaving and blur chosen
+for a time budget per frame or a target error, from a cost model measured on this machine
+(:func:`calibrate`, cached on disk) and an error model fitted on the error-against-time
+reports (``error_model.json``, written by ``tools/fit_error_model.py``).
+
+Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interleave):
+    VPL generation  c_paths · paths · bounces
+    ISMs            c_splat · V · points + c_texels · V · resolution²
+    indirect light  c_gather · P · V / K²
+    blur            c_blur · P · radius (K > 1)
+    the rest        c_pixels · P + c_maps · shadow-map tiles · triangles  (not chosen here)
+Error (relative RMSE against a converged image):
+    sqrt(floor² + noise² / paths + ism(points, resolution)²)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from itertools import product
+from pathlib import Path
+
+import numpy as np
+
+from .scene import Camera, Instance, Light, LightKind, Material, Mesh, Scene
+from .settings import Settings
+
+COST_MODEL_VERSION = 1
+ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
+PATHS = (16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384)
+
+
+@dataclass(frozen=True)
+class CostModel:
+    """Seconds per unit of work of each stage, measured by :func:`calibrate`."""
+
+    renderer: str  # the GL renderer it was measured with
+    paths: float  # per light path and bounce
+    splat: float  # per VPL and point
+    texels: float  # per VPL and ISM texel
+    gather: float  # per pixel and VPL gathered
+    blur: float  # per pixel and blur radius
+    pixels: float  # per pixel: g-buffer, direct light, compose
+    maps: float  # per shadow-map tile and triangle
+    version: int = COST_MODEL_VERSION
+
+
+@dataclass(frozen=True)
+class ErrorModel:
+    """Relative RMSE against a converged image, as fitted on the reports."""
+
+    floor: float  # what more VPLs do not remove (clamp, visibility, the scene's own bias)
+    noise: float  # relative RMSE × sqrt(light paths)
+    ism: dict[str, float]  # "resolution/points" -> ISM visibility error against exact
+    interleave: dict[str, float]  # K -> factor on the noise term (with its blur)
+
+    def error(self, paths: int, interleave: int, points: int, resolution: int) -> float:
+        noise = self.noise * self.interleave[str(interleave)] / math.sqrt(paths)
+        ism = self.ism[f"{resolution}/{points}"]
+        return math.sqrt(self.floor**2 + noise**2 + ism**2)
+
+    def options(self) -> list[tuple[int, int, int]]:
+        """(interleave, points, resolution) triples the model has measurements for."""
+        pairs = [tuple(int(v) for v in key.split("/")) for key in self.ism]
+        return [(int(k), points, resolution) for k in self.interleave
+                for resolution, points in pairs]
+
+
+@dataclass(frozen=True)
+class Workload:
+    """What the chosen parameters scale with, for one frame of one scene."""
+
+    pixels: int  # supersampled
+    triangles: int
+    shadow_tiles: int  # of the direct light's shadow maps
+    vpls_per_path: float  # VPLs one light path leaves (1 + ρ̄ + ρ̄² ... over the bounces)
+    bounces: int
+
+
+@dataclass(frozen=True)
+class Choice:
+    """Parameters the automatic mode chose, with the time and error it predicts."""
+
+    settings: Settings
+    seconds: float
+    error: float
+
+    def describe(self) -> str:
+        s = self.settings
+        return (f"{s.vpl_count} paths, {s.ism_points} points/VPL, {s.ism_resolution}² ISMs, "
+                f"interleave {s.interleave}, blur {s.blur_radius}: predicted "
+                f"{self.seconds:.2f} s, relative RMSE {self.error * 100:.1f} %")
+
+
+def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
+                    resolution: int, blur_radius: int) -> float:
+    """Predicted wall time of one frame with these parameters."""
+    vpls = paths * work.vpls_per_path
+    return (cost.paths * paths * max(1, work.bounces)
+            + cost.splat * vpls * points + cost.texels * vpls * resolution**2
+            + cost.gather * work.pixels * vpls / interleave**2
+            + (cost.blur * work.pixels * blur_radius if interleave > 1 else 0.0)
+            + cost.pixels * work.pixels + cost.maps * work.shadow_tiles * work.triangles)
+
+
+def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel) -> Choice:
+    """The parameters of least predicted error within ``settings.time_budget`` seconds
+    (mode 'time'), or of least predicted time within ``settings.target_error`` (mode
+    'error'). When nothing meets the goal, the closest candidate."""
+    candidates = []
+    for paths, (k, points, resolution) in product(PATHS, errors.options()):
+        blur = 0 if k == 1 else max(k, settings.blur_radius)
+        seconds = predict_seconds(cost, work, paths, k, points, resolution, blur)
+        error = errors.error(paths, k, points, resolution)
+        candidates.append((seconds, error, paths, k, points, resolution, blur))
+    if settings.auto_parameters == "time":
+        fitting = [c for c in candidates if c[0] <= settings.time_budget]
+        best = min(fitting, key=lambda c: (c[1], c[0])) if fitting else min(candidates)
+    else:
+        fitting = [c for c in candidates if c[1] <= settings.target_error]
+        best = min(fitting) if fitting else min(candidates, key=lambda c: (c[1], c[0]))
+    seconds, error, paths, k, points, resolution, blur = best
+    chosen = replace(settings, vpl_count=paths, interleave=k, ism_points=points,
+                     ism_resolution=resolution, blur_radius=max(1, blur or settings.blur_radius),
+                     visibility="ism")
+    return Choice(chosen, seconds, error)
+
+
+# -- the error model ---------------------------------------------------------------------------
+
+def load_error_model(path: Path = ERROR_MODEL_FILE) -> ErrorModel:
+    data = json.loads(path.read_text())
+    return ErrorModel(data["floor"], data["noise"], data["ism"], data["interleave"])
+
+
+# -- the cost model ----------------------------------------------------------------------------
+
+Render = Callable[[Settings], dict[str, float | int]]
+"""Renders the calibration scene with the given settings and returns its stage timings
+(seconds) and counts (``vpls``, ``pixels``, ``triangles``, ``shadow_tiles``)."""
+
+CALIBRATION = (  # (paths, interleave, points, resolution): spread so each term is separable
+    (64, 1, 1024, 64), (256, 4, 4096, 128), (128, 2, 1024, 256), (512, 8, 2048, 64),
+)
+
+
+def _through_origin(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Non-negative least-squares coefficients of y ≈ x @ c (columns of x scaled first)."""
+    from scipy.optimize import nnls
+
+    scale = np.maximum(np.abs(x).max(axis=0), 1e-30)
+    coefficients, _ = nnls(x / scale, y)
+    return coefficients / scale
+
+
+def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
+    """Measure the cost model: render the calibration scene at the CALIBRATION settings and
+    fit each stage's coefficients to its measured seconds."""
+    rows = []
+    for paths, k, points, resolution in CALIBRATION:
+        settings = replace(base, vpl_count=paths, interleave=k, ism_points=points,
+                           ism_resolution=resolution, visibility="ism", auto_parameters="off")
+        render(settings)  # warm: shaders, point pool
+        rows.append((settings, render(settings)))
+
+    def column(f) -> np.ndarray:
+        return np.array([f(s, m) for s, m in rows], dtype=np.float64)
+
+    vpls, pixels = column(lambda s, m: m["vpls"]), column(lambda s, m: m["pixels"])
+    splat, texels = _through_origin(
+        np.stack([vpls * column(lambda s, m: s.ism_points),
+                  vpls * column(lambda s, m: s.ism_resolution**2)], axis=1),
+        column(lambda s, m: m.get("indirect light maps", 0.0)))
+    (paths,) = _through_origin(column(lambda s, m: s.vpl_count * s.bounces)[:, None],
+                               column(lambda s, m: m.get("vpl generation", 0.0)))
+    (gather,) = _through_origin((pixels * vpls / column(lambda s, m: s.interleave**2))[:, None],
+                                column(lambda s, m: m.get("indirect light", 0.0)))
+    blurred = column(lambda s, m: s.interleave > 1) * pixels * column(
+        lambda s, m: s.blur_radius)
+    (blur,) = _through_origin(blurred[:, None], column(lambda s, m: m.get("blur", 0.0)))
+    (pixel,) = _through_origin(pixels[:, None], column(
+        lambda s, m: sum(m.get(k, 0.0) for k in ("g-buffer", "direct light", "compose"))))
+    (maps,) = _through_origin(column(lambda s, m: m["shadow_tiles"] * m["triangles"])[:, None],
+                              column(lambda s, m: m.get("direct light maps", 0.0)))
+    return CostModel(renderer_name, float(paths), float(splat), float(texels), float(gather),
+                     float(blur), float(pixel), float(maps))
+
+
+def cached_cost_model(cache: Path | None, renderer_name: str,
+                      measure: Callable[[], CostModel]) -> CostModel:
+    """The cost model cached in ``cache`` for this GL renderer, measured (and cached) when
+    there is none; an unreadable cache is measured again."""
+    if cache is not None and cache.is_file():
+        try:
+            data = json.loads(cache.read_text())
+            model = CostModel(**data)
+            if model.renderer == renderer_name and model.version == COST_MODEL_VERSION:
+                return model
+        except (ValueError, TypeError):
+            pass
+    model = measure()
+    if cache is not None:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        cache.write_text(json.dumps(asdict(model), indent=2) + "\n")
+    return model
+
+
+def default_cost_cache() -> Path:
+    """Where the measured cost model is kept: the user's cache directory."""
+    import os
+
+    root = os.environ.get("XDG_CACHE_HOME") or os.environ.get("LOCALAPPDATA")
+    return (Path(root) if root else Path.home() / ".cache") / "vpl_gi" / "cost_model.json"
+
+
+def calibration_scene() -> Scene:
+    """A closed 4 × 4 × 3 m room of 4800 triangles with a box in it, lit by a point light, seen
+    at 128² pixels: the scene the cost model is measured on."""
+    faces = []
+    n = 20
+    g = np.linspace(0.0, 1.0, n + 1)
+    a, b = np.meshgrid(g[:-1], g[:-1], indexing="ij")
+    quads = np.stack([np.stack([a, b], -1), np.stack([a + 1 / n, b], -1),
+                      np.stack([a + 1 / n, b + 1 / n], -1), np.stack([a, b + 1 / n], -1)],
+                     axis=2).reshape(-1, 4, 2)
+    lo, hi = np.array([-2.0, -2.0, 0.0]), np.array([2.0, 2.0, 3.0])
+    for axis, side in product(range(3), (0, 1)):
+        u, v = [i for i in range(3) if i != axis]
+        corners = np.zeros((len(quads), 4, 3))
+        corners[..., axis] = (lo, hi)[side][axis]
+        corners[..., u] = lo[u] + quads[..., 0] * (hi[u] - lo[u])
+        corners[..., v] = lo[v] + quads[..., 1] * (hi[v] - lo[v])
+        if (axis == 1) != bool(side):  # wind so normals face into the room
+            corners = corners[:, ::-1]
+        faces.append(corners[:, [0, 1, 2, 0, 2, 3]].reshape(-1, 3))
+    positions = np.concatenate(faces).astype(np.float32)
+    e1 = positions[1::3] - positions[0::3]
+    e2 = positions[2::3] - positions[0::3]
+    normal = np.cross(e1, e2)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    room = Mesh("calibration room", positions, np.repeat(normal, 3, axis=0),
+                np.zeros(len(positions) // 3, np.int32))
+    box = np.eye(4)
+    box[:3, :3] *= 0.3
+    box[:3, 3] = (0.5, 0.3, 1.0)
+    light = np.eye(4)
+    light[:3, 3] = (-0.8, -0.5, 2.4)
+    near, far = 0.05, 50.0
+    projection = np.array([[1.2, 0, 0, 0], [0, 1.2, 0, 0],
+                           [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
+                           [0, 0, -1, 0]])
+    view = np.eye(4)
+    view[:3, 3] = (0.0, -1.9, -1.5)  # the camera at (0, -1.5, 1.9)
+    view[:3, :3] = [[1, 0, 0], [0, 0, 1], [0, -1, 0]]  # look along +y
+    materials = [Material("walls", (0.7, 0.6, 0.5))]
+    return Scene([Instance(room, np.eye(4), materials), Instance(room, box, materials)],
+                 [Light("calibration", LightKind.POINT, light, power=200.0)],
+                 camera=Camera(view, projection, 128, 128))

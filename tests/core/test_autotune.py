@@ -1,0 +1,129 @@
+"""Automatic parameters: the cost model fit, its cache, and choices that respect the goal."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from addon.core import autotune
+from addon.core.settings import Settings, SettingsError
+
+COST = autotune.CostModel("test GL", paths=2e-5, splat=2e-9, texels=1e-9, gather=4e-9,
+                          blur=1e-8, pixels=2e-6, maps=1e-9)
+WORK = autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
+                         vpls_per_path=2.5, bounces=4)
+
+
+def test_the_error_model_file_is_complete_and_plausible():
+    model = autotune.load_error_model()
+    assert 0 < model.floor < 1 and model.noise > 0
+    assert model.ism["128/8192"] == 0.0  # the default pair is the reference of the ISM term
+    assert all(0 <= e < 1 for e in model.ism.values())
+    errors = [model.error(p, 4, 8192, 128) for p in autotune.PATHS]
+    assert errors == sorted(errors, reverse=True)  # more paths, less error
+
+
+@pytest.mark.parametrize("budget", [0.5, 2.0, 8.0, 30.0])
+def test_a_time_budget_is_met_by_the_least_error_that_fits(budget):
+    settings = replace(Settings(), auto_parameters="time", time_budget=budget)
+    choice = autotune.choose(settings, WORK, COST, autotune.load_error_model())
+    assert choice.seconds <= budget
+    s = choice.settings
+    assert s.visibility == "ism" and s.vpl_count in autotune.PATHS
+    assert choice.seconds == pytest.approx(autotune.predict_seconds(
+        COST, WORK, s.vpl_count, s.interleave, s.ism_points, s.ism_resolution,
+        s.blur_radius if s.interleave > 1 else 0))
+    model = autotune.load_error_model()
+    for paths, (k, points, resolution) in [(p, o) for p in autotune.PATHS
+                                           for o in model.options()]:
+        blur = 0 if k == 1 else max(k, settings.blur_radius)
+        if autotune.predict_seconds(COST, WORK, paths, k, points, resolution, blur) <= budget:
+            assert model.error(paths, k, points, resolution) >= choice.error - 1e-12
+
+
+def test_larger_budgets_give_smaller_errors_and_targets_cost_less_when_looser():
+    model = autotune.load_error_model()
+    base = Settings()
+    errors = [autotune.choose(replace(base, auto_parameters="time", time_budget=b), WORK, COST,
+                              model).error for b in (0.3, 1, 3, 10, 30)]
+    assert errors == sorted(errors, reverse=True) and errors[0] > errors[-1]
+    times = [autotune.choose(replace(base, auto_parameters="error", target_error=t), WORK,
+                             COST, model) for t in (0.12, 0.2, 0.4)]
+    assert all(c.error <= t for c, t in zip(times, (0.12, 0.2, 0.4), strict=True))
+    assert [c.seconds for c in times] == sorted((c.seconds for c in times), reverse=True)
+
+
+def test_an_unreachable_target_takes_the_least_error():
+    settings = replace(Settings(), auto_parameters="error", target_error=0.001)
+    model = autotune.load_error_model()
+    choice = autotune.choose(settings, WORK, COST, model)
+    assert choice.error == pytest.approx(model.floor, rel=0.01)  # nothing gets below the floor
+
+
+def test_calibration_recovers_the_coefficients_of_a_linear_machine():
+    """A stand-in renderer whose stage times follow the model exactly: the fit finds them."""
+
+    def render(s: Settings) -> dict[str, float | int]:
+        vpls, pixels = 2.0 * s.vpl_count, 128 * 128 * s.antialiasing**2
+        return {"vpls": vpls, "pixels": pixels, "triangles": 4800, "shadow_tiles": 6,
+                "vpl generation": COST.paths * s.vpl_count * s.bounces,
+                "indirect light maps": COST.splat * vpls * s.ism_points
+                + COST.texels * vpls * s.ism_resolution**2,
+                "indirect light": COST.gather * pixels * vpls / s.interleave**2,
+                "blur": COST.blur * pixels * s.blur_radius if s.interleave > 1 else 0.0,
+                "g-buffer": COST.pixels * pixels, "direct light maps": COST.maps * 6 * 4800}
+
+    fitted = autotune.calibrate(render, "test GL", Settings())
+    for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps"):
+        assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
+
+
+def test_the_cost_model_is_cached_per_renderer(tmp_path):
+    cache = tmp_path / "cost.json"
+    measured = []
+
+    def measure() -> autotune.CostModel:
+        measured.append(1)
+        return COST
+
+    assert autotune.cached_cost_model(cache, "test GL", measure) == COST
+    assert autotune.cached_cost_model(cache, "test GL", measure) == COST
+    assert len(measured) == 1 and json.loads(cache.read_text())["renderer"] == "test GL"
+    other = autotune.cached_cost_model(cache, "another GL", lambda: replace(COST,
+                                                                           renderer="another GL"))
+    assert other.renderer == "another GL"
+    cache.write_text("{not json")
+    assert autotune.cached_cost_model(cache, "test GL", measure) == COST and len(measured) == 2
+
+
+def test_the_automatic_settings_are_validated():
+    with pytest.raises(SettingsError, match="auto_parameters"):
+        Settings(auto_parameters="fast").validate()
+    with pytest.raises(SettingsError, match="time_budget"):
+        Settings(time_budget=0.0).validate()
+
+
+def test_a_real_automatic_frame_lands_near_its_budget(renderer, tmp_path):
+    """Calibrate on this machine (the calibration scene), then render another scene with a
+    time budget: the frame's time is within a factor of 2 of the prediction, and the note
+    names the choice."""
+    from tests.core.builders import floor_scene, light, translation
+    from tests.core.test_planner import wall
+
+    renderer.cost_cache = tmp_path / "cost.json"
+    scene = floor_scene([light(autotune.LightKind.POINT, translation(0, 0, 2), power=50.0)],
+                        extra=[wall(2)], size=96)
+    settings = replace(Settings(antialiasing=1), auto_parameters="time", time_budget=1.5)
+    renderer.render(scene, settings)  # calibrates; compiles the chosen shaders
+    assert renderer.cost_cache.is_file()
+    renderer.forget_frames()  # the prediction is for a frame made afresh
+    _, stats = renderer.render(scene, settings)
+    note = next(n for n in stats.notes if n.startswith("automatic parameters (time)"))
+    predicted = float(note.split("predicted ")[1].split(" s")[0])
+    measured = sum(v for k, v in stats.timings.items() if not k.startswith("ism "))
+    assert predicted <= 1.5
+    assert 0.5 * predicted <= measured <= 2 * predicted + 0.2, (predicted, measured)
+    assert np.isfinite(predicted)

@@ -1,0 +1,114 @@
+"""Fit the automatic mode's error model (addon/core/error_model.json) on measurements.
+
+- Noise and floor: from error-against-time reports (``python -m addon report``), the VPL GI
+  imperfect-shadow-map lines: relative RMSE² = floor² + noise² / paths, least squares per
+  scene with a shared noise constant; the stored floor is that of the first report's scene.
+  The interleave factor compares the first report's lines with and without interleaving.
+- ISM term: on the sample scenes, VPL GI with imperfect shadow maps against exact (ray-traced)
+  visibility, the same VPLs (256 light paths, one bounce, no interleaving), for each
+  resolution/points pair; stored as the error beyond the default pair's, averaged over the
+  scenes in squares.
+
+    .venv/bin/python tools/fit_error_model.py renders/report_cornell_box/report.json \
+        renders/report_interior/report.json renders/report_sponza/report.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from tools.bench_visibility import export  # noqa: E402
+
+ISM_PAIRS = ((64, 1024), (64, 8192), (128, 1024), (128, 8192), (256, 1024), (256, 8192))
+DEFAULT_PAIR = (128, 8192)
+
+
+def ism_lines(report: dict) -> dict[int, list[tuple[int, float]]]:
+    """interleave -> [(paths, relative RMSE)] of the report's ISM lines."""
+    lines: dict[int, list[tuple[int, float]]] = {}
+    for entry in report["renders"]:
+        s = entry.get("settings", {})
+        if "metrics" in entry and s.get("visibility") == "ism":
+            lines.setdefault(int(s["interleave"]), []).append(
+                (int(s["vpl_count"]), entry["metrics"]["relative_rmse_unbiased"]))
+    return lines
+
+
+def fit_noise(reports: list[dict]) -> tuple[float, list[float], dict[str, float]]:
+    """Shared noise, per-report floors and the interleave factors."""
+    rows, targets, first_lines = [], [], ism_lines(reports[0])
+    for i, report in enumerate(reports):
+        for paths, error in (p for line in ism_lines(report).values() for p in line):
+            row = np.zeros(len(reports) + 1)
+            row[0], row[1 + i] = 1.0 / paths, 1.0
+            rows.append(row)
+            targets.append(error**2)
+    from scipy.optimize import nnls
+
+    solution, _ = nnls(np.array(rows), np.array(targets))
+    noise, floors = float(np.sqrt(solution[0])), [float(np.sqrt(f)) for f in solution[1:]]
+    factors = {"1": 1.0}
+    plain = dict(first_lines.get(1, []))
+    for k, line in first_lines.items():
+        if k == 1 or not plain:
+            continue
+        ratios = [np.sqrt(max(e**2 - floors[0] ** 2, 1e-12) /
+                          max(plain[p] ** 2 - floors[0] ** 2, 1e-12))
+                  for p, e in line if p in plain]
+        factors[str(k)] = float(np.median(ratios))
+    return noise, floors, factors
+
+
+def ism_errors(size: int) -> dict[str, float]:
+    """Per 'resolution/points': ISM visibility error beyond the default pair's."""
+    from addon.core.pipeline import Renderer
+    from addon.core.settings import Settings
+
+    renderer = Renderer()
+    squares: dict[tuple[int, int], list[float]] = {pair: [] for pair in ISM_PAIRS}
+    for name in ("cornell_box", "interior"):
+        scene = export(REPO / "sample_scenes" / f"{name}.blend", size)
+        base = Settings(bounces=1, antialiasing=1, vpl_count=256, interleave=1)
+        exact = renderer.render(scene, replace(base, visibility="exact"))[0].passes["DiffInd"]
+        for resolution, points in ISM_PAIRS:
+            frame, _ = renderer.render(scene, replace(base, ism_resolution=resolution,
+                                                      ism_points=points))
+            image = frame.passes["DiffInd"]
+            error2 = ((image - exact) ** 2).mean() / (exact**2).mean()
+            squares[(resolution, points)].append(float(error2))
+            print(f"{name} {resolution}²/{points}: {np.sqrt(error2) * 100:.1f} %", flush=True)
+    renderer.release()
+    default = np.mean(squares[DEFAULT_PAIR])
+    return {f"{r}/{p}": float(np.sqrt(max(0.0, np.mean(v) - default)))
+            for (r, p), v in squares.items()}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("reports", type=Path, nargs="+")
+    parser.add_argument("--size", type=int, default=128)
+    parser.add_argument("-o", "--output", type=Path,
+                        default=REPO / "addon" / "core" / "error_model.json")
+    args = parser.parse_args()
+    reports = [json.loads(p.read_text()) for p in args.reports]
+    noise, floors, factors = fit_noise(reports)
+    for path, floor in zip(args.reports, floors, strict=True):
+        print(f"{path}: floor {floor * 100:.1f} %")
+    model = {"source": f"tools/fit_error_model.py {' '.join(str(p) for p in args.reports)}",
+             "floor": floors[0], "noise": noise, "interleave": factors,
+             "ism": ism_errors(args.size)}
+    args.output.write_text(json.dumps(model, indent=2) + "\n")
+    print(json.dumps(model, indent=2))
+
+
+if __name__ == "__main__":
+    main()
