@@ -134,11 +134,12 @@ def add_report_parser(sub: argparse._SubParsersAction) -> None:
                         help="folder for report.json and error_vs_time.png "
                              "(default: renders/report_SCENE)")
     report.add_argument("--size", type=int, default=128, help="image edge in pixels (128)")
-    report.add_argument("--ladder", choices=("quick", "full", "ism", "large", "test"),
+    report.add_argument("--ladder", choices=("quick", "full", "ism", "large", "auto", "test"),
                         default="quick",
                         help="renders to compare: quick (minutes), full (tens of minutes "
                              "at 128 px), ism (ISM modes only), large (ISM up to 16k paths, "
-                             "for big scenes), test (seconds, tiny)")
+                             "for big scenes), auto (the automatic mode at 1-16 s budgets "
+                             "against ISM ladders), test (seconds, tiny)")
     report.add_argument("--reference-samples", type=int, default=4096,
                         help="Cycles samples of each of the two references (4096)")
     report.add_argument("--cache", type=Path,

@@ -83,6 +83,7 @@ class Ladder:
     cycles_samples: tuple[int, ...]
     vpl_counts: tuple[int, ...]
     vpl_modes: tuple[VPLMode, ...]
+    auto_budgets: tuple[float, ...] = ()  # seconds per frame for the automatic mode 'time'
 
 
 _ISM_MODES = (VPLMode("ism", 0.05, "4"), VPLMode("ism", 0.05), VPLMode("exact", 0.05))
@@ -92,8 +93,10 @@ LADDERS = {
     "full": Ladder((4, 16, 64, 256, 1024, 4096), (16, 64, 256, 1024, 4096), _ALL_MODES),
     "ism": Ladder((4, 16, 64, 256), (64, 256, 1024, 4096), _ISM_MODES),
     "large": Ladder((4, 16, 64, 256), (1024, 4096, 16384), (VPLMode("ism", 0.05, "4"),)),
-    "test": Ladder((4, 64), (16, 256), (VPLMode("classic", 0.05),)),
+    "test": Ladder((4, 64), (16, 256), (VPLMode("classic", 0.05),), (0.5,)),
+    "auto": Ladder((4, 16, 64, 256), (16, 64, 256, 1024), _ISM_MODES[:2], (1, 2, 4, 8, 16)),
 }
+AUTO_LINE = "VPL GI automatic (time budget)"
 
 
 def cycles_settings(samples: int, bounces: int, seed: int) -> dict[str, object]:
@@ -178,9 +181,20 @@ def render_cycles(scene: bpy.types.Scene, settings: dict[str, object], exr: Path
 def render_vpl(scene: bpy.types.Scene, mode: VPLMode, vpl_count: int, exr: Path
                ) -> tuple[np.ndarray, float]:
     scene.render.engine = "VPL_GI"
-    for name, value in {**asdict(mode), "vpl_count": vpl_count}.items():
+    for name, value in {**asdict(mode), "vpl_count": vpl_count, "auto_parameters": "off"
+                        }.items():
         setattr(scene.vpl_gi, name, value)
     return render_timed(scene, exr)
+
+
+def render_auto(scene: bpy.types.Scene, budget: float, exr: Path) -> tuple[np.ndarray, float]:
+    """VPL GI in the automatic mode 'time' with ``budget`` seconds per frame."""
+    scene.render.engine = "VPL_GI"
+    scene.vpl_gi.auto_parameters, scene.vpl_gi.time_budget = "time", budget
+    try:
+        return render_timed(scene, exr)
+    finally:
+        scene.vpl_gi.auto_parameters = "off"
 
 
 def file_digest(path: Path) -> str:
@@ -245,6 +259,9 @@ def warm_up(scene: bpy.types.Scene, ladder: Ladder, bounces: int, exr: Path) -> 
     for mode in ladder.vpl_modes:
         with suppress(RenderFailed):
             render_vpl(scene, mode, min(ladder.vpl_counts), exr)
+    if ladder.auto_budgets:  # measures the cost model on the first run on a machine
+        with suppress(RenderFailed):
+            render_auto(scene, min(ladder.auto_budgets), exr)
 
 
 Render = Callable[[], tuple[np.ndarray, float]]
@@ -280,6 +297,10 @@ def ladder_renders(scene: bpy.types.Scene, ladder: Ladder, bounces: int, exr: Pa
             entry = {"engine": "VPL_GI", "line": mode.label, "parameter": "light paths",
                      "value": count}
             yield entry, partial(render_vpl, scene, mode, count, exr)
+    for budget in ladder.auto_budgets:
+        entry = {"engine": "VPL_GI", "line": AUTO_LINE, "parameter": "s budget",
+                 "value": budget}
+        yield entry, partial(render_auto, scene, budget, exr)
 
 
 def cpu_model() -> str:
@@ -321,11 +342,15 @@ def render_ladder(scene: bpy.types.Scene, ladder: Ladder, bounces: int, r1: np.n
                   r2: np.ndarray, exr: Path) -> list[dict[str, object]]:
     """One entry per ladder render: engine, settings, seconds and metrics (or error)."""
     entries = []
-    total = len(ladder.cycles_samples) + len(ladder.vpl_counts) * len(ladder.vpl_modes)
+    total = (len(ladder.cycles_samples) + len(ladder.vpl_counts) * len(ladder.vpl_modes)
+             + len(ladder.auto_budgets))
     for index, (entry, render) in enumerate(ladder_renders(scene, ladder, bounces, exr), 1):
         entry.update(measure(render, r1, r2))
         stop_if_cancelled()
-        if entry["engine"] == "VPL_GI":
+        if entry["line"] == AUTO_LINE and monitor.last_stats is not None:
+            entry["chosen"] = [n for n in monitor.last_stats.notes
+                               if n.startswith("automatic parameters")]
+        elif entry["engine"] == "VPL_GI":
             entry["settings"] = asdict(scene.vpl_gi.to_settings())
         entries.append(entry)
         print(progress_line(index, total, entry), flush=True)
@@ -365,10 +390,29 @@ def run(scene_path: Path, out_dir: Path, ladder: Ladder, size: int = 128,
         "bounces": bounces, "ladder": asdict(ladder), "machine": machine_info(scene),
         "timing": TIMING, "metrics": METRICS,
         "reference": reference_summary(references, reference_samples, cache_dir),
-        "renders": entries,
+        "renders": entries, "automatic": pareto_gaps(entries),
     }
     write_outputs(report, out_dir)
     return report
+
+
+def pareto_gaps(renders: list[dict]) -> list[dict[str, float]]:
+    """Each automatic render against the measured front of VPL GI's ladder lines: the least
+    error any ladder render reached in no more time, and the least time any ladder render
+    needed for no more error (None where no ladder render qualifies)."""
+    ladder = [e for e in renders if "metrics" in e and e["engine"] == "VPL_GI"
+              and e["line"] != AUTO_LINE]
+    gaps = []
+    for auto in (e for e in renders if "metrics" in e and e["line"] == AUTO_LINE):
+        error = auto["metrics"]["relative_rmse_unbiased"]
+        faster = [e["metrics"]["relative_rmse_unbiased"] for e in ladder
+                  if e["seconds"] <= auto["seconds"]]
+        better = [e["seconds"] for e in ladder
+                  if e["metrics"]["relative_rmse_unbiased"] <= error]
+        gaps.append({"budget": auto["value"], "seconds": auto["seconds"], "error": error,
+                     "front_error_in_time": min(faster) if faster else None,
+                     "front_time_for_error": min(better) if better else None})
+    return gaps
 
 
 def write_outputs(report: dict[str, object], out_dir: Path) -> None:
@@ -428,6 +472,14 @@ def format_table(report: dict) -> str:
         rows.append(f"{head} {e['seconds']:>9.2f} {m['relative_rmse_unbiased'] * 100:>8.2f}% "
                     f"{m['relative_rmse'] * 100:>7.2f}% {m['relative_mse']:>9.2e} "
                     f"{m['mean_relative_energy'] * 100:>+7.2f}%")
+    for gap in report.get("automatic", []):
+        front = gap["front_error_in_time"]
+        quickest = gap["front_time_for_error"]
+        rows.append(f"automatic, {gap['budget']:g} s budget: {gap['seconds']:.2f} s, "
+                    f"{gap['error'] * 100:.2f} %; the ladder's best in that time: "
+                    + (f"{front * 100:.2f} %" if front is not None else "none that fast")
+                    + "; its quickest to that error: "
+                    + (f"{quickest:.2f} s" if quickest is not None else "none that good"))
     ref = report["reference"]
     seconds = " + ".join(f"{s:.1f}" for s in ref["seconds"])
     rows.append(f"* noise-free estimate. Reference: Cycles {ref['samples']} samples × 2 (seeds "
