@@ -347,9 +347,11 @@ def render_ladder(scene: bpy.types.Scene, ladder: Ladder, bounces: int, r1: np.n
     for index, (entry, render) in enumerate(ladder_renders(scene, ladder, bounces, exr), 1):
         entry.update(measure(render, r1, r2))
         stop_if_cancelled()
-        if entry["line"] == AUTO_LINE and monitor.last_stats is not None:
-            entry["chosen"] = [n for n in monitor.last_stats.notes
-                               if n.startswith("automatic parameters")]
+        stats = monitor.last_stats if entry["engine"] == "VPL_GI" else None
+        if stats is not None:
+            entry["stages"] = {"ran": stats.timings, "skipped": stats.skipped}
+        if entry["line"] == AUTO_LINE and stats is not None:
+            entry["chosen"] = [n for n in stats.notes if n.startswith("automatic parameters")]
         elif entry["engine"] == "VPL_GI":
             entry["settings"] = asdict(scene.vpl_gi.to_settings())
         entries.append(entry)

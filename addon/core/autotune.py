@@ -6,6 +6,7 @@ reports (``error_model.json``, written by ``tools/fit_error_model.py``).
 Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interleave):
     VPL generation  c_paths · paths · bounces
     ISMs            c_splat · V · points + c_texels · V · resolution²
+    ISM point pool  c_pool · subsets · points, when the pool must be sampled anew
     indirect light  c_gather · P · V / K²
     blur            c_blur · P · radius (K > 1)
     the rest        c_pixels · P + c_maps · shadow-map tiles · triangles  (not chosen here)
@@ -27,7 +28,7 @@ import numpy as np
 from .scene import Camera, Instance, Light, LightKind, Material, Mesh, Scene
 from .settings import Settings
 
-COST_MODEL_VERSION = 1
+COST_MODEL_VERSION = 2
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
 PATHS = (16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384)
 
@@ -44,6 +45,7 @@ class CostModel:
     blur: float  # per pixel and blur radius
     pixels: float  # per pixel: g-buffer, direct light, compose
     maps: float  # per shadow-map tile and triangle
+    pool: float  # per ISM point sampled into the pool (subsets × points per VPL)
     version: int = COST_MODEL_VERSION
 
 
@@ -75,9 +77,14 @@ class Workload:
     pixels: int  # supersampled
     triangles: int
     shadow_tiles: int  # of the direct light's shadow maps
-    vpls_per_path: float  # VPLs one light path leaves (1 + ρ̄ + ρ̄² ... over the bounces)
+    vpls_per_path: float  # VPLs that can light the view per light path
     bounces: int
+    max_subsets: int = 512  # point sets of the ISM pool (one per VPL up to this many)
+    pooled: tuple[int, int] = (0, 0)  # (points, subsets) of the pool already sampled
 
+    def subsets(self, vpls: float) -> int:
+        """Point sets the ISM pool holds for ``vpls`` VPLs (a power of two, capped)."""
+        return min(self.max_subsets, 1 << max(0, math.ceil(vpls) - 1).bit_length())
 
 @dataclass(frozen=True)
 class Choice:
@@ -98,7 +105,9 @@ def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int
                     resolution: int, blur_radius: int) -> float:
     """Predicted wall time of one frame with these parameters."""
     vpls = paths * work.vpls_per_path
-    return (cost.paths * paths * max(1, work.bounces)
+    subsets = work.subsets(vpls)
+    pool = 0.0 if work.pooled == (points, subsets) else cost.pool * subsets * points
+    return (pool + cost.paths * paths * max(1, work.bounces)
             + cost.splat * vpls * points + cost.texels * vpls * resolution**2
             + cost.gather * work.pixels * vpls / interleave**2
             + (cost.blur * work.pixels * blur_radius if interleave > 1 else 0.0)
@@ -162,8 +171,10 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     for paths, k, points, resolution in CALIBRATION:
         settings = replace(base, vpl_count=paths, interleave=k, ism_points=points,
                            ism_resolution=resolution, visibility="ism", auto_parameters="off")
-        render(settings)  # warm: shaders, point pool
-        rows.append((settings, render(settings)))
+        first = render(settings)  # samples the point pool, compiles shaders
+        rows.append((settings, {**render(settings), "ism points": first.get("ism points", 0.0),
+                                "pool points": points * min(512, 1 << max(
+                                    0, int(first["vpls"]) - 1).bit_length())}))
 
     def column(f) -> np.ndarray:
         return np.array([f(s, m) for s, m in rows], dtype=np.float64)
@@ -184,8 +195,10 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
         lambda s, m: sum(m.get(k, 0.0) for k in ("g-buffer", "direct light", "compose"))))
     (maps,) = _through_origin(column(lambda s, m: m["shadow_tiles"] * m["triangles"])[:, None],
                               column(lambda s, m: m.get("direct light maps", 0.0)))
+    (pool,) = _through_origin(column(lambda s, m: m["pool points"])[:, None],
+                              column(lambda s, m: m["ism points"]))
     return CostModel(renderer_name, float(paths), float(splat), float(texels), float(gather),
-                     float(blur), float(pixel), float(maps))
+                     float(blur), float(pixel), float(maps), float(pool))
 
 
 def cached_cost_model(cache: Path | None, renderer_name: str,

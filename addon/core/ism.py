@@ -235,6 +235,11 @@ class ImperfectShadowMaps:
         self._pool_key = key
         return True
 
+    @property
+    def pool_key(self) -> tuple | None:
+        """(triangles, subsets, points per VPL, seed) of the sampled point pool, or None."""
+        return self._pool_key
+
     # -- per frame -----------------------------------------------------------------------------
 
     def render(self, triangles: np.ndarray, vpl_position: np.ndarray, vpl_normal: np.ndarray,

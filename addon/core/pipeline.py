@@ -420,12 +420,21 @@ class Renderer:
                 triangles=geometry.vertex_count // 3,
                 shadow_tiles=int(samples.tiles_per_sample.sum()),
                 vpls_per_path=self._vpls_per_path(scene, geometry, settings, *bounds),
-                bounces=settings.bounces)
+                bounces=settings.bounces, max_subsets=ISM_POINT_SUBSETS,
+                pooled=self._ism_pool(geometry))
         choice = autotune.choose(settings, work, cost, autotune.load_error_model())
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
                            f"{choice.describe()}")
         stats.counts.update(auto_vpl_count=choice.settings.vpl_count)
         return choice.settings
+
+    def _ism_pool(self, geometry: WorldGeometry) -> tuple[int, int]:
+        """(points per VPL, subsets) of the ISM point pool sampled for these triangles."""
+        helper = self._helpers.get(ImperfectShadowMaps)
+        key = getattr(helper, "pool_key", None)
+        if key is None or key[0] != geometry.vertex_count // 3:
+            return 0, 0
+        return key[2], key[1]
 
     def _vpls_per_path(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
                        centre: np.ndarray, radius: float, in_view: Bounds | None) -> float:

@@ -60,6 +60,9 @@ def test_report_has_every_field_and_finite_numbers(two_runs):
         assert "error" not in entry, entry
         assert entry["seconds"] > 0 and entry["metrics"].keys() >= METRICS
         assert entry.get("settings") or entry["chosen"][0].startswith("automatic parameters")
+        if entry["engine"] == "VPL_GI":  # the planner's account of the frame
+            assert entry["stages"]["ran"]["g-buffer"] > 0
+            assert entry["stages"]["skipped"]["world light"] == "black world"
     (auto,) = report["automatic"]
     assert auto["budget"] == 0.5 and auto["seconds"] > 0 and 0 < auto["error"] < 10
     assert "automatic, 0.5 s budget" in result.stdout

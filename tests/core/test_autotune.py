@@ -12,7 +12,7 @@ from addon.core import autotune
 from addon.core.settings import Settings, SettingsError
 
 COST = autotune.CostModel("test GL", paths=2e-5, splat=2e-9, texels=1e-9, gather=4e-9,
-                          blur=1e-8, pixels=2e-6, maps=1e-9)
+                          blur=1e-8, pixels=2e-6, maps=1e-9, pool=5e-7)
 WORK = autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
                          vpls_per_path=2.5, bounces=4)
 
@@ -68,7 +68,9 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
 
     def render(s: Settings) -> dict[str, float | int]:
         vpls, pixels = 2.0 * s.vpl_count, 128 * 128 * s.antialiasing**2
+        subsets = min(512, 1 << (int(vpls) - 1).bit_length())
         return {"vpls": vpls, "pixels": pixels, "triangles": 4800, "shadow_tiles": 6,
+                "ism points": COST.pool * subsets * s.ism_points,
                 "vpl generation": COST.paths * s.vpl_count * s.bounces,
                 "indirect light maps": COST.splat * vpls * s.ism_points
                 + COST.texels * vpls * s.ism_resolution**2,
@@ -77,7 +79,7 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
                 "g-buffer": COST.pixels * pixels, "direct light maps": COST.maps * 6 * 4800}
 
     fitted = autotune.calibrate(render, "test GL", Settings())
-    for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps"):
+    for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool"):
         assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
 
 
