@@ -2,8 +2,8 @@
 colour replaced by a 512×512 image of the same average colour (planar UVs), in one run.
 
 Each variant renders --repeat fresh frames (nothing reused between frames) with the default
-settings; it prints the median frame time, the g-buffer and VPL-generation stages, and whether
-the texture path (the TEXTURED g-buffer variant) was used.
+settings; it prints the median frame time, the geometry, g-buffer and VPL-generation stages,
+and whether the texture path (the TEXTURED g-buffer variant) was used.
 
     .venv/bin/python tools/bench_textures.py [--size 128] [--repeat 3]
 """
@@ -44,7 +44,7 @@ def textured(scene: Scene, size: int = 512) -> Scene:
 
 
 def measure(renderer: Renderer, scene: Scene, settings: Settings, repeat: int) -> dict:
-    totals, stages = [], {"g-buffer": [], "vpl generation": []}
+    totals, stages = [], {"geometry": [], "g-buffer": [], "vpl generation": []}
     for _ in range(repeat):
         renderer.forget_frames()
         start = time.perf_counter()
@@ -84,7 +84,8 @@ def main() -> None:
     for name, s in (("untextured", plain), ("textured", textured_scene)):
         r = results[name]
         print(f"{name:10s} texture path {flatten_instances(s, []).has_textures!s:5s} "
-              f"frame {r['frame']:.3f} s, g-buffer {r['g-buffer'] * 1000:.1f} ms, "
+              f"frame {r['frame']:.3f} s, geometry {r['geometry'] * 1000:.1f} ms, "
+              f"g-buffer {r['g-buffer'] * 1000:.1f} ms, "
               f"vpl generation {r['vpl generation'] * 1000:.1f} ms")
     ratio = results["textured"]["frame"] / results["untextured"]["frame"]
     print(f"textured / untextured frame time: {ratio:.3f} ({args.size}², default settings, "

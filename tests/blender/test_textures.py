@@ -199,3 +199,41 @@ def test_textured_wall_bleeds_its_texels_colours(blender):
     assert right[2] / right[1] > 1.5 and right[2] > right[0]
     for got, expected in zip(regions[True], regions[False], strict=True):
         np.testing.assert_allclose(got, expected, rtol=0.05)
+
+
+def test_unsupported_texture_settings_warn_once_per_material(blender):
+    """Closest/Clip on an image is rendered as Linear/Repeat with one warning; a texture in a
+    Mix Shader or behind a Mapping node falls back to the viewport colour; UVs are read per
+    corner from the active render UV map."""
+    bpy = blender
+    new_scene(bpy)
+    image = byte_image(bpy, "Tiles", gradient(2, 2, 5))
+    closest = textured_material(bpy, "Closest", image)
+    node = next(n for n in closest.node_tree.nodes if n.type == "TEX_IMAGE")
+    node.interpolation, node.extension = "Closest", "CLIP"
+    mixed = textured_material(bpy, "Mixed", image)
+    tree = mixed.node_tree
+    principled = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(principled.outputs[0], mix.inputs[1])
+    tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    mapped = textured_material(bpy, "Mapped", image)
+    node = next(n for n in mapped.node_tree.nodes if n.type == "TEX_IMAGE")
+    mapped.node_tree.links.new(mapped.node_tree.nodes.new("ShaderNodeMapping").outputs[0],
+                               node.inputs["Vector"])
+    uvs = [(0.1, 0.2), (0.3, 0.4), (0.5, 0.6), (0.7, 0.8)]
+    for i, material in enumerate([closest, closest, mixed, mapped]):
+        obj = with_uvs(add_plane(bpy, f"P{i}", 0.5, x=i - 1.5), uvs)
+        obj.data.materials.append(material)
+    scene = export_scene(bpy.context.evaluated_depsgraph_get())
+    assert sorted(scene.warnings) == [
+        "material 'Closest': image 'Tiles': interpolation Closest, extension Clip not "
+        "supported (rendered as Linear, Repeat, Flat)",
+        "material 'Mapped': input 'Vector' of 'Image Texture' is linked to 'Mapping'; using "
+        "its viewport colour",
+        "material 'Mixed': image textures inside 'Mix Shader' are not supported; using its "
+        "viewport colour"]
+    mesh = scene.instances[0].mesh
+    # triangles (0, 1, 2) and (0, 2, 3) of the quad (Blender's split of this one)
+    np.testing.assert_allclose(mesh.uvs, np.array(uvs)[[0, 1, 2, 0, 2, 3]])
+    assert scene.instances[0].materials[0].base_color_texture.pixels.shape == (2, 2, 4)
