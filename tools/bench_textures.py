@@ -1,7 +1,7 @@
 """Cost of the texture path: the Cornell box rendered as it is and with every material's base
 colour replaced by a 512×512 image of the same average colour (planar UVs), in one run.
 
-Each variant renders --repeat fresh frames (nothing reused between frames) with the default
+The variants take turns rendering --repeat fresh frames each (nothing reused) with the default
 settings; it prints the median frame time, the geometry, g-buffer and VPL-generation stages,
 and whether the texture path (the TEXTURED g-buffer variant) was used.
 
@@ -43,17 +43,24 @@ def textured(scene: Scene, size: int = 512) -> Scene:
     return scene
 
 
-def measure(renderer: Renderer, scene: Scene, settings: Settings, repeat: int) -> dict:
-    totals, stages = [], {"geometry": [], "g-buffer": [], "vpl generation": []}
+STAGES = ("geometry", "g-buffer", "vpl generation")
+
+
+def measure(renderer: Renderer, scenes: dict[str, Scene], settings: Settings, repeat: int
+            ) -> dict[str, dict[str, float]]:
+    """Median frame and stage times per scene; the scenes take turns, so load from other
+    processes falls on both alike."""
+    times: dict[str, dict[str, list[float]]] = {
+        name: {key: [] for key in ("frame", *STAGES)} for name in scenes}
     for _ in range(repeat):
-        renderer.forget_frames()
-        start = time.perf_counter()
-        _, stats = renderer.render(scene, settings)
-        totals.append(time.perf_counter() - start)
-        for stage in stages:
-            stages[stage].append(stats.timings.get(stage, 0.0))
-    return {"frame": statistics.median(totals),
-            **{k: statistics.median(v) for k, v in stages.items()}}
+        for name, scene in scenes.items():
+            renderer.forget_frames()
+            start = time.perf_counter()
+            _, stats = renderer.render(scene, settings)
+            times[name]["frame"].append(time.perf_counter() - start)
+            for stage in STAGES:
+                times[name][stage].append(stats.timings.get(stage, 0.0))
+    return {name: {k: statistics.median(v) for k, v in t.items()} for name, t in times.items()}
 
 
 def main() -> None:
@@ -74,14 +81,12 @@ def main() -> None:
     textured_scene = textured(export_scene(bpy.context.evaluated_depsgraph_get()))
     renderer = Renderer()
     try:
-        settings = Settings()
-        measure(renderer, plain, settings, 1)  # warm-up: shader compilation
-        measure(renderer, textured_scene, settings, 1)
-        results = {name: measure(renderer, s, settings, args.repeat)
-                   for name, s in (("untextured", plain), ("textured", textured_scene))}
+        scenes = {"untextured": plain, "textured": textured_scene}
+        measure(renderer, scenes, Settings(), 1)  # warm-up: shader compilation
+        results = measure(renderer, scenes, Settings(), args.repeat)
     finally:
         renderer.release()
-    for name, s in (("untextured", plain), ("textured", textured_scene)):
+    for name, s in scenes.items():
         r = results[name]
         print(f"{name:10s} texture path {flatten_instances(s, []).has_textures!s:5s} "
               f"frame {r['frame']:.3f} s, geometry {r['geometry'] * 1000:.1f} ms, "
