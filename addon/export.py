@@ -15,6 +15,7 @@ import bpy
 import numpy as np
 
 from .core.scene import AreaShape, Camera, Instance, Light, LightKind, Material, Mesh, Scene, World
+from .export_images import ImageReader, UnsupportedLink
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 DEFAULT_MATERIAL = Material("(no material)")
@@ -113,6 +114,7 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
     mesh.corner_normals.foreach_get("vector", normals)
     positions = co[corner_vert[corner]]
     normals = normals.reshape(-1, 3)[corner]
+    uvs = _uvs(mesh, corner)
     corners = positions.reshape(-1, 3, 3)
     keep = np.ones(count, dtype=bool)
     if not np.isfinite(co).all():
@@ -129,7 +131,19 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
     if not keep.all():
         per_corner = np.repeat(keep, 3)
         positions, normals, slots = positions[per_corner], normals[per_corner], slots[keep]
-    return Mesh(name, positions, normals, slots), problems
+        uvs = None if uvs is None else uvs[per_corner]
+    return Mesh(name, positions, normals, slots, uvs), problems
+
+
+def _uvs(mesh: bpy.types.Mesh, corner: np.ndarray) -> np.ndarray | None:
+    """The active render UV map's coordinates at the given corners, or None without one."""
+    layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
+    attribute = mesh.attributes.get(layer.name) if layer is not None else None
+    if attribute is None:
+        return None
+    uv = np.empty(len(mesh.loops) * 2, dtype=np.float32)
+    attribute.data.foreach_get("vector", uv)
+    return uv.reshape(-1, 2)[corner]
 
 
 @dataclass
@@ -213,35 +227,46 @@ def _linked_shader(socket):
     return socket.links[0].from_node if socket.is_linked else None
 
 
-def _shader(node, name: str, glossy: set[str]) -> Material:
-    """Constant diffuse values of a shader node (recursing through Mix and Add Shader).
+def _emissive(name: str, base, base_texture, color, color_texture, strength: float,
+              **values) -> Material:
+    """A material whose emission is ``color`` (or its texture) times ``strength``."""
+    return Material(name, base, tuple(np.array(color) * strength), base_color_texture=base_texture,
+                    emission_texture=color_texture if strength != 0 else None, **values)
+
+
+def _shader(node, name: str, glossy: set[str], images: ImageReader) -> Material:
+    """Diffuse values of a shader node (recursing through Mix and Add Shader): constants, or
+    image textures linked to a colour.
 
     An empty shader socket is black, as in Cycles. Materials with a specular or metallic
     (glossy) part are added to ``glossy``."""
     if node is None:
         return Material(name, (0.0, 0.0, 0.0))
     if node.type == "REROUTE":
-        return _shader(_linked_shader(node.inputs[0]), name, glossy)
+        return _shader(_linked_shader(node.inputs[0]), name, glossy, images)
     if node.type == "BSDF_PRINCIPLED":
         if _input_value(node, "Metallic", 0.0) > 0 or \
                 _input_value(node, "Specular IOR Level", 0.0) > 0:
             glossy.add(name)
-        strength = float(_constant(node, "Emission Strength", 0.0))
-        emission = np.array(_rgb(_constant(node, "Emission Color", (0, 0, 0)))) * strength
-        return Material(name, _rgb(_constant(node, "Base Color", (0.8,) * 3)), tuple(emission),
-                        roughness=float(_constant(node, "Roughness", 0.5)),
-                        metallic=float(_constant(node, "Metallic", 0.0)))
+        return _emissive(name, *images.color(node, "Base Color", (0.8,) * 3, name),
+                         *images.color(node, "Emission Color", (0, 0, 0), name),
+                         float(_constant(node, "Emission Strength", 0.0)),
+                         roughness=float(_constant(node, "Roughness", 0.5)),
+                         metallic=float(_constant(node, "Metallic", 0.0)))
     if node.type == "BSDF_DIFFUSE":
-        return Material(name, _rgb(_constant(node, "Color", (0.8,) * 3)), roughness=1.0)
+        base, texture = images.color(node, "Color", (0.8,) * 3, name)
+        return Material(name, base, roughness=1.0, base_color_texture=texture)
     if node.type == "EMISSION":
-        strength = float(_constant(node, "Strength", 1.0))
-        color = np.array(_rgb(_constant(node, "Color", (1, 1, 1)))) * strength
-        return Material(name, (0.0, 0.0, 0.0), tuple(color), roughness=1.0)
+        return _emissive(name, (0.0, 0.0, 0.0), None,
+                         *images.color(node, "Color", (1, 1, 1), name),
+                         float(_constant(node, "Strength", 1.0)), roughness=1.0)
     if node.type in ("MIX_SHADER", "ADD_SHADER"):
         first_socket, second_socket = (node.inputs[1], node.inputs[2]) \
             if node.type == "MIX_SHADER" else (node.inputs[0], node.inputs[1])
-        a = _shader(_linked_shader(first_socket), name, glossy)
-        b = _shader(_linked_shader(second_socket), name, glossy)
+        a = _shader(_linked_shader(first_socket), name, glossy, images)
+        b = _shader(_linked_shader(second_socket), name, glossy, images)
+        if any((m.base_color_texture, m.emission_texture) != (None, None) for m in (a, b)):
+            raise _Unsupported(f"image textures inside '{node.bl_label}' are not supported")
         if node.type == "ADD_SHADER":
             wa = wb = 1.0
         else:
@@ -257,8 +282,10 @@ def _shader(node, name: str, glossy: set[str]) -> Material:
 
 
 def export_material(material: bpy.types.Material | None, warnings: list[str],
-                    glossy: set[str] | None = None) -> Material:
-    """Base colour, emission, roughness and metallic of a material's surface (constant values).
+                    glossy: set[str] | None = None, images: ImageReader | None = None
+                    ) -> Material:
+    """Base colour, emission, roughness and metallic of a material's surface (constant values
+    or image textures, read by ``images``).
 
     A material without nodes is diffuse in its viewport colour (as in Cycles), with a warning;
     an unsupported node tree falls back to the viewport colour with one warning. Names of
@@ -273,8 +300,9 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
         return viewport
     node = _surface_node(material.node_tree, "OUTPUT_MATERIAL")
     try:
-        return _shader(node, material.name, set() if glossy is None else glossy)
-    except _Unsupported as reason:
+        return _shader(node, material.name, set() if glossy is None else glossy,
+                       images or ImageReader(warnings))
+    except (_Unsupported, UnsupportedLink) as reason:
         warnings.append(f"material '{material.name}': {reason}; using its viewport colour")
         return viewport
 
@@ -347,6 +375,7 @@ class _Export:
         self.materials: dict[str, Material] = {}
         self.visibility: dict[int, bool] = {}
         self.glossy: set[str] = set()
+        self.images = ImageReader(result.warnings)
         self.generated: dict[str, dict[int, int]] = {}
 
     def include(self, obj: bpy.types.Object) -> bool:
@@ -430,7 +459,7 @@ class _Export:
             key = slot.material.name_full if slot.material else ""
             if key not in self.materials:
                 self.materials[key] = export_material(slot.material, self.result.warnings,
-                                                      self.glossy)
+                                                      self.glossy, self.images)
             found.append(self.materials[key])
         return found
 

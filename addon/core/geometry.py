@@ -3,11 +3,12 @@ per-vertex material values, visible light shapes, and the scene's bounding spher
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .scene import Instance, Light, LightKind, Material, Scene
+from . import textures as tex
+from .scene import Instance, Light, LightKind, Material, Scene, Texture
 
 DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
@@ -15,16 +16,56 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 
 @dataclass
 class WorldGeometry:
-    """Flattened triangles: 3 vertices per triangle, attributes per vertex (float32)."""
+    """Flattened triangles: 3 vertices per triangle, attributes per vertex (float32).
+
+    Textured materials have their textures' average colour in ``albedo`` and ``emission``
+    (the per-triangle values light sampling and path termination use); ``uv`` and
+    ``texture`` (albedo layer, emission layer — -1 for none — and emission strength) are
+    set only when some material has a texture."""
 
     positions: np.ndarray  # (V, 3)
     normals: np.ndarray  # (V, 3)
     albedo: np.ndarray  # (V, 3)
     emission: np.ndarray  # (V, 3)
+    uv: np.ndarray | None = None  # (V, 2)
+    texture: np.ndarray | None = None  # (V, 3)
+    textures: list[Texture] = field(default_factory=list)
 
     @property
     def vertex_count(self) -> int:
         return len(self.positions)
+
+    @property
+    def has_textures(self) -> bool:
+        """Whether the g-buffer needs its texture path (some material has a texture)."""
+        return bool(self.textures)
+
+    def texture_vertices(self) -> np.ndarray:
+        """The texture path's second vertex stream, (V, 5) float32: uv, texture attribute."""
+        return np.ascontiguousarray(np.hstack([self.uv, self.texture]), dtype=np.float32)
+
+    def albedo_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
+        """Albedo (m, 3) at points on triangles: the base colour, or the texture sampled at the
+        interpolated UV (bilinear, Repeat), capped like base colours."""
+        albedo = self.albedo.reshape(-1, 3, 3)[triangle, 0].astype(np.float64)
+        if not self.has_textures or len(triangle) == 0:
+            return albedo
+        layer = self.texture.reshape(-1, 3, 3)[triangle, 0, 0].astype(int)
+        rows = np.flatnonzero(layer >= 0)
+        if len(rows) == 0:
+            return albedo
+        t = self.positions.reshape(-1, 3, 3)[triangle[rows]].astype(np.float64)
+        e1, e2, d = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0], position[rows] - t[:, 0]
+        d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+        p1, p2 = (d * e1).sum(1), (d * e2).sum(1)
+        det = np.maximum(d11 * d22 - d12 * d12, 1e-300)
+        b1, b2 = (d22 * p1 - d12 * p2) / det, (d11 * p2 - d12 * p1) / det
+        uv = self.uv.reshape(-1, 3, 2)[triangle[rows]].astype(np.float64)
+        at = uv[:, 0] + b1[:, None] * (uv[:, 1] - uv[:, 0]) + b2[:, None] * (uv[:, 2] - uv[:, 0])
+        for k in np.unique(layer[rows]):
+            group = layer[rows] == k
+            albedo[rows[group]] = tex.sample(self.textures[k], at[group])
+        return np.clip(albedo, 0.0, MAX_ALBEDO)
 
     def interleaved(self) -> np.ndarray:
         """Vertex data as one (V, 12) float32 array: position, normal, albedo, emission."""
@@ -63,18 +104,29 @@ def _albedo_table(materials: list[Material], warnings: list[str]) -> np.ndarray:
     return np.clip(table, 0.0, MAX_ALBEDO)
 
 
-def _material_tables(materials: list[Material], warnings: list[str]
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Albedo (capped, see ``_albedo_table``) and emission (finite, >= 0) per material slot."""
+def _material_tables(materials: list[Material], warnings: list[str],
+                     textures: tex.TextureSet | None) -> tuple[np.ndarray, ...]:
+    """Albedo (capped, see ``_albedo_table``), emission (finite, >= 0) and, with ``textures``,
+    the texture attribute per material slot; textures count with their average colour."""
     albedo = _albedo_table(materials, warnings)
     emission = np.array([m.emission for m in materials] or [(0.0, 0.0, 0.0)], np.float64)
-    return albedo, np.where(np.isfinite(emission), np.maximum(emission, 0), 0)
+    emission = np.where(np.isfinite(emission), np.maximum(emission, 0), 0)
+    if textures is None:
+        return albedo, emission
+    for row, material in enumerate(materials):
+        if material.base_color_texture is not None:
+            albedo[row] = np.clip(tex.mean_color(material.base_color_texture), 0, MAX_ALBEDO)
+        if material.emission_texture is not None:
+            emission[row] *= tex.mean_color(material.emission_texture)
+    attribute = np.array([textures.columns(m) for m in materials], np.float64)
+    return albedo, emission, attribute
 
 
-def _flatten_group(members: list[Instance], tables: dict, warnings: list[str]
-                   ) -> tuple[np.ndarray, ...]:
+def _flatten_group(members: list[Instance], tables: dict, warnings: list[str],
+                   textures: tex.TextureSet | None) -> tuple[np.ndarray, ...]:
     """World positions, normals, albedo and emission of every instance of one shared mesh,
-    transformed together (float32, as the GPU gets them)."""
+    transformed together (float32, as the GPU gets them); with ``textures`` also UVs and the
+    texture attribute."""
     mesh = members[0].mesh
     k, vertices = len(members), len(mesh.positions)
     matrices = np.stack([inst.matrix for inst in members]).astype(np.float64)
@@ -94,20 +146,22 @@ def _flatten_group(members: list[Instance], tables: dict, warnings: list[str]
         normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
     slots_per_vertex = np.repeat(mesh.material_slots, 3)
     width = max(1, int(slots_per_vertex.max(initial=0)) + 1)
-    albedo_tables = np.zeros((k, width, 3), np.float32)
-    emission_tables = np.zeros((k, width, 3), np.float32)
+    per_slot = [np.zeros((k, width, 3), np.float32) for _ in range(2 if textures is None else 3)]
     for row, inst in enumerate(members):
         key = tuple(id(m) for m in inst.materials)
         if key not in tables:
             tables[key] = _material_tables(inst.materials or [Material("(no material)")],
-                                           warnings)
-        albedo, emission = tables[key]
-        clipped = np.minimum(np.arange(width), len(albedo) - 1)
-        albedo_tables[row], emission_tables[row] = albedo[clipped], emission[clipped]
+                                           warnings, textures)
+        clipped = np.minimum(np.arange(width), len(tables[key][0]) - 1)
+        for table, values in zip(per_slot, tables[key], strict=True):
+            table[row] = values[clipped]
     slots = np.clip(slots_per_vertex, 0, width - 1)
-    columns = (world, normals, albedo_tables[:, slots], emission_tables[:, slots])
+    columns = (world, normals, *(table[:, slots] for table in per_slot))
+    if textures is not None:
+        uv = mesh.uvs if mesh.uvs is not None else np.zeros((vertices, 2), np.float32)
+        columns = (*columns[:4], np.broadcast_to(uv, (k, vertices, 2)), columns[4])
     if finite.all():
-        return tuple(c.reshape(k * vertices, 3) for c in columns)
+        return tuple(c.reshape(k * vertices, -1) for c in columns)
     keep = np.repeat(finite, 3, axis=1)
     return tuple(c[keep] for c in columns)
 
@@ -123,15 +177,20 @@ def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
     for inst in scene.instances:
         if inst.mesh.triangle_count:
             groups.setdefault(id(inst.mesh), []).append(inst)
-    tables: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-    parts = [_flatten_group(members, tables, warnings) for members in groups.values()]
+    tables: dict[tuple, tuple[np.ndarray, ...]] = {}
+    textured = any(m.base_color_texture or m.emission_texture
+                   for members in groups.values() for inst in members for m in inst.materials)
+    textures = tex.TextureSet() if textured else None
+    parts = [_flatten_group(members, tables, warnings, textures) for members in groups.values()]
     parts = [p for p in parts if len(p[0])]
     if not parts:
         empty = np.zeros((0, 3), dtype=np.float32)
         return WorldGeometry(empty, empty, empty, empty)
     columns = [np.ascontiguousarray(np.concatenate(c), dtype=np.float32)
                for c in zip(*parts, strict=True)]
-    return WorldGeometry(*columns)
+    if textures is None or not textures.textures:
+        return WorldGeometry(*columns[:4])
+    return WorldGeometry(*columns, textures=textures.textures)
 
 
 def bounding_sphere(positions: np.ndarray) -> tuple[np.ndarray, float]:

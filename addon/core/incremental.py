@@ -401,8 +401,8 @@ class IncrementalVPLs:
         if len(anchors) == 0:
             return anchors
         if not retrace_all:  # materials may have changed: read the albedo again
-            anchors.albedo[anchors.hit] = geometry.albedo.reshape(-1, 3, 3)[
-                anchors.triangle[anchors.hit], 0]
+            anchors.albedo[anchors.hit] = geometry.albedo_at(anchors.triangle[anchors.hit],
+                                                             anchors.position[anchors.hit])
         coords, origin, in_front = domain.project(anchors.position, anchors.offsets)
         towards = anchors.position - origin
         distance = np.linalg.norm(towards, axis=1)

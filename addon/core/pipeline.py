@@ -28,6 +28,7 @@ from .scene import Camera, Scene
 from .sequences import scrambled_halton
 from .settings import Settings
 from .shading import GeometryAwareBlur
+from .textures import upload as upload_textures
 from .vpl import VPLs, generate_vpls, propagate
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
@@ -37,6 +38,8 @@ MAX_BATCH = 8192  # samples or tiles per batch (rows of a table texture)
 MAX_FRAME_SAMPLES = 1 << 27  # supersampled pixels per frame: the passes alone take 80 B each
 VERTEX_FORMAT = "3f 3f 3f 3f"
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_albedo", "in_emission")
+TEXTURE_VERTEX_FORMAT = "2f 3f"  # the texture path's second stream: uv, texture attribute
+TEXTURE_UNITS = 0, 1  # the g-buffer's array texture and its table of sizes
 ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see core/ism.py)
 ISM_POINT_SUBSETS = 512  # stratified point sets sampled on the CPU (~0.4 µs a point); VPL k uses
 # set k % 512, moved within its triangles by a per-VPL random shift beyond the first 512
@@ -183,6 +186,13 @@ def _downsample(image: np.ndarray, factor: int) -> np.ndarray:
     return image.reshape(h // factor, factor, w // factor, factor, c).mean(axis=(1, 3))
 
 
+def _texture_state(geometry: WorldGeometry) -> tuple[np.ndarray, ...]:
+    """What VPLs read from textures: UVs, texture attributes and pixels (none untextured)."""
+    if not geometry.has_textures:
+        return ()
+    return geometry.uv, geometry.texture, *(t.pixels for t in geometry.textures)
+
+
 class Renderer:
     """Renders Scenes with one standalone OpenGL context. Create once, call render() per frame."""
 
@@ -240,13 +250,14 @@ class Renderer:
     def _note_geometry(self, geometry: WorldGeometry) -> None:
         """Bump the shape version when triangle positions differ from the last frame's (the
         ray tracer's BVH and the imperfect shadow maps depend on them), and the geometry
-        version when positions or materials do (VPLs depend on both)."""
-        arrays = (geometry.positions, geometry.albedo, geometry.emission)
-        same = [self._geometry is not None and a.shape == b.shape and np.array_equal(a, b)
-                for a, b in zip(self._geometry or arrays, arrays, strict=True)]
+        version when positions, materials or textures do (VPLs depend on all)."""
+        arrays = (geometry.positions, geometry.albedo, geometry.emission, *_texture_state(geometry))
+        before = self._geometry or ()
+        same = [k < len(before) and a.shape == before[k].shape and np.array_equal(a, before[k])
+                for k, a in enumerate(arrays)]
         if not same[0]:
             self._shape_version += 1
-        if not all(same):
+        if not all(same) or len(before) != len(arrays):
             self._geometry = tuple(a.copy() for a in arrays)
             self._geometry_version += 1
 
@@ -702,6 +713,10 @@ class _FrameResources:
         self.shape_vbo = self._buffer(shapes)
         self.shape_vertices = shapes.vertex_count
         self.geometry = geometry
+        self.textured = None  # the texture path: (vertex buffer, array texture, size table)
+        if geometry.has_textures:
+            self.textured = (self._own(self.ctx.buffer(geometry.texture_vertices().tobytes())),
+                             *(self._own(t) for t in upload_textures(ctx, geometry.textures)))
         self._surfaces: tuple[moderngl.Buffer, moderngl.Buffer] | None = None
         self._atlas: tuple[moderngl.Texture, _Batch] | None = None
         self.kept_hits = 0  # atlases taken from an earlier frame
@@ -755,14 +770,22 @@ class _FrameResources:
                                       np.linalg.norm(camera_to_world[:3, 2])),
             "u_orthographic": camera.is_orthographic,
         }
-        for vbo, count, defines in ((self.scene_vbo, self.scene_vertices, None),
+        scene_defines = {"TEXTURED": 1} if self.textured else None
+        for vbo, count, defines in ((self.scene_vbo, self.scene_vertices, scene_defines),
                                     (self.shape_vbo, self.shape_vertices, {"ONE_SIDED": 1})):
             if vbo is None:
                 continue
             program = self.programs.get("gbuffer_vert.glsl", "gbuffer_frag.glsl", defines)
             _set_uniforms(program, **uniforms)
-            vao = self._tile(self.ctx.vertex_array(
-                program, [(vbo, VERTEX_FORMAT, *VERTEX_ATTRIBUTES)], skip_errors=True))
+            streams = [(vbo, VERTEX_FORMAT, *VERTEX_ATTRIBUTES)]
+            if defines is scene_defines and self.textured:
+                buffer, array, sizes = self.textured
+                streams.append((buffer, TEXTURE_VERTEX_FORMAT, "in_uv", "in_texture"))
+                array.use(TEXTURE_UNITS[0])
+                sizes.use(TEXTURE_UNITS[1])
+                _set_uniforms(program, u_textures=TEXTURE_UNITS[0],
+                              u_texture_sizes=TEXTURE_UNITS[1])
+            vao = self._tile(self.ctx.vertex_array(program, streams, skip_errors=True))
             vao.render(moderngl.TRIANGLES, vertices=count)
         self.ctx.disable(moderngl.DEPTH_TEST)
         self._gbuffer_textures = dict(zip(names, textures, strict=True))

@@ -15,28 +15,47 @@ import numpy as np
 Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
 
 
+@dataclass(eq=False)
+class Texture:
+    """An image sampled through the mesh's UVs: Linear interpolation, Repeat extension.
+
+    ``pixels`` are as Blender stores them, rows bottom-up (UV (0, 0) is the first texel);
+    with ``srgb`` they are sRGB-encoded and decoded after interpolation, as Cycles does with
+    byte images (measured: tests/blender/test_textures.py)."""
+
+    name: str
+    pixels: np.ndarray  # (h, w, 4) float32 RGBA
+    srgb: bool = False
+
+
 @dataclass
 class Material:
     """A diffuse material: base colour (albedo) and emitted radiance (colour × strength).
 
-    Roughness and metallic are Principled BSDF's values, carried for glossy transport; the
-    renderer is diffuse only and does not use them yet."""
+    With ``base_color_texture`` the texture is the base colour (``base_color`` is unused);
+    with ``emission_texture`` the emitted radiance is the texture times ``emission`` (the
+    strength per channel). Roughness and metallic are Principled BSDF's values, carried for
+    glossy transport; the renderer is diffuse only and does not use them yet."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     roughness: float = 0.5
     metallic: float = 0.0
+    base_color_texture: Texture | None = None
+    emission_texture: Texture | None = None
 
 
 @dataclass
 class Mesh:
-    """Triangle soup in object space: 3 corners per triangle, corner normals, slot per triangle."""
+    """Triangle soup in object space: 3 corners per triangle, corner normals, slot per triangle,
+    and the active render UV map's coordinates per corner (None without a UV map)."""
 
     name: str
     positions: np.ndarray  # (T*3, 3) float32
     normals: np.ndarray  # (T*3, 3) float32, corner normals (smooth/flat, as Blender has them)
     material_slots: np.ndarray  # (T,) int32, index into the instance's material list
+    uvs: np.ndarray | None = None  # (T*3, 2) float32
 
     @property
     def triangle_count(self) -> int:

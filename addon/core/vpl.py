@@ -268,8 +268,8 @@ def trace_hits(tracer: RayTracer, geometry: WorldGeometry, origin: np.ndarray,
     t = geometry.positions.reshape(-1, 3, 3)[tri].astype(np.float64)
     normal = _unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
     normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
-    albedo = geometry.albedo.reshape(-1, 3, 3)[tri, 0].astype(np.float64)
-    return SurfaceHits(position, normal, albedo, flux[hit], rank[hit], tri)
+    return SurfaceHits(position, normal, geometry.albedo_at(tri, position), flux[hit], rank[hit],
+                       tri)
 
 
 def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: Settings,

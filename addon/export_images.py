@@ -1,0 +1,121 @@
+"""Image Texture nodes -> core Texture: pixels read with foreach_get, one warning per problem.
+
+Supported: an Image Texture's Color output linked (directly or through reroutes) to a colour
+input, its Vector input unlinked (the active render UV map) or linked to a UV Map node or a
+Texture Coordinate node's UV output. Pixels of byte images are in the image's colour space:
+sRGB ones are decoded by the renderer after interpolation, as Cycles does; float images are
+linear already.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from .core.scene import Texture
+from .core.textures import missing_texture
+
+RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear"}
+SUPPORTED_MODES = {"interpolation": "Linear", "extension": "REPEAT", "projection": "FLAT"}
+
+
+class UnsupportedLink(Exception):
+    """A colour input linked to something other than a supported Image Texture."""
+
+
+def _from_node(socket):
+    node = socket.links[0].from_node
+    while node.type == "REROUTE" and node.inputs[0].is_linked:
+        node = node.inputs[0].links[0].from_node
+    return node
+
+
+def _check_vector(node) -> None:
+    socket = node.inputs.get("Vector")
+    if socket is None or not socket.is_linked:
+        return
+    link = socket.links[0]
+    source = _from_node(socket)
+    if source.type == "UVMAP" or (source.type == "TEX_COORD" and link.from_socket.name == "UV"):
+        return
+    raise UnsupportedLink(f"input 'Vector' of '{node.bl_label}' is linked to "
+                          f"'{source.bl_label}'")
+
+
+def _pixels(image: bpy.types.Image) -> np.ndarray | None:
+    """The image's pixels as (h, w, 4) float32, or None when Blender cannot read it."""
+    width, height = image.size
+    channels = image.channels
+    try:
+        count = len(image.pixels)
+    except RuntimeError:
+        return None
+    if width * height == 0 or count != width * height * channels or channels not in (1, 3, 4):
+        return None
+    flat = np.empty(count, dtype=np.float32)
+    image.pixels.foreach_get(flat)
+    pixels = flat.reshape(height, width, channels)
+    if channels == 4:
+        return pixels
+    rgba = np.ones((height, width, 4), np.float32)
+    rgba[..., :3] = pixels
+    return rgba
+
+
+class ImageReader:
+    """Textures of one export, one per image, and the warnings about them."""
+
+    def __init__(self, warnings: list[str]) -> None:
+        self.warnings = warnings
+        self._textures: dict[str, Texture] = {}
+        self._missing: set[str] = set()
+
+    def _warn(self, message: str) -> None:
+        if message not in self.warnings:
+            self.warnings.append(message)
+
+    def color(self, node, name: str, default, material: str
+              ) -> tuple[tuple[float, float, float], Texture | None]:
+        """A colour input's constant value, or (1, 1, 1) and the texture linked to it."""
+        socket = node.inputs.get(name)
+        if socket is None or not socket.is_linked:
+            value = default if socket is None else socket.default_value
+            return (float(value[0]), float(value[1]), float(value[2])), None
+        source = _from_node(socket)
+        if source.type != "TEX_IMAGE" or socket.links[0].from_socket.name != "Color":
+            raise UnsupportedLink(f"input '{name}' of '{node.bl_label}' is linked to "
+                                  f"'{source.bl_label}'")
+        _check_vector(source)
+        return (1.0, 1.0, 1.0), self.texture(source, material)
+
+    def texture(self, node, material: str) -> Texture:
+        """The node's image as a Texture; magenta, with a warning, when it cannot be read."""
+        image = node.image
+        modes = [f"{attr} {getattr(node, attr).title()}" for attr, supported in
+                 SUPPORTED_MODES.items() if getattr(node, attr) != supported]
+        label = f"image '{image.name}'" if image is not None else "an image texture"
+        if modes:
+            self._warn(f"material '{material}': {label}: {', '.join(modes)} not supported "
+                       f"(rendered as Linear, Repeat, Flat)")
+        if image is None:
+            self._warn(f"material '{material}': an image texture has no image: shown in "
+                       f"magenta (1, 0, 1) as Cycles does")
+            return missing_texture("(none)")
+        key = image.name_full
+        if key not in self._textures:
+            pixels = _pixels(image)
+            if pixels is None:
+                self._missing.add(key)
+                self._textures[key] = missing_texture(image.name)
+            else:
+                srgb = not image.is_float and image.colorspace_settings.name == "sRGB"
+                self._textures[key] = Texture(image.name, pixels, srgb)
+        space = image.colorspace_settings.name
+        if key in self._missing:
+            self._warn(f"material '{material}': image '{image.name}' is missing or cannot be "
+                       f"read ({image.filepath or 'no file'}): shown in magenta (1, 0, 1) as "
+                       f"Cycles does")
+        elif not image.is_float and space not in RAW_SPACES | {"sRGB"}:
+            self._warn(f"material '{material}': image '{image.name}': colour space '{space}' "
+                       f"is not supported (read as Non-Color)")
+        return self._textures[key]

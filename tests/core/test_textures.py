@@ -1,0 +1,124 @@
+"""Image textures: CPU sampling, the g-buffer's texture path against it, the texture variant
+compiled only when needed, and textures' average colour for light sampling and VPLs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core import textures as tex
+from addon.core.geometry import flatten_instances
+from addon.core.pipeline import Renderer
+from addon.core.scene import Instance, LightKind, Material, Mesh, Scene, Texture
+from addon.core.settings import Settings
+from tests.core.builders import floor_scene, light, pixel_centres, quad, top_down_camera
+
+SIZE = 64
+EXTENT = 6.0
+
+
+def textured_quad(half: float, repeat: float = 1.0, z: float = 0.0) -> Mesh:
+    """builders.quad with UVs spanning [0, repeat]² over the square."""
+    mesh = quad(half, half, z)
+    mesh.uvs = ((mesh.positions[:, :2] / half + 1) / 2 * repeat).astype(np.float32)
+    return mesh
+
+
+def image(seed: int, h: int, w: int) -> np.ndarray:
+    """Random opaque pixels in steps of 1/255, as Blender's byte images hold them."""
+    codes = np.random.default_rng(seed).integers(0, 256, size=(h, w, 4))
+    pixels = (codes / 255).astype(np.float32)
+    pixels[..., 3] = 1
+    return pixels
+
+
+def test_bilinear_repeat_decodes_srgb_after_interpolation():
+    pixels = np.zeros((2, 2, 4), np.float32)
+    pixels[0, 0, :3], pixels[0, 1, :3] = 0.2, 1.0  # bottom row: 0.2, 1.0
+    texture = Texture("t", pixels, srgb=True)
+    uv = np.array([[0.25, 0.25], [0.5, 0.25], [1.25, 0.25], [0.0, 0.25]])
+    got = tex.sample(texture, uv)[:, 0]
+    # texel centres at u = 0.25 and 0.75; u = 0.5 halfway; u = 0 halfway across the wrap
+    expected = tex.decode_srgb(np.array([0.2, 0.6, 0.2, 0.6]))
+    np.testing.assert_allclose(got, expected, rtol=1e-6)
+    assert tex.decode_srgb(np.array([1.0]))[0] == pytest.approx(1.0)
+    assert tex.decode_srgb(np.array([0.5]))[0] == pytest.approx(0.21404, abs=1e-5)
+
+
+def test_gbuffer_samples_albedo_and_emission_like_the_cpu():
+    """Two textures of different sizes (layer packing), repeated 3× (wrapping), one sRGB:
+    DiffCol and Emit equal the CPU sampler at each pixel's UV."""
+    albedo = Texture("albedo", image(1, 5, 7), srgb=True)
+    glow = Texture("glow", image(2, 3, 2))
+    material = Material("m", emission=(2.0, 2.0, 2.0), base_color_texture=albedo,
+                        emission_texture=glow)
+    half, repeat = 2.5, 3.0
+    floor = Instance(textured_quad(half, repeat), np.eye(4), [material])
+    scene = Scene([floor], [], camera=top_down_camera(SIZE, EXTENT))
+    renderer = Renderer()
+    try:
+        frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
+    finally:
+        renderer.release()
+    x, y = pixel_centres(SIZE, EXTENT)
+    inside = (np.abs(x) < half - 0.05) & (np.abs(y) < half - 0.05)
+    uv = ((np.stack([x[inside], y[inside]], axis=1) / half + 1) / 2 * repeat)
+    np.testing.assert_allclose(frame.passes["DiffCol"][inside], tex.sample(albedo, uv),
+                               atol=2e-5)
+    np.testing.assert_allclose(frame.passes["Emit"][inside], 2.0 * tex.sample(glow, uv),
+                               atol=5e-5)
+
+
+def test_texture_variant_is_compiled_only_for_textured_scenes():
+    plain = floor_scene([light(LightKind.SUN, np.eye(4), power=1.0)], size=8)
+    textured = floor_scene([light(LightKind.SUN, np.eye(4), power=1.0)], size=8)
+    textured.instances[0] = Instance(textured_quad(5), np.eye(4), [
+        Material("t", base_color_texture=Texture("t", image(3, 2, 2)))])
+    renderer = Renderer()
+    try:
+        def variants() -> list[tuple]:
+            return [key for key in renderer.programs._programs
+                    if key[:2] == ("gbuffer_vert.glsl", "gbuffer_frag.glsl")]
+        renderer.render(plain, Settings(bounces=0, antialiasing=1))
+        assert not flatten_instances(plain, []).has_textures
+        assert variants() and all(("TEXTURED", 1) not in key[2] for key in variants())
+        renderer.render(textured, Settings(bounces=0, antialiasing=1))
+        assert flatten_instances(textured, []).has_textures
+        assert any(("TEXTURED", 1) in key[2] for key in variants())
+    finally:
+        renderer.release()
+
+
+def test_textures_count_with_their_average_for_light_sampling(renderer):
+    """An emission-textured lamp lights the floor as a lamp of the texture's average colour;
+    its triangles' albedo and emission columns hold the averages too."""
+    pixels = image(4, 4, 4)
+    texture = Texture("glow", pixels, srgb=True)
+    mean = tex.decode_srgb(pixels[..., :3]).reshape(-1, 3).mean(axis=0)
+    lamp_mesh = textured_quad(0.3, z=1.5)
+
+    def lamp(material: Material) -> Scene:
+        return floor_scene([], extra=[Instance(lamp_mesh, np.eye(4), [material])], size=32)
+    textured = Material("lamp", (0, 0, 0), (10.0,) * 3, emission_texture=texture,
+                        base_color_texture=texture)
+    geometry = flatten_instances(lamp(textured), [])
+    np.testing.assert_allclose(geometry.emission[-1], 10 * mean, rtol=1e-5)
+    np.testing.assert_allclose(geometry.albedo[-1], mean, rtol=1e-5)
+    settings = Settings(bounces=0, antialiasing=1, emission_samples=256)
+    ours, _ = renderer.render(lamp(textured), settings)
+    flat, _ = renderer.render(lamp(Material("lamp", (0, 0, 0), tuple(10 * mean))), settings)
+    np.testing.assert_allclose(ours.passes["DiffDir"], flat.passes["DiffDir"], rtol=1e-4,
+                               atol=1e-6)
+
+
+def test_vpls_take_the_albedo_of_the_texel_they_hit():
+    pixels = np.ones((1, 2, 4), np.float32)
+    pixels[0, 0, :3], pixels[0, 1, :3] = (0.9, 0.1, 0.1), (0.1, 0.9, 0.1)  # red, green
+    texture = Texture("rg", pixels)
+    floor = Instance(textured_quad(1.0), np.eye(4), [Material("m", base_color_texture=texture)])
+    geometry = flatten_instances(Scene([floor]), [])
+    # the quad's triangle 0 lies below the diagonal y = x, triangle 1 above it
+    points = np.array([[-0.5, 0.2, 0.0], [0.5, -0.2, 0.0], [0.0, -0.6, 0.0]])
+    got = geometry.albedo_at(np.array([1, 0, 0]), points)
+    np.testing.assert_allclose(got[:2], [(0.9, 0.1, 0.1), (0.1, 0.9, 0.1)], atol=1e-6)
+    np.testing.assert_allclose(got[2], (0.5, 0.5, 0.1), atol=1e-6)  # halfway between texels
