@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .environment import EnvironmentSampler
 from .geometry import WorldGeometry
 from .scene import Light, LightKind, Scene
 from .settings import Settings
@@ -85,6 +86,14 @@ def stratified_square(n: int, rng: np.random.Generator) -> np.ndarray:
     cells = rng.permutation(side * side)[:n]
     jitter = rng.uniform(size=(n, 2))
     return (np.stack([cells % side, cells // side], axis=1) + jitter) / side
+
+
+def fibonacci_square(n: int, rng: np.random.Generator) -> np.ndarray:
+    """n points of the Fibonacci lattice in [0,1)², randomly shifted (Cranley-Patterson): the
+    spherical Fibonacci lattice once mapped to the sphere by solid angle."""
+    i = np.arange(n)
+    shift = rng.uniform(size=2)
+    return np.stack([(i + shift[0]) / n, (i * (5**0.5 - 1) / 2 + shift[1]) % 1.0], axis=1)
 
 
 def concentric_disk(u: np.ndarray) -> np.ndarray:
@@ -192,14 +201,21 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
 
 
 def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator) -> None:
+    """World samples: directions of a spherical Fibonacci lattice for a constant colour, or
+    a Fibonacci lattice importance-sampled into the environment map (radiance / (n pdf)
+    each: unbiased)."""
     radiance = scene.world.radiance
     if not np.any(radiance > 0):
         return
     n = s.world_samples
-    sky = fibonacci_sphere(n, rng)
-    b.add(position=np.zeros((n, 3)), axis=-sky, kind=KIND_DIRECTIONAL,
-          intensity=radiance * 4 * np.pi / n, shadow=True, resolution=s.sample_shadow_resolution,
-          soft=True)
+    env = scene.world.environment
+    if env is None:
+        sky, intensity = fibonacci_sphere(n, rng), radiance * 4 * np.pi / n
+    else:
+        sky, ratio = EnvironmentSampler(env).sample(fibonacci_square(n, rng))
+        intensity = ratio / n
+    b.add(position=np.zeros((n, 3)), axis=-sky, kind=KIND_DIRECTIONAL, intensity=intensity,
+          shadow=True, resolution=s.sample_shadow_resolution, soft=True)
 
 
 def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,

@@ -106,11 +106,27 @@ class Light:
 
 
 @dataclass
+class EnvironmentMap:
+    """An equirectangular environment (Blender's Environment Texture) seen from the world.
+
+    ``radiance`` is (h, w, 3) float32, rows bottom-up as Blender stores images (row 0 looks
+    down), already multiplied by the Background strength. The map is looked up in direction
+    Rz(rotation) · d for a world direction d (a Mapping node's Z rotation)."""
+
+    radiance: np.ndarray
+    rotation: float = 0.0
+
+
+@dataclass
 class World:
-    """A constant-colour environment: background radiance = colour × strength."""
+    """The environment: background radiance = colour × strength, or an environment map.
+
+    With a map, ``color`` × ``strength`` is the map's mean radiance over the sphere, so code
+    that needs one colour (skipping a black world, light-path allocation) works unchanged."""
 
     color: tuple[float, float, float] = (0.0, 0.0, 0.0)
     strength: float = 1.0
+    environment: EnvironmentMap | None = None
 
     @property
     def radiance(self) -> np.ndarray:

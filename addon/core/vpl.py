@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .environment import EnvironmentSampler
 from .geometry import WorldGeometry
 from .lights import KIND_COSINE, NO_SPOT, LightSamples, concentric_disk, spot_mask, spot_parameters
 from .raytrace import RayTracer
@@ -144,9 +145,10 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
                           intensity * solid_angle * mask[:, None])
         return _Emitter(intensity * solid_angle, sample_spot)
     if light.kind is LightKind.SUN:
-        return _Emitter(color * np.pi * radius**2,
-                        _parallel_sampler(lambda u: np.repeat(travel[None], len(u), 0),
-                                          color * np.pi * radius**2, centre, radius))
+        flux = color * np.pi * radius**2
+        return _Emitter(flux, _parallel_sampler(
+            lambda u: (np.repeat(travel[None], len(u), 0), np.repeat(flux[None], len(u), 0)),
+            centre, radius))
     # Area light: position on the shape, cosine-distributed direction around -Z.
     def sample_area(u: np.ndarray) -> _Paths:
         n = len(u)
@@ -158,24 +160,37 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
     return _Emitter(color, sample_area)
 
 
-def _parallel_sampler(travel_of, flux: np.ndarray, centre: np.ndarray, radius: float):
-    """Parallel rays through a disk covering the scene's bounding sphere."""
+def _parallel_sampler(travel_and_flux, centre: np.ndarray, radius: float):
+    """Parallel rays through a disk covering the scene's bounding sphere; ``travel_and_flux``
+    maps u (n, 5) to the directions of travel and the flux per path."""
     def sample(u: np.ndarray) -> _Paths:
-        travel = travel_of(u)
+        travel, flux = travel_and_flux(u)
         t, s = _frame(travel)
         disk = concentric_disk(u[:, 1:3]) * radius
         origin = centre - 1.01 * radius * travel + disk[:, :1] * t + disk[:, 1:] * s
-        return _Paths(origin, travel, np.repeat(flux[None], len(u), 0))
+        return _Paths(origin, travel, flux)
     return sample
 
 
 def _world_emitter(scene: Scene, centre: np.ndarray, radius: float) -> _Emitter | None:
+    """Parallel rays from every direction: uniform for a constant colour, importance-sampled
+    from the environment map otherwise (flux L / pdf × π R² per path)."""
     radiance = scene.world.radiance
     if not np.any(radiance > 0):
         return None
-    flux = radiance * 4 * np.pi * np.pi * radius**2
-    return _Emitter(flux, _parallel_sampler(lambda u: -uniform_sphere(u[:, 3:5]), flux, centre,
-                                            radius))
+    disk = np.pi * radius**2
+    flux = radiance * 4 * np.pi * disk
+    env = scene.world.environment
+    if env is None:
+        def uniform(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return -uniform_sphere(u[:, 3:5]), np.repeat(flux[None], len(u), 0)
+        return _Emitter(flux, _parallel_sampler(uniform, centre, radius))
+    sampler = EnvironmentSampler(env)
+
+    def importance(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        sky, ratio = sampler.sample(u[:, 3:5])
+        return -sky, ratio * disk
+    return _Emitter(flux, _parallel_sampler(importance, centre, radius))
 
 
 def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
