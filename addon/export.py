@@ -308,6 +308,7 @@ def export_light(obj: bpy.types.Object, matrix) -> Light:
     if kind is LightKind.AREA:
         light.area_shape = AreaShape(data.shape)
         light.size_x, light.size_y = float(data.size), float(data.size_y)
+        light.spread = float(getattr(data, "spread", np.pi))
     return light
 
 

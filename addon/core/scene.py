@@ -85,6 +85,7 @@ class Light:
     area_shape: AreaShape = AreaShape.SQUARE
     size_x: float = 1.0
     size_y: float = 1.0
+    spread: float = np.pi  # area lights: full angle of the emission cone, radians (Cycles)
     cast_shadow: bool = True
     visible_to_camera: bool = True  # area lights: the shape shows in the image (Cycles' default)
 

@@ -22,7 +22,16 @@ import numpy as np
 
 from .environment import EnvironmentSampler
 from .geometry import WorldGeometry
-from .lights import KIND_COSINE, NO_SPOT, LightSamples, concentric_disk, spot_mask, spot_parameters
+from .lights import (
+    KIND_COSINE,
+    NO_SPOT,
+    LightSamples,
+    concentric_disk,
+    spot_mask,
+    spot_parameters,
+    spread_attenuation,
+    spread_parameters,
+)
 from .raytrace import RayTracer
 from .scene import Light, LightKind, Scene
 from .sequences import scrambled_halton
@@ -56,7 +65,8 @@ class VPLs:
         n = len(self)
         return LightSamples(self.position, self.normal, np.full(n, KIND_COSINE), self.intensity,
                             np.full(n, NO_SPOT), np.zeros(n), np.ones(n, bool),
-                            np.full(n, shadow_resolution), self.generation, np.zeros(n, bool))
+                            np.full(n, shadow_resolution), self.generation, np.zeros(n, bool),
+                            np.zeros((n, 2)))
 
 
 @dataclass
@@ -83,9 +93,10 @@ def _frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t, s
 
 
-def cosine_directions(normal: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Cosine-distributed unit directions around unit normals (Malley: disk -> hemisphere)."""
-    disk = concentric_disk(u)
+def cosine_directions(normal: np.ndarray, u: np.ndarray, sin_max: float = 1.0) -> np.ndarray:
+    """Cosine-distributed unit directions around unit normals (Malley: disk -> hemisphere),
+    within the cone sin θ < sin_max (half angle below 90°) when given."""
+    disk = concentric_disk(u) * sin_max
     z = np.sqrt(np.maximum(0.0, 1.0 - (disk**2).sum(axis=1)))
     t, s = _frame(normal)
     return _unit(disk[:, :1] * t + disk[:, 1:] * s + z[:, None] * normal)
@@ -149,14 +160,19 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
         return _Emitter(flux, _parallel_sampler(
             lambda u: (np.repeat(travel[None], len(u), 0), np.repeat(flux[None], len(u), 0)),
             centre, radius))
-    # Area light: position on the shape, cosine-distributed direction around -Z.
+    # Area light: position on the shape, cosine-distributed direction around -Z (within the
+    # spread cone, carrying the spread factor over the cone's cosine-weighted share sin² a).
+    tan_half, norm = spread_parameters(light)
+    sin_max = float(np.sin(np.arctan(tan_half))) if tan_half > 0 else 1.0
+
     def sample_area(u: np.ndarray) -> _Paths:
         n = len(u)
         unit = 0.5 * concentric_disk(u[:, 1:3]) if light.is_round else u[:, 1:3] - 0.5
         local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
         origin = local @ m[:3, :3].T + position
-        return _Paths(origin, cosine_directions(np.repeat(travel[None], n, 0), u[:, 3:5]),
-                      np.repeat(color[None], n, 0))
+        direction = cosine_directions(np.repeat(travel[None], n, 0), u[:, 3:5], sin_max)
+        weight = sin_max**2 * spread_attenuation(direction @ travel, tan_half, norm)
+        return _Paths(origin, direction, color * weight[:, None])
     return _Emitter(color, sample_area)
 
 

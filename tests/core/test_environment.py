@@ -16,7 +16,6 @@ from tests.core.builders import floor_scene, inside_sphere_camera, rotation_x
 
 SUN = np.array([np.cos(0.7) * np.cos(0.4), np.cos(0.7) * np.sin(0.4), np.sin(0.7)])
 
-
 def pixel_directions(height: int, width: int, rotation: float = 0.0) -> np.ndarray:
     """(h, w, 3) world directions of the pixel centres of a map turned by ``rotation``."""
     v = (np.arange(height) + 0.5) / height
@@ -26,7 +25,6 @@ def pixel_directions(height: int, width: int, rotation: float = 0.0) -> np.ndarr
     return np.stack(np.broadcast_arrays(np.cos(elevation) * np.cos(phi),
                                         np.cos(elevation) * np.sin(phi), np.sin(elevation)), -1)
 
-
 def sky_with_sun(height: int = 128, width: int = 256, rotation: float = 0.0) -> EnvironmentMap:
     """A blue-to-white sky gradient and a small bright blob (about 2° wide) at SUN."""
     d = pixel_directions(height, width, rotation)
@@ -34,7 +32,6 @@ def sky_with_sun(height: int = 128, width: int = 256, rotation: float = 0.0) -> 
     sky = 0.3 * (1 - gradient) * np.array([1.0, 1.0, 1.0]) + gradient * np.array([0.2, 0.4, 1.0])
     blob = 2000.0 * np.exp(-((d @ SUN - 1) / 2e-4) ** 2)[..., None] * np.array([1.0, 0.9, 0.7])
     return EnvironmentMap((sky + blob).astype(np.float32), rotation)
-
 
 def exact_irradiance(env: EnvironmentMap, normal: np.ndarray) -> np.ndarray:
     """E = ∫ L(ω) max(0, n·ω) dω of the piecewise-constant map, by 8×8 sub-pixel midpoints."""
@@ -52,13 +49,11 @@ def exact_irradiance(env: EnvironmentMap, normal: np.ndarray) -> np.ndarray:
     pixel = env.radiance[np.minimum((v * h).astype(int), h - 1)][:, (u * w).astype(int)]
     return np.einsum("ij,ijc->c", cosine * solid, pixel.astype(np.float64))
 
-
 def estimated_irradiance(env: EnvironmentMap, normal: np.ndarray, n: int, seed: int
                          ) -> np.ndarray:
     sampler = environment.EnvironmentSampler(env)
     d, ratio = sampler.sample(fibonacci_square(n, np.random.default_rng(seed)))
     return (ratio * np.maximum(0.0, d @ normal)[:, None]).mean(axis=0)
-
 
 def test_mapping_follows_blender_equirectangular_convention():
     env = EnvironmentMap(np.zeros((4, 8, 3), np.float32))
@@ -68,7 +63,6 @@ def test_mapping_follows_blender_equirectangular_convention():
     np.testing.assert_allclose(v, [0.5, 0.5, 1.0, 0.0])
     turned = EnvironmentMap(env.radiance, rotation=np.pi / 2)  # looks up Rz(90°)·d
     np.testing.assert_allclose(environment.map_coordinates(turned, d[:1])[0], [0.25])
-
 
 def test_samples_follow_the_power_of_the_map_and_its_rotation():
     """The share of samples pointing at the blob is the blob's share of the map's power
@@ -82,7 +76,6 @@ def test_samples_follow_the_power_of_the_map_and_its_rotation():
             fibonacci_square(1024, np.random.default_rng(0)))
         assert share > 0.2
         assert (d @ SUN > 0.999).mean() == pytest.approx(share, abs=0.02)
-
 
 @pytest.mark.parametrize("normal", [(0, 0, 1), (1, 0, 0), (0.6, 0, -0.8)])
 def test_importance_sampled_irradiance_matches_numerical_integration(normal):
@@ -102,7 +95,6 @@ def test_importance_sampled_irradiance_matches_numerical_integration(normal):
     np.testing.assert_allclose(dense, exact, rtol=0.002)
     assert spread.max() < 0.05
 
-
 def test_uniform_directions_miss_the_sun_where_importance_sampling_does_not():
     """The same 64 directions placed uniformly (a constant map's distribution) are far off:
     the map must not be treated as constant."""
@@ -114,7 +106,6 @@ def test_uniform_directions_miss_the_sun_where_importance_sampling_does_not():
     uniform = (environment.lookup(env, d) * 4 * np.pi * np.maximum(0, d @ up)[:, None]).mean(0)
     assert np.abs(uniform / exact - 1).max() > 0.2
 
-
 def test_constant_map_samples_like_the_constant_world():
     radiance = np.array([0.2, 0.4, 0.6])
     env = EnvironmentMap(np.broadcast_to(radiance, (16, 32, 3)).astype(np.float32))
@@ -123,7 +114,6 @@ def test_constant_map_samples_like_the_constant_world():
         fibonacci_square(100, np.random.default_rng(3)))
     np.testing.assert_allclose(ratio, np.broadcast_to(radiance * 4 * np.pi, ratio.shape),
                                rtol=1e-5)
-
 
 def test_constant_map_lights_the_floor_like_the_constant_world(renderer):
     radiance = np.array([0.2, 0.4, 0.6], np.float32)
@@ -134,7 +124,6 @@ def test_constant_map_lights_the_floor_like_the_constant_world(renderer):
                                 settings)
     np.testing.assert_allclose(mapped.passes["DiffDir"].mean(axis=(0, 1)), radiance, rtol=1e-2)
     np.testing.assert_allclose(mapped.passes["DiffDir"], plain.passes["DiffDir"], rtol=2e-2)
-
 
 def test_background_shows_the_map_in_each_camera_direction(renderer):
     """A 90° camera looking at the horizon (+Y) in an empty scene: each pixel shows the map
@@ -151,7 +140,6 @@ def test_background_shows_the_map_in_each_camera_direction(renderer):
     combined = frame.passes["Combined"]
     np.testing.assert_allclose(combined[..., :3], expected, rtol=1e-4, atol=1e-6)
     assert combined[..., 2].std() > 0.1  # blue rises from 0.3 at the horizon
-
 
 def test_world_light_paths_carry_the_map_flux_from_where_it_shines():
     """Light paths of the world start by the map's distribution: their total flux is the map's
