@@ -287,7 +287,7 @@ def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Setting
     """All direct-light samples of the scene, deterministic for ``settings.seed``."""
     rng = np.random.default_rng(settings.seed)
     b = _Builder()
-    for light in scene.lights:
+    for light in scene.surface_lights:
         problem = _light_problem(light)
         if problem:
             warnings.append(f"light '{light.name}' {problem}")

@@ -119,7 +119,8 @@ def _no_indirect_reason(scene: Scene, geometry: WorldGeometry, settings: Setting
         return "no surfaces"
     if not np.any(geometry.albedo > 0):
         return "every albedo is 0"
-    lit = any(light.power != 0 and any(c != 0 for c in light.color) for light in scene.lights)
+    lit = any(light.power != 0 and any(c != 0 for c in light.color)
+              for light in scene.surface_lights)
     if not lit and not np.any(scene.world.radiance > 0) and not np.any(geometry.emission > 0):
         return "nothing emits light"
     return ""

@@ -88,6 +88,7 @@ class Light:
     spread: float = np.pi  # area lights: full angle of the emission cone, radians (Cycles)
     cast_shadow: bool = True
     visible_to_camera: bool = True  # area lights: the shape shows in the image (Cycles' default)
+    visible_to_diffuse: bool = True  # off: lights no diffuse surface, directly or not (Cycles)
 
     @property
     def area_size(self) -> tuple[float, float]:
@@ -161,3 +162,9 @@ class Scene:
     film_transparent: bool = False
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # informational, not problems
+
+    @property
+    def surface_lights(self) -> list[Light]:
+        """The lights that light surfaces: in Cycles (measured, 4.5) a light hidden from
+        diffuse rays lights no diffuse surface, neither directly nor through bounces."""
+        return [light for light in self.lights if light.visible_to_diffuse]
