@@ -135,3 +135,25 @@ def test_missing_environment_image_is_one_warning_and_magenta(blender, tmp_path)
     assert np.isfinite(image).all()
     top = image[-1, :, :3].mean(axis=0)  # sky
     np.testing.assert_allclose(top, [1.5, 0.0, 1.5], atol=1e-3)
+
+
+def test_srgb_images_are_decoded_and_other_mappings_use_the_mean_colour(blender, tmp_path):
+    """An 8-bit sRGB image of byte 128 is radiance 0.2159 (sRGB decoded, not 0.502); a Mapping
+    node that turns about X is one warning and the map's mean colour without the map."""
+    box_on_floor()
+    linear = 1.5 * ((128 / 255 + 0.055) / 1.055) ** 2.4  # strength × decoded byte 128
+    image = bpy.data.images.new("grey", 8, 4)  # 8-bit, sRGB
+    image.pixels.foreach_set(np.tile(np.float32([0.5, 0.5, 0.5, 1.0]), 8 * 4))
+    image.filepath_raw, image.file_format = str(tmp_path / "grey.png"), "PNG"
+    image.save()
+    world = hdri_world(str(tmp_path / "grey.png"))
+    warnings: list[str] = []
+    exported = export_world(world, warnings)
+    assert not warnings and exported.environment is not None
+    np.testing.assert_allclose(exported.environment.radiance, linear, rtol=2e-3)
+    np.testing.assert_allclose(exported.radiance, [linear] * 3, rtol=2e-3)
+    world.node_tree.nodes["Mapping"].inputs["Rotation"].default_value = (0.3, 0.0, TURN)
+    exported = export_world(world, warnings)
+    assert exported.environment is None and len(warnings) == 1
+    assert "Mapping" in warnings[0]
+    np.testing.assert_allclose(exported.radiance, [linear] * 3, rtol=2e-3)
