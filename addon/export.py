@@ -14,7 +14,19 @@ from itertools import chain
 import bpy
 import numpy as np
 
-from .core.scene import AreaShape, Camera, Instance, Light, LightKind, Material, Mesh, Scene, World
+from .core.environment import mean_radiance
+from .core.scene import (
+    AreaShape,
+    Camera,
+    EnvironmentMap,
+    Instance,
+    Light,
+    LightKind,
+    Material,
+    Mesh,
+    Scene,
+    World,
+)
 from .export_images import ImageReader, UnsupportedLink
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
@@ -310,11 +322,15 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
 # -- lights, world, camera ------------------------------------------------------------------
 
 def export_light(obj: bpy.types.Object, matrix) -> Light:
+    """A light with its ray visibility: camera (area-light shapes) and diffuse are honoured;
+    glossy, transmission and volume scatter reach only closures VPL GI does not render, and
+    a light object's shadow visibility changes nothing in Cycles (measured, 4.5)."""
     data = obj.data
     kind = LightKind(data.type)
     light = Light(obj.name, kind, _matrix(matrix), color=_rgb(data.color),
                   power=float(data.energy), cast_shadow=bool(getattr(data, "use_shadow", True)),
-                  visible_to_camera=bool(getattr(obj, "visible_camera", True)))
+                  visible_to_camera=bool(getattr(obj, "visible_camera", True)),
+                  visible_to_diffuse=bool(getattr(obj, "visible_diffuse", True)))
     if kind in (LightKind.POINT, LightKind.SPOT):
         light.radius = float(data.shadow_soft_size)
     if kind is LightKind.SPOT:
@@ -324,19 +340,94 @@ def export_light(obj: bpy.types.Object, matrix) -> Light:
     if kind is LightKind.AREA:
         light.area_shape = AreaShape(data.shape)
         light.size_x, light.size_y = float(data.size), float(data.size_y)
+        light.spread = float(getattr(data, "spread", np.pi))
     return light
 
 
-def export_world(world: bpy.types.World | None) -> World:
+MISSING_IMAGE = (1.0, 0.0, 1.0)  # Cycles' colour for an image it cannot load
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _image_pixels(image: bpy.types.Image) -> np.ndarray | None:
+    """Linear RGB (h, w, 3) float32 of an image, rows bottom-up, or None if it has no pixels.
+
+    Float images (.hdr, .exr) are linear; 8-bit images in sRGB are decoded."""
+    width, height = image.size
+    if width * height == 0:
+        return None
+    pixels = np.empty(width * height * image.channels, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    pixels = pixels.reshape(height, width, image.channels)
+    rgb = np.repeat(pixels[..., :1], 3, axis=2) if image.channels < 3 else pixels[..., :3]
+    if not image.is_float and image.colorspace_settings.name == "sRGB":
+        rgb = _srgb_to_linear(rgb)
+    return np.maximum(np.nan_to_num(rgb, posinf=0.0), 0.0).astype(np.float32)
+
+
+def _map_rotation(texture) -> float:
+    """Z rotation of the Environment Texture's vector (default, or Texture Coordinate
+    Generated through a Mapping node that only turns about Z); _Unsupported otherwise."""
+    socket = texture.inputs["Vector"]
+    if not socket.is_linked:
+        return 0.0
+    node = socket.links[0].from_node
+    if node.type == "TEX_COORD" and socket.links[0].from_socket.name == "Generated":
+        return 0.0
+    if node.type != "MAPPING" or node.vector_type not in ("POINT", "VECTOR", "TEXTURE"):
+        raise _Unsupported(f"its vector comes from '{node.bl_label}'")
+    rotation = np.array(_constant(node, "Rotation", (0.0, 0.0, 0.0)))
+    scale = np.array(_constant(node, "Scale", (1.0, 1.0, 1.0)))
+    moved = node.vector_type != "VECTOR" and np.any(np.array(
+        _constant(node, "Location", (0.0, 0.0, 0.0))) != 0)
+    source = node.inputs["Vector"]
+    generated = not source.is_linked or (source.links[0].from_node.type == "TEX_COORD" and
+                                         source.links[0].from_socket.name == "Generated")
+    if moved or np.any(rotation[:2] != 0) or np.any(scale != 1) or not generated:
+        raise _Unsupported("its Mapping node does more than a Z rotation of the default vector")
+    return float(-rotation[2] if node.vector_type == "TEXTURE" else rotation[2])
+
+
+def _environment_world(texture, strength: float, warnings: list[str]) -> World:
+    """A world lit by an equirectangular Environment Texture (magenta if its image is
+    missing, as in Cycles; its mean colour for mappings other than a Z rotation)."""
+    image = texture.image
+    pixels = _image_pixels(image) if image is not None else None
+    if pixels is None:
+        name = f"'{image.name}'" if image is not None else "(none)"
+        warnings.append(f"world: the Environment Texture's image {name} could not be loaded: "
+                        f"rendered magenta, as Cycles does")
+        return World(MISSING_IMAGE, strength)
+    env = EnvironmentMap(pixels * np.float32(strength))
+    mean = tuple(mean_radiance(env) / strength) if strength != 0 else (0.0, 0.0, 0.0)
+    try:
+        if texture.projection != "EQUIRECTANGULAR":
+            raise _Unsupported(f"its projection is {texture.projection.lower()}")
+        env.rotation = _map_rotation(texture)
+    except _Unsupported as reason:
+        warnings.append(f"world: the Environment Texture is lit by its mean colour: {reason}")
+        return World(mean, strength)
+    return World(mean, strength, env)
+
+
+def export_world(world: bpy.types.World | None, warnings: list[str]) -> World:
+    """The world's Background colour × strength, or its Environment Texture."""
     if world is None:
         return World()
     node = _surface_node(world.node_tree, "OUTPUT_WORLD") if world.use_nodes else None
-    if node is None:
+    if node is None or node.type != "BACKGROUND":
         return World(_rgb(world.color), 1.0)
-    if node.type == "BACKGROUND":
-        return World(_rgb(_input_value(node, "Color", (0.05,) * 3)),
-                     float(_input_value(node, "Strength", 1.0)))
-    return World(_rgb(world.color), 1.0)
+    strength = float(_input_value(node, "Strength", 1.0))
+    color = node.inputs["Color"]
+    source = color.links[0].from_node if color.is_linked else None
+    if source is not None and source.type == "TEX_ENVIRONMENT":
+        return _environment_world(source, strength, warnings)
+    if source is not None:
+        warnings.append(f"world: Background colour from '{source.bl_label}' is not supported: "
+                        f"using the socket's own colour")
+    return World(_rgb(color.default_value), strength)
 
 
 def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Object | None,
@@ -513,7 +604,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         result.notes.append(f"specular and metallic reflection is not rendered yet: "
                             f"{len(state.glossy)} material(s) with a glossy part (e.g. "
                             f"'{min(state.glossy)}') are lit as diffuse in their base colour")
-    result.world = export_world(scene_eval.world)
+    result.world = export_world(scene_eval.world, result.warnings)
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval))
     return result

@@ -23,7 +23,8 @@ class VPLGISceneSettings(bpy.types.PropertyGroup):
         soft_max=512, description="Point samples spread over all emissive surfaces")
     world_samples: bpy.props.IntProperty(
         name="World Samples", default=_DEFAULTS.world_samples, min=1, max=1024, soft_max=256,
-        description="Directions the world colour is sampled in, each with a shadow map")
+        description="Directions the world is sampled in (by brightness for an environment "
+                    "map), each with a shadow map")
     shadow_resolution: bpy.props.IntProperty(
         name="Shadow Resolution", default=_DEFAULTS.shadow_resolution, min=16, max=8192,
         soft_max=4096, description="Texels per edge of point, spot and sun shadow maps")

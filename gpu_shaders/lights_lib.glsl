@@ -15,6 +15,8 @@ struct LightSample {
     float near;
     float far;
     int generation;     // bounces the light has made: 0 for lights, k for k-th bounce VPLs
+    float spread_tan;   // area-light spread: tan of the half angle, 0 for none
+    float spread_norm;  // Cycles' normalisation of the spread (keeps the light's power)
 };
 
 uniform sampler2D u_light_table;
@@ -26,7 +28,7 @@ LightSample light_sample(int index) {
     vec4 t3 = texelFetch(u_light_table, ivec2(3, index), 0);
     vec4 t4 = texelFetch(u_light_table, ivec2(4, index), 0);
     return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
-                       t3.w, int(t4.x));
+                       t3.w, int(t4.x), t4.y, t4.z);
 }
 
 // Cycles' spot mask: smoothstep of the cosine past the cone edge, scaled by the blend.
@@ -38,10 +40,19 @@ float spot_mask(LightSample s, vec3 from_light) {
     return x * x * (3.0 - 2.0 * x);
 }
 
+// Cycles' area-light spread (a soft box's grid of slats): max((tan a - tan θ) norm, 0).
+float spread(LightSample s, vec3 from_light) {
+    if (s.spread_tan <= 0.0) return 1.0;
+    float c = dot(from_light, s.axis);
+    if (c <= 0.0) return 0.0;
+    float tan_theta = sqrt(max(1.0 - c * c, 0.0)) / c;
+    return max((s.spread_tan - tan_theta) * s.spread_norm, 0.0);
+}
+
 // Radiant intensity (W/sr) of a non-directional sample towards a unit direction.
 vec3 emitted_intensity(LightSample s, vec3 from_light) {
     float falloff = 1.0;
-    if (s.kind == KIND_COSINE) falloff = max(dot(from_light, s.axis), 0.0);
+    if (s.kind == KIND_COSINE) falloff = max(dot(from_light, s.axis), 0.0) * spread(s, from_light);
     else if (s.kind == KIND_COSINE2) falloff = abs(dot(from_light, s.axis));
     return s.intensity * falloff * spot_mask(s, from_light);
 }

@@ -337,7 +337,7 @@ class IncrementalVPLs:
         self._key = key
         self._shape_version = shape_version
         n = settings.vpl_count
-        domains = {light.name: d for light in scene.lights
+        domains = {light.name: d for light in scene.surface_lights
                    if (d := light_domain(light, centre, radius)) is not None}
         environment = environment_emitters(scene, geometry, centre, radius)
         targets = _allocate(n, [light_emitter(d.light, centre, radius).power

@@ -15,12 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .environment import EnvironmentSampler
 from .geometry import WorldGeometry
 from .scene import Light, LightKind, Scene
 from .settings import Settings
 
 KIND_OMNI, KIND_COSINE, KIND_COSINE2, KIND_DIRECTIONAL = 0, 1, 2, 3
 NO_SPOT = -2.0
+MIN_SPREAD = np.radians(1.0)  # narrower area-light spreads (collimated light) are widened
 
 
 @dataclass
@@ -38,6 +40,7 @@ class LightSamples:
     generation: np.ndarray  # (n,) int bounces the light has made (0 = emitted light)
     soft: np.ndarray  # (n,) bool one of many samples of a soft light (area, sphere, sun angle,
     # world, emission) rather than a light of its own
+    spread: np.ndarray  # (n, 2) area-light spread: tan(half angle), normalisation; 0 = none
     def __len__(self) -> int:
         return len(self.kind)
 
@@ -57,6 +60,7 @@ class LightSamples:
         t[:, 3, 0] = np.where(self.casts_shadow, first_tile, -1)
         t[:, 3, 1], t[:, 3, 2], t[:, 3, 3] = self.resolution, near, far
         t[:, 4, 0] = self.generation
+        t[:, 4, 1:3] = self.spread
         return t
 
     def subset(self, index: np.ndarray) -> LightSamples:
@@ -87,6 +91,14 @@ def stratified_square(n: int, rng: np.random.Generator) -> np.ndarray:
     return (np.stack([cells % side, cells // side], axis=1) + jitter) / side
 
 
+def fibonacci_square(n: int, rng: np.random.Generator) -> np.ndarray:
+    """n points of the Fibonacci lattice in [0,1)², randomly shifted (Cranley-Patterson): the
+    spherical Fibonacci lattice once mapped to the sphere by solid angle."""
+    i = np.arange(n)
+    shift = rng.uniform(size=2)
+    return np.stack([(i + shift[0]) / n, (i * (5**0.5 - 1) / 2 + shift[1]) % 1.0], axis=1)
+
+
 def concentric_disk(u: np.ndarray) -> np.ndarray:
     """Shirley-Chiu map of [0,1)² to the unit disk, preserving stratification."""
     a, b = 2 * u[:, 0] - 1, 2 * u[:, 1] - 1
@@ -103,7 +115,7 @@ class _Builder:
         self.rows: list[dict] = []
 
     def add(self, *, position, axis, kind, intensity, shadow, resolution,
-            spot_cos=NO_SPOT, spot_smooth=0.0, soft=False) -> None:
+            spot_cos=NO_SPOT, spot_smooth=0.0, soft=False, spread=(0.0, 0.0)) -> None:
         position = np.atleast_2d(position)
         n = len(position)
         self.rows.append({
@@ -117,13 +129,15 @@ class _Builder:
             "resolution": np.full(n, resolution),
             "generation": np.zeros(n, dtype=int),
             "soft": np.full(n, soft),
+            "spread": np.broadcast_to(spread, (n, 2)),
         })
 
     def build(self) -> LightSamples:
         if not self.rows:
             return LightSamples(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int),
                                 np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, bool),
-                                np.zeros(0, int), np.zeros(0, int), np.zeros(0, bool))
+                                np.zeros(0, int), np.zeros(0, int), np.zeros(0, bool),
+                                np.zeros((0, 2)))
         keys = self.rows[0].keys()
         return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
 
@@ -138,6 +152,28 @@ def spot_mask(cos_to_axis: np.ndarray, spot_cos: float, spot_smooth: float) -> n
         return (cos_to_axis > spot_cos).astype(np.float64)
     x = np.clip((cos_to_axis - spot_cos) * spot_smooth, 0.0, 1.0)
     return x * x * (3 - 2 * x)
+
+
+def spread_parameters(light: Light) -> tuple[float, float]:
+    """Cycles' area-light spread: tan of the half angle and the normalisation that keeps the
+    light's power (1 / (tan a - a), or its Taylor form 3 / a³ below a = 0.05); (0, 0) for a
+    spread of 180° (no attenuation). Spreads below MIN_SPREAD are rendered as MIN_SPREAD."""
+    if light.kind is not LightKind.AREA or light.spread >= np.pi:
+        return 0.0, 0.0
+    half = 0.5 * max(light.spread, MIN_SPREAD)
+    norm = 1.0 / (np.tan(half) - half) if half > 0.05 else 3.0 / half**3
+    return float(np.tan(half)), float(norm)
+
+
+def spread_attenuation(cos_to_axis: np.ndarray, tan_half: float, norm: float) -> np.ndarray:
+    """Cycles' soft-box spread factor of radiance (as in lights_lib.glsl): a grid of slats
+    passes max((tan a - tan θ) norm, 0) of the light at θ from the normal; 1 without spread."""
+    cos_to_axis = np.asarray(cos_to_axis, dtype=np.float64)
+    if tan_half <= 0:
+        return np.ones_like(cos_to_axis)
+    sin = np.sqrt(np.maximum(0.0, 1 - cos_to_axis**2))
+    tan = np.divide(sin, cos_to_axis, out=np.full_like(sin, np.inf), where=cos_to_axis > 0)
+    return np.maximum((tan_half - tan) * norm, 0.0)
 
 
 def spot_parameters(light: Light) -> tuple[float, float]:
@@ -188,16 +224,23 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
         b.add(position=local @ m[:3, :3].T + position, axis=travel, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
-              resolution=s.sample_shadow_resolution, soft=True)
+              resolution=s.sample_shadow_resolution, soft=True, spread=spread_parameters(light))
 
 
 def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator) -> None:
+    """World samples: directions of a spherical Fibonacci lattice for a constant colour, or
+    a Fibonacci lattice importance-sampled into the environment map (radiance / (n pdf)
+    each: unbiased)."""
     radiance = scene.world.radiance
     n = s.world_samples
-    sky = fibonacci_sphere(n, rng)
-    b.add(position=np.zeros((n, 3)), axis=-sky, kind=KIND_DIRECTIONAL,
-          intensity=radiance * 4 * np.pi / n, shadow=True, resolution=s.sample_shadow_resolution,
-          soft=True)
+    env = scene.world.environment
+    if env is None:
+        sky, intensity = fibonacci_sphere(n, rng), radiance * 4 * np.pi / n
+    else:
+        sky, ratio = EnvironmentSampler(env).sample(fibonacci_square(n, rng))
+        intensity = ratio / n
+    b.add(position=np.zeros((n, 3)), axis=-sky, kind=KIND_DIRECTIONAL, intensity=intensity,
+          shadow=True, resolution=s.sample_shadow_resolution, soft=True)
 
 
 def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
@@ -243,11 +286,13 @@ def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Setting
     zero power and a black world have none unless ``include_dark``."""
     rng = np.random.default_rng(settings.seed)
     b = _Builder()
-    for light in scene.lights:
+    for light in scene.surface_lights:
         problem = _light_problem(light)
         if problem:
             warnings.append(f"light '{light.name}' {problem}")
             continue
+        if light.kind is LightKind.AREA and light.spread < MIN_SPREAD:
+            warnings.append(f"area light '{light.name}': spread below 1° is rendered as 1°")
         if light.kind is LightKind.AREA and min(light.area_size) <= 0:
             warnings.append(f"area light '{light.name}' has zero or negative size: lit as a "
                             f"point emitter of the same power")

@@ -14,6 +14,7 @@ import numpy as np
 
 from . import autotune
 from .atlas import draw_tiles, near_far, tile_table
+from .environment import background
 from .frame import PASS_CHANNELS, Frame, Stats
 from .geometry import WorldGeometry, bounding_sphere, flatten_instances, light_shapes
 from .gl import GLUnavailableError, ProgramCache, shared_context
@@ -645,10 +646,11 @@ class Renderer:
         covered = gbuffer["normal"][..., 3:4]
         albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
         diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
-        background = np.zeros(4) if scene.film_transparent else \
-            np.append(scene.world.radiance, 1.0)
         combined = np.concatenate([(diff_dir + diff_ind) * albedo + emission, covered], axis=-1)
-        combined += (1.0 - covered) * background
+        if not scene.film_transparent:
+            combined[..., 3:] += 1.0 - covered
+            combined[..., :3] += (1.0 - covered) * background(
+                scene.world, scene.camera, aa, x0, y0, covered.shape[1], covered.shape[0])
         h, w = covered.shape[0] // aa, covered.shape[1] // aa
         region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
         images = {"Combined": lambda: combined, "DiffDir": lambda: diff_dir,

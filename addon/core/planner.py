@@ -49,7 +49,8 @@ def no_indirect_reason(scene: Scene, geometry: WorldGeometry, settings: Settings
         return ""
     if not np.any(geometry.albedo > 0):
         return "every albedo is 0"
-    lit = any(light.power != 0 and any(c != 0 for c in light.color) for light in scene.lights)
+    lit = any(light.power != 0 and any(c != 0 for c in light.color)
+              for light in scene.surface_lights)
     if not lit and not np.any(scene.world.radiance > 0) and not np.any(geometry.emission > 0):
         return "nothing emits light"
     return ""
@@ -79,12 +80,16 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
         plan.indirect = False
         plan.skipped["indirect light"] = reason
     for light in scene.lights:
-        if light.power == 0 or not any(c != 0 for c in light.color):
+        if not light.visible_to_diffuse:
+            plan.skipped[f"light '{light.name}'"] = "not visible to diffuse rays"
+        elif light.power == 0 or not any(c != 0 for c in light.color):
             plan.skipped[f"light '{light.name}'"] = "zero power"
     if not np.any(scene.world.radiance > 0):
         plan.skipped["world light"] = "black world"
     if not np.any(geometry.emission > 0):
         plan.skipped["emission light"] = "no emissive surface"
+    if not geometry.has_textures:
+        plan.skipped["texture lookups"] = "no material has an image texture"
     if plan.indirect:
         if settings.interleave == 1:
             plan.skipped["blur"] = "interleaving off"

@@ -14,7 +14,7 @@ import numpy as np
 from .atlas import TileTable, draw_tiles, tile_table
 from .geometry import WorldGeometry
 from .gl import ProgramCache
-from .lights import KIND_COSINE, LightSamples, build_light_samples, spot_mask
+from .lights import KIND_COSINE, LightSamples, build_light_samples, spot_mask, spread_attenuation
 from .scene import Scene, World
 from .settings import Settings
 from .vpl import LUMINANCE, SurfaceHits
@@ -94,7 +94,8 @@ def rsm_hits(table: TileTable, position: np.ndarray, normal: np.ndarray, albedo:
         direction /= np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-300)
         emitted = np.ones(direction.shape[:2])
         if samples.kind[i] == KIND_COSINE:
-            emitted = np.maximum(direction @ samples.axis[i], 0.0)
+            cos = direction @ samples.axis[i]
+            emitted = np.maximum(cos, 0.0) * spread_attenuation(cos, *samples.spread[i])
         else:
             emitted = spot_mask(direction @ samples.axis[i], samples.spot_cos[i],
                                 samples.spot_smooth[i])

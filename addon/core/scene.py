@@ -104,8 +104,10 @@ class Light:
     area_shape: AreaShape = AreaShape.SQUARE
     size_x: float = 1.0
     size_y: float = 1.0
+    spread: float = np.pi  # area lights: full angle of the emission cone, radians (Cycles)
     cast_shadow: bool = True
     visible_to_camera: bool = True  # area lights: the shape shows in the image (Cycles' default)
+    visible_to_diffuse: bool = True  # off: lights no diffuse surface, directly or not (Cycles)
 
     @property
     def area_size(self) -> tuple[float, float]:
@@ -125,11 +127,27 @@ class Light:
 
 
 @dataclass
+class EnvironmentMap:
+    """An equirectangular environment (Blender's Environment Texture) seen from the world.
+
+    ``radiance`` is (h, w, 3) float32, rows bottom-up as Blender stores images (row 0 looks
+    down), already multiplied by the Background strength. The map is looked up in direction
+    Rz(rotation) · d for a world direction d (a Mapping node's Z rotation)."""
+
+    radiance: np.ndarray
+    rotation: float = 0.0
+
+
+@dataclass
 class World:
-    """A constant-colour environment: background radiance = colour × strength."""
+    """The environment: background radiance = colour × strength, or an environment map.
+
+    With a map, ``color`` × ``strength`` is the map's mean radiance over the sphere, so code
+    that needs one colour (skipping a black world, light-path allocation) works unchanged."""
 
     color: tuple[float, float, float] = (0.0, 0.0, 0.0)
     strength: float = 1.0
+    environment: EnvironmentMap | None = None
 
     @property
     def radiance(self) -> np.ndarray:
@@ -163,3 +181,9 @@ class Scene:
     film_transparent: bool = False
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # informational, not problems
+
+    @property
+    def surface_lights(self) -> list[Light]:
+        """The lights that light surfaces: in Cycles (measured, 4.5) a light hidden from
+        diffuse rays lights no diffuse surface, neither directly nor through bounces."""
+        return [light for light in self.lights if light.visible_to_diffuse]

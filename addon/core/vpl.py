@@ -20,8 +20,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .environment import EnvironmentSampler
 from .geometry import WorldGeometry
-from .lights import KIND_COSINE, NO_SPOT, LightSamples, concentric_disk, spot_mask, spot_parameters
+from .lights import (
+    KIND_COSINE,
+    NO_SPOT,
+    LightSamples,
+    concentric_disk,
+    spot_mask,
+    spot_parameters,
+    spread_attenuation,
+    spread_parameters,
+)
 from .raytrace import RayTracer
 from .scene import Light, LightKind, Scene
 from .sequences import scrambled_halton
@@ -55,7 +65,8 @@ class VPLs:
         n = len(self)
         return LightSamples(self.position, self.normal, np.full(n, KIND_COSINE), self.intensity,
                             np.full(n, NO_SPOT), np.zeros(n), np.ones(n, bool),
-                            np.full(n, shadow_resolution), self.generation, np.zeros(n, bool))
+                            np.full(n, shadow_resolution), self.generation, np.zeros(n, bool),
+                            np.zeros((n, 2)))
 
 
 @dataclass
@@ -82,9 +93,10 @@ def _frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t, s
 
 
-def cosine_directions(normal: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Cosine-distributed unit directions around unit normals (Malley: disk -> hemisphere)."""
-    disk = concentric_disk(u)
+def cosine_directions(normal: np.ndarray, u: np.ndarray, sin_max: float = 1.0) -> np.ndarray:
+    """Cosine-distributed unit directions around unit normals (Malley: disk -> hemisphere),
+    within the cone sin θ < sin_max (half angle below 90°) when given."""
+    disk = concentric_disk(u) * sin_max
     z = np.sqrt(np.maximum(0.0, 1.0 - (disk**2).sum(axis=1)))
     t, s = _frame(normal)
     return _unit(disk[:, :1] * t + disk[:, 1:] * s + z[:, None] * normal)
@@ -144,38 +156,57 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
                           intensity * solid_angle * mask[:, None])
         return _Emitter(intensity * solid_angle, sample_spot)
     if light.kind is LightKind.SUN:
-        return _Emitter(color * np.pi * radius**2,
-                        _parallel_sampler(lambda u: np.repeat(travel[None], len(u), 0),
-                                          color * np.pi * radius**2, centre, radius))
-    # Area light: position on the shape, cosine-distributed direction around -Z.
+        flux = color * np.pi * radius**2
+        return _Emitter(flux, _parallel_sampler(
+            lambda u: (np.repeat(travel[None], len(u), 0), np.repeat(flux[None], len(u), 0)),
+            centre, radius))
+    # Area light: position on the shape, cosine-distributed direction around -Z (within the
+    # spread cone, carrying the spread factor over the cone's cosine-weighted share sin² a).
+    tan_half, norm = spread_parameters(light)
+    sin_max = float(np.sin(np.arctan(tan_half))) if tan_half > 0 else 1.0
+
     def sample_area(u: np.ndarray) -> _Paths:
         n = len(u)
         unit = 0.5 * concentric_disk(u[:, 1:3]) if light.is_round else u[:, 1:3] - 0.5
         local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
         origin = local @ m[:3, :3].T + position
-        return _Paths(origin, cosine_directions(np.repeat(travel[None], n, 0), u[:, 3:5]),
-                      np.repeat(color[None], n, 0))
+        direction = cosine_directions(np.repeat(travel[None], n, 0), u[:, 3:5], sin_max)
+        weight = sin_max**2 * spread_attenuation(direction @ travel, tan_half, norm)
+        return _Paths(origin, direction, color * weight[:, None])
     return _Emitter(color, sample_area)
 
 
-def _parallel_sampler(travel_of, flux: np.ndarray, centre: np.ndarray, radius: float):
-    """Parallel rays through a disk covering the scene's bounding sphere."""
+def _parallel_sampler(travel_and_flux, centre: np.ndarray, radius: float):
+    """Parallel rays through a disk covering the scene's bounding sphere; ``travel_and_flux``
+    maps u (n, 5) to the directions of travel and the flux per path."""
     def sample(u: np.ndarray) -> _Paths:
-        travel = travel_of(u)
+        travel, flux = travel_and_flux(u)
         t, s = _frame(travel)
         disk = concentric_disk(u[:, 1:3]) * radius
         origin = centre - 1.01 * radius * travel + disk[:, :1] * t + disk[:, 1:] * s
-        return _Paths(origin, travel, np.repeat(flux[None], len(u), 0))
+        return _Paths(origin, travel, flux)
     return sample
 
 
 def _world_emitter(scene: Scene, centre: np.ndarray, radius: float) -> _Emitter | None:
+    """Parallel rays from every direction: uniform for a constant colour, importance-sampled
+    from the environment map otherwise (flux L / pdf × π R² per path)."""
     radiance = scene.world.radiance
     if not np.any(radiance > 0):
         return None
-    flux = radiance * 4 * np.pi * np.pi * radius**2
-    return _Emitter(flux, _parallel_sampler(lambda u: -uniform_sphere(u[:, 3:5]), flux, centre,
-                                            radius))
+    disk = np.pi * radius**2
+    flux = radiance * 4 * np.pi * disk
+    env = scene.world.environment
+    if env is None:
+        def uniform(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return -uniform_sphere(u[:, 3:5]), np.repeat(flux[None], len(u), 0)
+        return _Emitter(flux, _parallel_sampler(uniform, centre, radius))
+    sampler = EnvironmentSampler(env)
+
+    def importance(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        sky, ratio = sampler.sample(u[:, 3:5])
+        return -sky, ratio * disk
+    return _Emitter(flux, _parallel_sampler(importance, centre, radius))
 
 
 def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
@@ -211,7 +242,7 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
 
 def _emitters(scene: Scene, geometry: WorldGeometry, centre: np.ndarray, radius: float
               ) -> list[_Emitter]:
-    found = [light_emitter(light, centre, radius) for light in scene.lights
+    found = [light_emitter(light, centre, radius) for light in scene.surface_lights
              if light.power != 0 and np.isfinite(light.matrix).all()]
     return [e for e in found if e is not None and e.power > 0] + environment_emitters(
         scene, geometry, centre, radius)

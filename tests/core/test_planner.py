@@ -64,6 +64,7 @@ def test_zero_power_lights_and_a_black_world_are_reported(renderer):
     _, stats = renderer.render(scene, DIRECT)
     assert stats.skipped["light 'dark'"] == "zero power"
     assert stats.skipped["world light"] == "black world"
+    assert stats.skipped["texture lookups"] == "no material has an image texture"
     assert "ran: " in stats.summary() and "skipped: " in stats.summary()
 
 
