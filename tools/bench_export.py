@@ -3,7 +3,7 @@
 For each scene (a tessellated grid of N triangles under a sun, or 10k instances of a small
 mesh scattered by geometry nodes) it prints: our export time (cold, and again with a warm
 ExportCache), our upload time (core.geometry.flatten_instances plus one moderngl buffer of
-WorldGeometry.interleaved(), as the renderer uploads), Cycles' time to its first sample (a
+WorldGeometry.vertices, as the renderer uploads), Cycles' time to its first sample (a
 1-sample 8×8 render minus the same render of an empty scene, median of --repeat), and peak RSS
 after building the scene and of our export + upload and of Cycles, each measured in its own
 process (so each peak is its own).
@@ -99,7 +99,7 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
         exports.append(time.perf_counter() - start)
         start = time.perf_counter()
         geometry = flatten_instances(exported, [])
-        buffer = ctx.buffer(geometry.interleaved().tobytes())
+        buffer = ctx.buffer(geometry.vertices)
         ctx.finish()
         uploads.append(time.perf_counter() - start)
         buffer.release()

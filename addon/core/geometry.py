@@ -16,33 +16,57 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 
 @dataclass
 class WorldGeometry:
-    """Flattened triangles: 3 vertices per triangle, attributes per vertex (float32).
+    """Flattened triangles: 3 vertices per triangle, attributes per vertex (float32), stored
+    interleaved as the GPU reads them; ``positions``, ``normals``, ``albedo`` and ``emission``
+    are views of ``vertices``.
 
     Textured materials have their textures' average colour in ``albedo`` and ``emission``
-    (the per-triangle values light sampling and path termination use); ``uv`` and
-    ``texture`` (albedo layer, emission layer — -1 for none — and emission strength) are
-    set only when some material has a texture."""
+    (the per-triangle values light sampling and path termination use); ``texture_vertices``
+    (views ``uv`` and ``texture``: albedo layer, emission layer — -1 for none — and emission
+    strength) is set only when some material has a texture."""
 
-    positions: np.ndarray  # (V, 3)
-    normals: np.ndarray  # (V, 3)
-    albedo: np.ndarray  # (V, 3)
-    emission: np.ndarray  # (V, 3)
-    uv: np.ndarray | None = None  # (V, 2)
-    texture: np.ndarray | None = None  # (V, 3)
+    vertices: np.ndarray  # (V, 12) C-contiguous: position, normal, albedo, emission
+    texture_vertices: np.ndarray | None = None  # (V, 5) C-contiguous: uv, texture attribute
     textures: list[Texture] = field(default_factory=list)
+
+    @classmethod
+    def from_columns(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
+                     emission: np.ndarray) -> WorldGeometry:
+        """Untextured geometry from its four (V, 3) vertex attributes."""
+        return cls(np.hstack([positions, normals, albedo, emission]).astype(np.float32))
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.vertices[:, 0:3]
+
+    @property
+    def normals(self) -> np.ndarray:
+        return self.vertices[:, 3:6]
+
+    @property
+    def albedo(self) -> np.ndarray:
+        return self.vertices[:, 6:9]
+
+    @property
+    def emission(self) -> np.ndarray:
+        return self.vertices[:, 9:12]
+
+    @property
+    def uv(self) -> np.ndarray | None:
+        return None if self.texture_vertices is None else self.texture_vertices[:, 0:2]
+
+    @property
+    def texture(self) -> np.ndarray | None:
+        return None if self.texture_vertices is None else self.texture_vertices[:, 2:5]
 
     @property
     def vertex_count(self) -> int:
-        return len(self.positions)
+        return len(self.vertices)
 
     @property
     def has_textures(self) -> bool:
         """Whether the g-buffer needs its texture path (some material has a texture)."""
         return bool(self.textures)
-
-    def texture_vertices(self) -> np.ndarray:
-        """The texture path's second vertex stream, (V, 5) float32: uv, texture attribute."""
-        return np.ascontiguousarray(np.hstack([self.uv, self.texture]), dtype=np.float32)
 
     def albedo_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
         """Albedo (m, 3) at points on triangles: the base colour, or the texture sampled at the
@@ -66,11 +90,6 @@ class WorldGeometry:
             group = layer[rows] == k
             albedo[rows[group]] = tex.sample(self.textures[k], at[group])
         return np.clip(albedo, 0.0, MAX_ALBEDO)
-
-    def interleaved(self) -> np.ndarray:
-        """Vertex data as one (V, 12) float32 array: position, normal, albedo, emission."""
-        return np.ascontiguousarray(np.hstack(
-            [self.positions, self.normals, self.albedo, self.emission]), dtype=np.float32)
 
 
 def _transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -122,54 +141,96 @@ def _material_tables(materials: list[Material], warnings: list[str],
     return albedo, emission, attribute
 
 
-def _flatten_group(members: list[Instance], tables: dict, warnings: list[str],
-                   textures: tex.TextureSet | None) -> tuple[np.ndarray, ...]:
-    """World positions, normals, albedo and emission of every instance of one shared mesh,
-    transformed together (float32, as the GPU gets them); with ``textures`` also UVs and the
-    texture attribute."""
-    mesh = members[0].mesh
-    k, vertices = len(members), len(mesh.positions)
-    matrices = np.stack([inst.matrix for inst in members]).astype(np.float64)
-    with np.errstate(all="ignore"):
-        world = np.matmul(mesh.positions.astype(np.float32)[None],
-                          matrices[:, :3, :3].transpose(0, 2, 1).astype(np.float32)) \
-            + matrices[:, None, :3, 3].astype(np.float32)
-    finite = np.isfinite(world).all(axis=2).reshape(k, -1, 3).all(axis=2)
-    for row in np.flatnonzero(~finite.all(axis=1)):
-        warnings.append(f"mesh '{mesh.name}': {int((~finite[row]).sum())} of {finite.shape[1]} "
-                        f"triangles have NaN/Inf positions and were left out")
-    with np.errstate(all="ignore"):
-        normal_matrices = _normal_matrices(np.nan_to_num(matrices[:, :3, :3]))
-        normals = np.matmul(np.nan_to_num(mesh.normals.astype(np.float32))[None],
-                            normal_matrices.transpose(0, 2, 1).astype(np.float32))
-        length = np.linalg.norm(normals, axis=2, keepdims=True)
-        normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
-    slots_per_vertex = np.repeat(mesh.material_slots, 3)
-    width = max(1, int(slots_per_vertex.max(initial=0)) + 1)
-    per_slot = [np.zeros((k, width, 3), np.float32) for _ in range(2 if textures is None else 3)]
+def _instance_tables(members: list[Instance], width: int, tables: dict, warnings: list[str],
+                     textures: tex.TextureSet | None) -> list[np.ndarray]:
+    """Albedo, emission and, with ``textures``, the texture attribute per instance and mesh
+    slot, (n, width, 3) float32: n = 1 when all instances share their materials (it broadcasts
+    over them), else one row per instance. Slots past an instance's materials take its last."""
+    index_of: dict[tuple, int] = {}
+    distinct: list[list[Material]] = []
+    index = np.empty(len(members), np.intp)
     for row, inst in enumerate(members):
         key = tuple(id(m) for m in inst.materials)
+        if key not in index_of:
+            index_of[key] = len(distinct)
+            distinct.append(inst.materials)
+        index[row] = index_of[key]
+    per_slot = [np.zeros((len(distinct), width, 3), np.float32)
+                for _ in range(2 if textures is None else 3)]
+    for row, (key, materials) in enumerate(zip(index_of, distinct, strict=True)):
         if key not in tables:
-            tables[key] = _material_tables(inst.materials or [Material("(no material)")],
-                                           warnings, textures)
+            tables[key] = _material_tables(materials or [Material("(no material)")], warnings,
+                                           textures)
         clipped = np.minimum(np.arange(width), len(tables[key][0]) - 1)
         for table, values in zip(per_slot, tables[key], strict=True):
             table[row] = values[clipped]
-    slots = np.clip(slots_per_vertex, 0, width - 1)
-    columns = (world, normals, *(table[:, slots] for table in per_slot))
-    if textures is not None:
-        uv = mesh.uvs if mesh.uvs is not None else np.zeros((vertices, 2), np.float32)
-        columns = (*columns[:4], np.broadcast_to(uv, (k, vertices, 2)), columns[4])
-    if finite.all():
-        return tuple(c.reshape(k * vertices, -1) for c in columns)
-    keep = np.repeat(finite, 3, axis=1)
-    return tuple(c[keep] for c in columns)
+    return per_slot if len(distinct) == 1 else [table[index] for table in per_slot]
+
+
+def _per_corner(table: np.ndarray, slots: np.ndarray) -> np.ndarray:
+    """Per-slot rows (n, width, c) as (n, T, 1, c), to broadcast over triangles' corners."""
+    return table[:, :, None] if table.shape[1] == 1 else table[:, slots, None]
+
+
+def _flatten_group(members: list[Instance], tables: dict, warnings: list[str],
+                   textures: tex.TextureSet | None, out: np.ndarray,
+                   texture_out: np.ndarray | None) -> np.ndarray | None:
+    """Write world positions, normals, albedo and emission of every instance of one shared mesh
+    into ``out`` (k·V, 12), transformed together in float32 as the GPU gets them, and with
+    ``textures`` UVs and the texture attribute into ``texture_out`` (k·V, 5). Returns the mask
+    of vertices on finite triangles, or None when all are finite."""
+    mesh = members[0].mesh
+    k, vertices, triangles = len(members), len(mesh.positions), mesh.triangle_count
+    block = out.reshape(k, vertices, 12)
+    records = block.view("V12")  # (k, V, 4): position, normal, albedo, emission
+    matrices = np.stack([inst.matrix for inst in members]).astype(np.float64)
+    identity = k == 1 and np.array_equal(matrices[0], np.eye(4))
+    normals = mesh.normals if np.isfinite(mesh.normals).all() else np.nan_to_num(mesh.normals)
+    normals = normals[None]
+    with np.errstate(all="ignore"):
+        if identity:  # the identity's normal matrix is the identity too
+            world = mesh.positions[None]
+        else:
+            world = np.matmul(mesh.positions.astype(np.float32, copy=False)[None],
+                              matrices[:, :3, :3].transpose(0, 2, 1).astype(np.float32))
+            world += matrices[:, None, :3, 3].astype(np.float32)
+            normal_matrices = _normal_matrices(np.nan_to_num(matrices[:, :3, :3]))
+            normals = np.matmul(normals, normal_matrices.transpose(0, 2, 1).astype(np.float32))
+        x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
+        length = np.sqrt(x * x + y * y + z * z)  # np.linalg.norm's sums, without its reduce
+        normals = normals / length[..., None]
+        positive = length > 0
+        if not positive.all():
+            normals[~positive] = 0.0
+    # contiguous results copied in as 12-byte records: numpy's float loops over the 3 floats
+    # of each strided vertex take about twice as long
+    records[..., 0] = np.ascontiguousarray(world, np.float32).view("V12")[..., 0]
+    records[..., 1] = normals.view("V12")[..., 0]
+    keep = None
+    if not np.isfinite(world).all():
+        finite = np.isfinite(world).all(axis=2).reshape(k, -1, 3).all(axis=2)
+        for row in np.flatnonzero(~finite.all(axis=1)):
+            warnings.append(f"mesh '{mesh.name}': {int((~finite[row]).sum())} of "
+                            f"{finite.shape[1]} triangles have NaN/Inf positions and were left out")
+        keep = np.repeat(finite, 3, axis=1).ravel()
+    slots = np.clip(mesh.material_slots, 0, None)
+    width = int(slots.max(initial=0)) + 1
+    per_slot = _instance_tables(members, width, tables, warnings, textures)
+    # albedo and emission in one pass, copied as 24-byte records (numpy's float loop over the
+    # 6 floats of each vertex would take about twice as long)
+    colours = np.ascontiguousarray(np.concatenate(per_slot[:2], axis=2)).view("V24")
+    block.view("V24").reshape(k, triangles, 3, 2)[..., 1] = _per_corner(colours, slots)[..., 0]
+    if texture_out is not None:
+        stream = texture_out.reshape(k, vertices, 5)
+        stream[..., 0:2] = mesh.uvs if mesh.uvs is not None else 0.0
+        stream.reshape(k, triangles, 3, 5)[..., 2:5] = _per_corner(per_slot[2], slots)
+    return keep
 
 
 def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
-    """All instances in world space, with each triangle's material spread to its vertices.
-    Instances of one mesh are transformed together (the order is by each mesh's first
-    instance).
+    """All instances in world space, with each triangle's material spread to its vertices,
+    written straight into the interleaved vertex arrays. Instances of one mesh are transformed
+    together (the order is by each mesh's first instance).
 
     Triangles whose world positions are not finite (NaN/Inf vertices or transforms) are left
     out, with one warning per instance."""
@@ -181,16 +242,23 @@ def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
     textured = any(m.base_color_texture or m.emission_texture
                    for members in groups.values() for inst in members for m in inst.materials)
     textures = tex.TextureSet() if textured else None
-    parts = [_flatten_group(members, tables, warnings, textures) for members in groups.values()]
-    parts = [p for p in parts if len(p[0])]
-    if not parts:
-        empty = np.zeros((0, 3), dtype=np.float32)
-        return WorldGeometry(empty, empty, empty, empty)
-    columns = [np.ascontiguousarray(np.concatenate(c), dtype=np.float32)
-               for c in zip(*parts, strict=True)]
+    sizes = [len(members) * len(members[0].mesh.positions) for members in groups.values()]
+    vertices = np.empty((sum(sizes), 12), np.float32)
+    stream = np.empty((sum(sizes), 5), np.float32) if textured else None
+    masks, start = [], 0
+    for members, size in zip(groups.values(), sizes, strict=True):
+        part = slice(start, start + size)
+        masks.append(_flatten_group(members, tables, warnings, textures, vertices[part],
+                                    None if stream is None else stream[part]))
+        start += size
+    if any(mask is not None for mask in masks):
+        keep = np.concatenate([np.ones(size, bool) if mask is None else mask
+                               for mask, size in zip(masks, sizes, strict=True)])
+        vertices = vertices[keep]
+        stream = None if stream is None else stream[keep]
     if textures is None or not textures.textures:
-        return WorldGeometry(*columns[:4])
-    return WorldGeometry(*columns, textures=textures.textures)
+        return WorldGeometry(vertices)
+    return WorldGeometry(vertices, stream, textures.textures)
 
 
 def bounding_sphere(positions: np.ndarray) -> tuple[np.ndarray, float]:
@@ -238,8 +306,7 @@ def light_shapes(scene: Scene) -> WorldGeometry:
         normals.append(np.repeat(facing[None], len(world), axis=0))
         emission.append(np.repeat(radiance[None], len(world), axis=0))
     if not positions:
-        empty = np.zeros((0, 3), dtype=np.float32)
-        return WorldGeometry(empty, empty, empty, empty)
-    pos = np.concatenate(positions).astype(np.float32)
-    return WorldGeometry(pos, np.concatenate(normals).astype(np.float32),
-                         np.zeros_like(pos), np.concatenate(emission).astype(np.float32))
+        return WorldGeometry(np.zeros((0, 12), np.float32))
+    pos = np.concatenate(positions)
+    return WorldGeometry.from_columns(pos, np.concatenate(normals), np.zeros_like(pos),
+                                      np.concatenate(emission))

@@ -547,7 +547,7 @@ class Renderer:
         samples = rsm_light_samples(scene, settings)
         if len(samples) == 0:
             return VPLs.empty()
-        vbo = self.ctx.buffer(geometry.interleaved().tobytes())
+        vbo = self.ctx.buffer(geometry.vertices)
         try:
             table, position, normal, albedo = render_rsm(self.ctx, self.programs, vbo,
                                                         geometry.vertex_count, samples, centre,
@@ -717,7 +717,7 @@ class _FrameResources:
         self.geometry = geometry
         self.textured = None  # the texture path: (vertex buffer, array texture, size table)
         if geometry.has_textures:
-            self.textured = (self._own(self.ctx.buffer(geometry.texture_vertices().tobytes())),
+            self.textured = (self._own(self.ctx.buffer(geometry.texture_vertices)),
                              *(self._own(t) for t in upload_textures(ctx, geometry.textures)))
         self._surfaces: tuple[moderngl.Buffer, moderngl.Buffer] | None = None
         self._atlas: tuple[moderngl.Texture, _Batch] | None = None
@@ -731,7 +731,7 @@ class _FrameResources:
     def _buffer(self, geometry: WorldGeometry) -> moderngl.Buffer | None:
         if geometry.vertex_count == 0:
             return None
-        return self._own(self.ctx.buffer(geometry.interleaved().tobytes()))
+        return self._own(self.ctx.buffer(geometry.vertices))
 
     def release(self) -> None:
         self._release_tile()

@@ -26,7 +26,7 @@ def rsm_light_samples(scene: Scene, settings: Settings) -> LightSamples:
     lights = [replace(light, radius=0.0, sun_angle=0.0, size_x=0.0, size_y=0.0)
               for light in scene.lights]
     plain = Scene([], lights, World(), scene.camera)
-    samples = build_light_samples(plain, WorldGeometry(*(np.zeros((0, 3), np.float32),) * 4),
+    samples = build_light_samples(plain, WorldGeometry(np.zeros((0, 12), np.float32)),
                                   replace(settings, light_samples=1), [])
     samples.resolution = np.full(len(samples), settings.rsm_resolution)
     samples.casts_shadow = np.ones(len(samples), bool)
