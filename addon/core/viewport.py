@@ -347,7 +347,10 @@ class ViewportSession:
         levels = refinement_levels(camera)
         if changes.display and not (changes.needs_export or changes.camera):
             levels = levels[-1:]
-        view_settings = replace(settings, antialiasing=1, incremental=True)
+        # The automatic mode is for final renders: a choice per refinement level (each of its
+        # own size) would make the VPLs afresh at every level.
+        view_settings = replace(settings, antialiasing=1, incremental=True,
+                                auto_parameters="off")
         quick = quick_settings(view_settings) if changes.regenerates and len(levels) > 1 \
             else view_settings
         record = self.records[edit - 1]
