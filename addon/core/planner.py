@@ -66,6 +66,15 @@ def needed_pull_push_levels(settings: Settings) -> int:
     return min(settings.pull_push_levels, needed)
 
 
+def plan_pull_push(settings: Settings) -> tuple[int, dict[str, str]]:
+    """The pull-push levels the point density needs, and the skipped entry for the rest."""
+    levels = needed_pull_push_levels(settings)
+    if levels == settings.pull_push_levels:
+        return levels, {}
+    return levels, {f"pull-push levels {levels + 1}–{settings.pull_push_levels}": (
+        f"{settings.ism_points} points fill {settings.ism_resolution}² maps by level {levels}")}
+
+
 def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
                passes: frozenset[str] | None = None) -> FramePlan:
     """The stages this frame needs, from the scene, the settings and the requested passes."""
@@ -97,12 +106,8 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
             plan.skipped["bias compensation"] = "off" if not settings.bias_compensation \
                 else "no distance clamp"
         if settings.visibility == "ism" or settings.soft_light_ism:
-            plan.pull_push_levels = needed_pull_push_levels(settings)
-            if plan.pull_push_levels < settings.pull_push_levels:
-                plan.skipped[f"pull-push levels {plan.pull_push_levels + 1}–"
-                             f"{settings.pull_push_levels}"] = (
-                    f"{settings.ism_points} points fill {settings.ism_resolution}² maps by "
-                    f"level {plan.pull_push_levels}")
+            plan.pull_push_levels, skipped = plan_pull_push(settings)
+            plan.skipped.update(skipped)
     unused = sorted(set(PASS_CHANNELS) - wanted)
     if unused:
         plan.skipped["passes " + ", ".join(unused)] = "not enabled in the view layer"

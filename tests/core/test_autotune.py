@@ -127,5 +127,8 @@ def test_a_real_automatic_frame_lands_near_its_budget(renderer, tmp_path):
     predicted = float(note.split("predicted ")[1].split(" s")[0])
     measured = sum(v for k, v in stats.timings.items() if not k.startswith("ism "))
     assert predicted <= 1.5
+    chosen = note.split("points/VPL, ")[1].split("²")[0]
+    levels = [k for k in stats.skipped if k.startswith("pull-push levels")]
+    assert all(f"{chosen}² maps" in stats.skipped[k] for k in levels)  # planned for the choice
     assert 0.5 * predicted <= measured <= 2 * predicted + 0.2, (predicted, measured)
     assert np.isfinite(predicted)
