@@ -30,7 +30,8 @@ from .settings import Settings
 
 COST_MODEL_VERSION = 2
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
-PATHS = (16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384)
+PATHS = tuple(round(16 * 2 ** (k / 4)) for k in range(41))
+"""Light-path counts the automatic mode considers: 16 to 16384 in steps of 2^(1/4) (19 %)."""
 
 
 @dataclass(frozen=True)

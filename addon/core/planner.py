@@ -23,8 +23,9 @@ Bounds = tuple[np.ndarray, np.ndarray]  # (lo, hi) corners of an axis-aligned bo
 
 PULL_PUSH_MARGIN = 2
 """Pull-push levels beyond the one whose texels are as large as the mean gap between splatted
-points: footprints cover most gaps; two more levels fill what they leave (measured on the
-sample scenes: no further level changes the image by more than 0.1 % relative RMSE)."""
+points: footprints cover most gaps; two more levels fill what they leave (on the Cornell box
+the further levels change the image by 0.28 % relative RMSE, against 5.7 % between two seeds:
+tools/bench_planner.py)."""
 
 
 @dataclass
