@@ -82,13 +82,13 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
     wanted = frozenset(PASS_CHANNELS) if passes is None or not settings.planner \
         else frozenset(passes) | {"Combined"}
     plan = FramePlan(pull_push_levels=settings.pull_push_levels, passes=wanted)
-    if not settings.planner:
-        plan.sample_dark, plan.cull_to_view = True, False
-        return plan
-    reason = no_indirect_reason(scene, geometry, settings)
+    reason = no_indirect_reason(scene, geometry, settings)  # off: bounces = 0, no surfaces
     if reason:
         plan.indirect = False
         plan.skipped["indirect light"] = reason
+    if not settings.planner:
+        plan.sample_dark, plan.cull_to_view = True, False
+        return plan
     for light in scene.lights:
         if not light.visible_to_diffuse:
             plan.skipped[f"light '{light.name}'"] = "not visible to diffuse rays"

@@ -148,3 +148,15 @@ def test_spot_cones_are_tested_against_the_visible_box(spot_degrees, x, reaches)
     samples = build_light_samples(scene, geometry, DIRECT, [])
     bounds = visible_bounds(scene.camera, geometry.positions)
     assert reaches_bounds(samples, bounds).tolist() == [reaches]
+
+
+@pytest.mark.parametrize("planner", [True, False])
+def test_scenes_without_surfaces_or_bounces_render_with_and_without_the_planner(renderer,
+                                                                                 planner):
+    empty = Scene([], [light(LightKind.POINT, translation(0, 0, 2), power=50.0)],
+                  camera=top_down_camera(16))
+    for scene, settings in ((empty, replace(DIRECT, bounces=2)),
+                            (floor_scene(lights_out_of_view()), DIRECT)):
+        frame, stats = renderer.render(scene, replace(settings, planner=planner))
+        assert stats.skipped["indirect light"] in ("no surfaces", "bounces = 0")
+        assert stats.counts["vpls"] == 0 and np.isfinite(frame.passes["Combined"]).all()
