@@ -22,7 +22,7 @@ from .incremental import IncrementalVPLs
 from .ism import ImperfectShadowMaps, atlas_grid
 from .ism_reuse import ReusedISMAtlas
 from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
-from .planner import Bounds, plan_frame, plan_pull_push, reaches_bounds, visible_bounds
+from .planner import Bounds, plan_frame, plan_gather, reaches_bounds, visible_bounds
 from .raytrace import RayTracer
 from .rsm import render_rsm, rsm_hits, rsm_light_samples
 from .scene import Camera, Scene
@@ -292,8 +292,6 @@ class Renderer:
         with stats.timed("planning"):
             plan = plan_frame(scene, geometry, settings, passes)
             stats.skipped.update(plan.skipped)
-            requested_levels = settings.pull_push_levels
-            settings = replace(settings, pull_push_levels=plan.pull_push_levels)
             if not settings.planner:
                 self._forget_reuse()
             in_view = visible_bounds(camera, geometry.positions) if plan.cull_to_view else None
@@ -308,13 +306,9 @@ class Renderer:
         if settings.auto_parameters != "off" and plan.indirect:
             settings = self._automatic(scene, settings, geometry, samples, stats, report,
                                        (centre, radius, in_view))
-            if settings.planner:  # the chosen maps and points need their own levels
-                stats.skipped = {k: v for k, v in stats.skipped.items()
-                                 if not k.startswith("pull-push levels")}
-                levels, skipped = plan_pull_push(replace(settings,
-                                                         pull_push_levels=requested_levels))
-                stats.skipped.update(skipped)
-                settings = replace(settings, pull_push_levels=levels)
+        levels, skipped = plan_gather(plan, settings)
+        stats.skipped.update(skipped)
+        settings = replace(settings, pull_push_levels=levels)
         vpls = self._virtual_point_lights(scene, geometry, settings, centre, radius, stats,
                                           plan.indirect)
         keys = vpls.key

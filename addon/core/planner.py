@@ -35,7 +35,6 @@ class FramePlan:
     indirect: bool = True
     sample_dark: bool = False  # sample zero-power lights and a black world anyway
     cull_to_view: bool = True  # leave out light samples and VPLs the camera cannot see lit
-    pull_push_levels: int = 0
     passes: frozenset[str] = frozenset(PASS_CHANNELS)
     skipped: dict[str, str] = field(default_factory=dict)
 
@@ -67,13 +66,21 @@ def needed_pull_push_levels(settings: Settings) -> int:
     return min(settings.pull_push_levels, needed)
 
 
-def plan_pull_push(settings: Settings) -> tuple[int, dict[str, str]]:
-    """The pull-push levels the point density needs, and the skipped entry for the rest."""
+def plan_gather(plan: FramePlan, settings: Settings) -> tuple[int, dict[str, str]]:
+    """For the frame's final VPL settings (after any automatic choice): the pull-push levels
+    its imperfect shadow maps need, and the skipped entries for the other levels and the
+    blur."""
+    if not settings.planner or not plan.indirect:
+        return settings.pull_push_levels, {}
+    skipped = {"blur": "interleaving off"} if settings.interleave == 1 else {}
+    if settings.visibility != "ism" and not settings.soft_light_ism:
+        return settings.pull_push_levels, skipped
     levels = needed_pull_push_levels(settings)
-    if levels == settings.pull_push_levels:
-        return levels, {}
-    return levels, {f"pull-push levels {levels + 1}–{settings.pull_push_levels}": (
-        f"{settings.ism_points} points fill {settings.ism_resolution}² maps by level {levels}")}
+    if levels < settings.pull_push_levels:
+        skipped[f"pull-push levels {levels + 1}–{settings.pull_push_levels}"] = (
+            f"{settings.ism_points} points fill {settings.ism_resolution}² maps by level "
+            f"{levels}")
+    return levels, skipped
 
 
 def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
@@ -81,7 +88,7 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
     """The stages this frame needs, from the scene, the settings and the requested passes."""
     wanted = frozenset(PASS_CHANNELS) if passes is None or not settings.planner \
         else frozenset(passes) | {"Combined"}
-    plan = FramePlan(pull_push_levels=settings.pull_push_levels, passes=wanted)
+    plan = FramePlan(passes=wanted)
     reason = no_indirect_reason(scene, geometry, settings)  # off: bounces = 0, no surfaces
     if reason:
         plan.indirect = False
@@ -100,15 +107,10 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
         plan.skipped["emission light"] = "no emissive surface"
     if not geometry.has_textures:
         plan.skipped["texture lookups"] = "no material has an image texture"
-    if plan.indirect:
-        if settings.interleave == 1:
-            plan.skipped["blur"] = "interleaving off"
-        if not settings.bias_compensation or settings.clamp_distance == 0:
-            plan.skipped["bias compensation"] = "off" if not settings.bias_compensation \
-                else "no distance clamp"
-        if settings.visibility == "ism" or settings.soft_light_ism:
-            plan.pull_push_levels, skipped = plan_pull_push(settings)
-            plan.skipped.update(skipped)
+    if plan.indirect and not settings.bias_compensation:
+        plan.skipped["bias compensation"] = "off"
+    elif plan.indirect and settings.clamp_distance == 0:
+        plan.skipped["bias compensation"] = "no distance clamp"
     unused = sorted(set(PASS_CHANNELS) - wanted)
     if unused:
         plan.skipped["passes " + ", ".join(unused)] = "not enabled in the view layer"

@@ -118,7 +118,8 @@ def test_a_real_automatic_frame_lands_near_its_budget(renderer, tmp_path):
     renderer.cost_cache = tmp_path / "cost.json"
     scene = floor_scene([light(autotune.LightKind.POINT, translation(0, 0, 2), power=50.0)],
                         extra=[wall(2)], size=96)
-    settings = replace(Settings(antialiasing=1), auto_parameters="time", time_budget=1.5)
+    settings = replace(Settings(antialiasing=1, interleave=1), auto_parameters="time",
+                       time_budget=1.5)
     renderer.render(scene, settings)  # calibrates; compiles the chosen shaders
     assert renderer.cost_cache.is_file()
     renderer.forget_frames()  # the prediction is for a frame made afresh
@@ -130,5 +131,7 @@ def test_a_real_automatic_frame_lands_near_its_budget(renderer, tmp_path):
     chosen = note.split("points/VPL, ")[1].split("²")[0]
     levels = [k for k in stats.skipped if k.startswith("pull-push levels")]
     assert all(f"{chosen}² maps" in stats.skipped[k] for k in levels)  # planned for the choice
+    if "interleave 1" not in note:
+        assert "blur" not in stats.skipped and stats.timings["blur"] > 0
     assert 0.5 * predicted <= measured <= 2 * predicted + 0.2, (predicted, measured)
     assert np.isfinite(predicted)
