@@ -433,7 +433,7 @@ class Renderer:
                 pixels=camera.width * camera.height * settings.antialiasing**2,
                 triangles=geometry.vertex_count // 3,
                 shadow_tiles=int(samples.tiles_per_sample.sum()),
-                vpls_per_path=self._vpls_per_path(scene, geometry, settings, *bounds),
+                vpls_per_path=self._vpls_per_path(scene, geometry, settings, stats, *bounds),
                 bounces=settings.bounces, max_subsets=ISM_POINT_SUBSETS,
                 pooled=self._ism_pool(geometry))
         choice = autotune.choose(settings, work, cost, autotune.load_error_model())
@@ -451,16 +451,15 @@ class Renderer:
         return key[2], key[1]
 
     def _vpls_per_path(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
-                       centre: np.ndarray, radius: float, in_view: Bounds | None) -> float:
+                       stats: Stats, centre: np.ndarray, radius: float,
+                       in_view: Bounds | None) -> float:
         """VPLs that can light the view per light path, from a probe of PROBE_PATHS paths."""
         probe = replace(settings, vpl_count=PROBE_PATHS, incremental=False)
         try:
             tracer = self.tracer
         except GLUnavailableError:
             return float(settings.bounces)
-        if self._traced_version != self._shape_version:
-            tracer.upload(geometry.positions.reshape(-1, 3, 3))
-            self._traced_version = self._shape_version
+        self._upload_triangles(tracer, geometry, stats)
         vpls = generate_vpls(scene, geometry, probe, tracer, centre, radius)
         samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
         in_view_count = int(reaches_bounds(samples, in_view).sum()) if in_view is not None \
@@ -514,15 +513,7 @@ class Renderer:
         except GLUnavailableError as exc:
             stats.warnings.append(f"indirect light skipped: {exc}")
             return VPLs.empty()
-        if self._traced_version != self._shape_version:
-            with stats.timed("ray tracing setup"):
-                try:
-                    tracer.upload(geometry.positions.reshape(-1, 3, 3))
-                except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
-                    raise RenderError(f"indirect light: {exc}") from None
-            self._traced_version = self._shape_version
-        else:
-            stats.skipped["ray tracing setup"] = "triangle positions unchanged"
+        self._upload_triangles(tracer, geometry, stats)
         if settings.vpl_source == "rsm":
             with stats.timed("vpl generation (rsm)"):
                 vpls = self._rsm_vpls(scene, geometry, settings, centre, radius, stats)
@@ -539,6 +530,20 @@ class Renderer:
                 vpls = generate_vpls(scene, geometry, settings, tracer, centre, radius)
         self._vpl_cache = (inputs, vpls)
         return vpls
+
+    def _upload_triangles(self, tracer: RayTracer, geometry: WorldGeometry,
+                          stats: Stats) -> None:
+        """Give the ray tracer this frame's triangles (its BVH), unless it has them."""
+        if self._traced_version == self._shape_version:
+            if "ray tracing setup" not in stats.timings:  # not done earlier in this frame
+                stats.skipped["ray tracing setup"] = "triangle positions unchanged"
+            return
+        with stats.timed("ray tracing setup"):
+            try:
+                tracer.upload(geometry.positions.reshape(-1, 3, 3))
+            except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
+                raise RenderError(f"indirect light: {exc}") from None
+        self._traced_version = self._shape_version
 
     def _rsm_vpls(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
                   centre: np.ndarray, radius: float, stats: Stats) -> VPLs:
