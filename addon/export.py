@@ -27,7 +27,8 @@ from .core.scene import (
     Scene,
     World,
 )
-from .export_images import ImageReader, UnsupportedLink
+from .core.textures import MISSING_COLOR, decode_srgb
+from .export_images import ImageReader, UnsupportedLink, read_pixels
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 DEFAULT_MATERIAL = Material("(no material)")
@@ -344,26 +345,16 @@ def export_light(obj: bpy.types.Object, matrix) -> Light:
     return light
 
 
-MISSING_IMAGE = (1.0, 0.0, 1.0)  # Cycles' colour for an image it cannot load
-
-
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def _image_pixels(image: bpy.types.Image) -> np.ndarray | None:
-    """Linear RGB (h, w, 3) float32 of an image, rows bottom-up, or None if it has no pixels.
+    """Linear RGB (h, w, 3) float32 of an image, rows bottom-up, or None if it cannot be read.
 
     Float images (.hdr, .exr) are linear; 8-bit images in sRGB are decoded."""
-    width, height = image.size
-    if width * height == 0:
+    pixels = read_pixels(image)
+    if pixels is None:
         return None
-    pixels = np.empty(width * height * image.channels, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    pixels = pixels.reshape(height, width, image.channels)
-    rgb = np.repeat(pixels[..., :1], 3, axis=2) if image.channels < 3 else pixels[..., :3]
+    rgb = pixels[..., :3]
     if not image.is_float and image.colorspace_settings.name == "sRGB":
-        rgb = _srgb_to_linear(rgb)
+        rgb = decode_srgb(rgb)
     return np.maximum(np.nan_to_num(rgb, posinf=0.0), 0.0).astype(np.float32)
 
 
@@ -399,7 +390,7 @@ def _environment_world(texture, strength: float, warnings: list[str]) -> World:
         name = f"'{image.name}'" if image is not None else "(none)"
         warnings.append(f"world: the Environment Texture's image {name} could not be loaded: "
                         f"rendered magenta, as Cycles does")
-        return World(MISSING_IMAGE, strength)
+        return World(MISSING_COLOR, strength)
     env = EnvironmentMap(pixels * np.float32(strength))
     mean = tuple(mean_radiance(env) / strength) if strength != 0 else (0.0, 0.0, 0.0)
     try:

@@ -42,8 +42,10 @@ def _check_vector(node) -> None:
                           f"'{source.bl_label}'")
 
 
-def _pixels(image: bpy.types.Image) -> np.ndarray | None:
-    """The image's pixels as (h, w, 4) float32, or None when Blender cannot read it."""
+def read_pixels(image: bpy.types.Image) -> np.ndarray | None:
+    """The image's pixels as (h, w, 4) float32, rows bottom-up, in its stored values (byte
+    images: sRGB-encoded when their colour space is sRGB), or None when Blender cannot read
+    it."""
     width, height = image.size
     channels = image.channels
     try:
@@ -103,7 +105,7 @@ class ImageReader:
             return missing_texture("(none)")
         key = image.name_full
         if key not in self._textures:
-            pixels = _pixels(image)
+            pixels = read_pixels(image)
             if pixels is None:
                 self._missing.add(key)
                 self._textures[key] = missing_texture(image.name)
