@@ -48,18 +48,41 @@ class Material:
 
 @dataclass
 class Mesh:
-    """Triangle soup in object space: 3 corners per triangle, corner normals, slot per triangle,
-    and the active render UV map's coordinates per corner (None without a UV map)."""
+    """Triangles in object space: 3 corners per triangle, a material slot per triangle.
+
+    Each corner attribute (position, normal, and the active render UV map's coordinates, None
+    without a UV map) is either stored per corner (T*3 rows, its index None) or indexed: corner
+    ``c`` takes row ``index[c]``, so shared vertices, flat face normals and UVs are stored once
+    and transformed once per instance. Normals are Blender's (smooth/flat/custom)."""
 
     name: str
-    positions: np.ndarray  # (T*3, 3) float32
-    normals: np.ndarray  # (T*3, 3) float32, corner normals (smooth/flat, as Blender has them)
+    positions: np.ndarray  # (T*3 | P, 3) float32
+    normals: np.ndarray  # (T*3 | N, 3) float32
     material_slots: np.ndarray  # (T,) int32, index into the instance's material list
-    uvs: np.ndarray | None = None  # (T*3, 2) float32
+    uvs: np.ndarray | None = None  # (T*3 | U, 2) float32
+    position_index: np.ndarray | None = None  # (T*3,) int32 rows of positions, or None
+    normal_index: np.ndarray | None = None  # (T*3,) int32 rows of normals, or None
+    uv_index: np.ndarray | None = None  # (T*3,) int32 rows of uvs, or None
 
     @property
     def triangle_count(self) -> int:
         return len(self.material_slots)
+
+    def corner_positions(self) -> np.ndarray:
+        """Positions per corner, (T*3, 3)."""
+        return _per_corner(self.positions, self.position_index)
+
+    def corner_normals(self) -> np.ndarray:
+        """Normals per corner, (T*3, 3)."""
+        return _per_corner(self.normals, self.normal_index)
+
+    def corner_uvs(self) -> np.ndarray | None:
+        """UVs per corner, (T*3, 2), or None without a UV map."""
+        return None if self.uvs is None else _per_corner(self.uvs, self.uv_index)
+
+
+def _per_corner(values: np.ndarray, index: np.ndarray | None) -> np.ndarray:
+    return values if index is None else values[index]
 
 
 @dataclass

@@ -235,5 +235,5 @@ def test_unsupported_texture_settings_warn_once_per_material(blender):
         "viewport colour"]
     mesh = scene.instances[0].mesh
     # triangles (0, 1, 2) and (0, 2, 3) of the quad (Blender's split of this one)
-    np.testing.assert_allclose(mesh.uvs, np.array(uvs)[[0, 1, 2, 0, 2, 3]])
+    np.testing.assert_allclose(mesh.corner_uvs(), np.array(uvs)[[0, 1, 2, 0, 2, 3]])
     assert scene.instances[0].materials[0].base_color_texture.pixels.shape == (2, 2, 4)
