@@ -1,10 +1,11 @@
 // Writes the g-buffer. Normals are turned to face the camera (surfaces are two-sided, as in
 // Cycles). With ONE_SIDED (visible light shapes) the back side is not drawn. With TEXTURED the
 // albedo (capped to 1, as base colours are) and the emission come from image textures.
+#include "materials_lib.glsl"
+
 in vec3 v_world;
 in vec3 v_normal;
-in vec3 v_albedo;
-in vec3 v_emission;
+flat in int v_triangle;
 
 uniform vec3 u_camera_position;
 uniform vec3 u_camera_forward;
@@ -14,7 +15,6 @@ uniform mat4 u_view;
 #ifdef TEXTURED
 #include "textures_lib.glsl"
 in vec2 v_uv;
-flat in vec3 v_texture;
 #endif
 
 layout(location = 0) out vec4 out_position;  // xyz world, w = view-space depth (Blender's Z)
@@ -36,12 +36,14 @@ void main() {
     out_position = vec4(v_world, depth);
     out_normal = vec4(shading, 1.0);
     out_geometric = vec4(geometric, 1.0);
-    vec3 albedo = v_albedo;
-    vec3 emission = v_emission;
+    Material material = material_of(v_triangle);
+    vec3 albedo = material.albedo.rgb;
+    vec3 emission = material.emission.rgb;
 #ifdef TEXTURED
-    if (v_texture.x >= 0.0) albedo = clamp(texture_color(int(v_texture.x), v_uv), 0.0, 1.0);
-    if (v_texture.y >= 0.0) {
-        emission = max(v_texture.z * texture_color(int(v_texture.y), v_uv), 0.0);
+    vec3 layers = material.texture.xyz;
+    if (layers.x >= 0.0) albedo = clamp(texture_color(int(layers.x), v_uv), 0.0, 1.0);
+    if (layers.y >= 0.0) {
+        emission = max(layers.z * texture_color(int(layers.y), v_uv), 0.0);
     }
 #endif
     out_albedo = vec4(albedo, 1.0);

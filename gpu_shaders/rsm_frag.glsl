@@ -1,8 +1,10 @@
 // Reflective shadow map texel: the surface point the light sees, its normal turned towards the
 // light, and its albedo (the flux it receives is computed from the texel's solid angle or
 // area on the CPU, addon/core/rsm.py).
+#include "materials_lib.glsl"
+
 in vec3 v_world;
-in vec3 v_albedo;
+flat in int v_triangle;
 flat in vec3 v_origin;
 flat in int v_face;
 
@@ -16,5 +18,5 @@ void main() {
     if (dot(normal, towards_light) < 0.0) normal = -normal;
     out_position = vec4(v_world, 1.0);
     out_normal = vec4(normal, 0.0);
-    out_albedo = vec4(v_albedo, 0.0);
+    out_albedo = vec4(material_of(v_triangle).albedo.rgb, 0.0);
 }

@@ -2,15 +2,14 @@
 #include "tiles_lib.glsl"
 
 in vec3 in_position;
-in vec3 in_albedo;
 
 out vec3 v_world;
-out vec3 v_albedo;
+flat out int v_triangle;
 flat out vec3 v_origin;
 flat out int v_face;
 
 void main() {
     gl_Position = atlas_tile_position(in_position, gl_InstanceID, v_origin, v_face);
     v_world = in_position;
-    v_albedo = in_albedo;
+    v_triangle = gl_VertexID / 3;
 }

@@ -2,11 +2,11 @@
 
 For each scene (a tessellated grid of N triangles under a sun, or 10k instances of a small
 mesh scattered by geometry nodes) it prints: our export time (cold, and again with a warm
-ExportCache), our upload time (core.geometry.flatten_instances plus one moderngl buffer of
-WorldGeometry.vertices, as the renderer uploads), Cycles' time to its first sample (a
-1-sample 8×8 render minus the same render of an empty scene, median of --repeat), and peak RSS
-after building the scene and of our export + upload and of Cycles, each measured in its own
-process (so each peak is its own).
+ExportCache), our upload time (core.geometry.flatten_instances plus
+core.scene_buffers.SceneBuffers: the vertex buffer and material tables the renderer uploads),
+Cycles' time to its first sample (a 1-sample 8×8 render minus the same render of an empty
+scene, median of --repeat), and peak RSS after building the scene and of our export + upload
+and of Cycles, each measured in its own process (so each peak is its own).
 
     .venv/bin/python tools/bench_export.py [--scenes 100k 1M 5M inst10k] [--repeat 3]
 """
@@ -44,7 +44,7 @@ def build_scene(bpy, name: str) -> None:
     if name == "empty":
         return
     if name == "inst10k":
-        bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=2, radius=0.05)  # 320 triangles
+        bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=2, radius=0.05)  # 80 triangles
         ball = bpy.context.object
         ball.location.z = -100  # the original out of sight; its instances are on the grid
         bpy.ops.mesh.primitive_grid_add(x_subdivisions=100, y_subdivisions=100, size=10)
@@ -86,6 +86,7 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
 
     from addon.core.geometry import flatten_instances
     from addon.core.gl import create_context
+    from addon.core.scene_buffers import SceneBuffers
     from addon.export import ExportCache, export_scene
 
     build_scene(bpy, name)
@@ -99,10 +100,10 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
         exports.append(time.perf_counter() - start)
         start = time.perf_counter()
         geometry = flatten_instances(exported, [])
-        buffer = ctx.buffer(geometry.vertices)
+        buffers = SceneBuffers(ctx, geometry)
         ctx.finish()
         uploads.append(time.perf_counter() - start)
-        buffer.release()
+        buffers.release()
         del exported, geometry
         cache = ExportCache()
         export_scene(depsgraph, cache)
@@ -166,9 +167,9 @@ def main() -> None:
               f"{row['rss_scene']:>7.0f}MiB {row['rss']:>6.0f}MiB "
               f"{cycles['rss']:>7.0f}MiB", flush=True)
     print("export/cached: export_scene cold / with a warm ExportCache; upload: "
-          "flatten_instances + buffer; ours = export + upload; Cycles: 1-sample 8×8 render minus "
-          "an empty scene's (its sync + BVH); ratio = ours / Cycles; RSS: peak after building "
-          "the scene, and peak of the process that ran ours / Cycles (separate processes)")
+          "flatten_instances + SceneBuffers; ours = export + upload; Cycles: 1-sample 8×8 render "
+          "minus an empty scene's (its sync + BVH); ratio = ours / Cycles; RSS: peak after "
+          "building the scene, and peak of the process that ran ours / Cycles (separate processes)")
 
 
 if __name__ == "__main__":

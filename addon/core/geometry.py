@@ -4,6 +4,7 @@ per-vertex material values, visible light shapes, and the scene's bounding spher
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -14,26 +15,40 @@ DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
 
 
+MATERIAL_COLUMNS = 12  # albedo, 0, emission, 0, texture attribute, 0 (std430 vec4 × 3)
+NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
+NO_MATERIAL = [Material("(no material)")]  # an instance without material slots
+
+
 @dataclass
 class WorldGeometry:
-    """Flattened triangles: 3 vertices per triangle, attributes per vertex (float32), stored
-    interleaved as the GPU reads them; ``positions``, ``normals``, ``albedo`` and ``emission``
-    are views of ``vertices``.
+    """Flattened triangles: 3 vertices per triangle (position and normal, float32, interleaved
+    as the GPU reads them; ``positions`` and ``normals`` are views of ``vertices``), and a row
+    of the material table per triangle.
 
-    Textured materials have their textures' average colour in ``albedo`` and ``emission``
-    (the per-triangle values light sampling and path termination use); ``texture_vertices``
-    (views ``uv`` and ``texture``: albedo layer, emission layer — -1 for none — and emission
-    strength) is set only when some material has a texture."""
+    A material row holds the albedo, the emission and the texture attribute (albedo layer,
+    emission layer — NO_TEXTURE for none — and the strength the emission texture is multiplied
+    by), laid out as three std430 vec4s. Textured materials have their textures' average colour
+    as albedo and emission (the per-triangle values light sampling and path termination use);
+    ``uv`` (per vertex) is set only when some material has a texture."""
 
-    vertices: np.ndarray  # (V, 12) C-contiguous: position, normal, albedo, emission
-    texture_vertices: np.ndarray | None = None  # (V, 5) C-contiguous: uv, texture attribute
+    vertices: np.ndarray  # (V, 6) C-contiguous float32: position, normal
+    triangle_material: np.ndarray  # (V/3,) int32 rows of ``materials``
+    materials: np.ndarray  # (M, MATERIAL_COLUMNS) float32
+    uv: np.ndarray | None = None  # (V, 2) float32, only with textures
     textures: list[Texture] = field(default_factory=list)
 
     @classmethod
-    def from_columns(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
-                     emission: np.ndarray) -> WorldGeometry:
-        """Untextured geometry from its four (V, 3) vertex attributes."""
-        return cls(np.hstack([positions, normals, albedo, emission]).astype(np.float32))
+    def from_triangles(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
+                       emission: np.ndarray) -> WorldGeometry:
+        """Untextured geometry from vertex positions and normals (V, 3) and each triangle's
+        albedo and emission (V/3, 3), one material row per triangle."""
+        vertices = np.hstack([positions, normals]).astype(np.float32)
+        count = len(vertices) // 3
+        materials = np.zeros((count, MATERIAL_COLUMNS), np.float32)
+        materials[:, 0:3], materials[:, 4:7] = albedo, emission
+        materials[:, 8:11] = NO_TEXTURE_ATTRIBUTE
+        return cls(vertices, np.arange(count, dtype=np.int32), materials)
 
     @property
     def positions(self) -> np.ndarray:
@@ -43,25 +58,32 @@ class WorldGeometry:
     def normals(self) -> np.ndarray:
         return self.vertices[:, 3:6]
 
-    @property
+    @cached_property
     def albedo(self) -> np.ndarray:
-        return self.vertices[:, 6:9]
+        """Each triangle's albedo, (T, 3) float32."""
+        return self._per_triangle(0)
 
-    @property
+    @cached_property
     def emission(self) -> np.ndarray:
-        return self.vertices[:, 9:12]
-
-    @property
-    def uv(self) -> np.ndarray | None:
-        return None if self.texture_vertices is None else self.texture_vertices[:, 0:2]
+        """Each triangle's emitted radiance, (T, 3) float32."""
+        return self._per_triangle(4)
 
     @property
     def texture(self) -> np.ndarray | None:
-        return None if self.texture_vertices is None else self.texture_vertices[:, 2:5]
+        """Each triangle's texture attribute (T, 3), or None without textures."""
+        return self._per_triangle(8) if self.has_textures else None
+
+    def _per_triangle(self, column: int) -> np.ndarray:
+        rows = np.ascontiguousarray(self.materials[:, column:column + 3]).view("V12")[:, 0]
+        return np.take(rows, self.triangle_material).view(np.float32).reshape(-1, 3)
 
     @property
     def vertex_count(self) -> int:
         return len(self.vertices)
+
+    @property
+    def triangle_count(self) -> int:
+        return len(self.triangle_material)
 
     @property
     def has_textures(self) -> bool:
@@ -71,10 +93,10 @@ class WorldGeometry:
     def albedo_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
         """Albedo (m, 3) at points on triangles: the base colour, or the texture sampled at the
         interpolated UV (bilinear, Repeat), capped like base colours."""
-        albedo = self.albedo.reshape(-1, 3, 3)[triangle, 0].astype(np.float64)
+        albedo = self.albedo[triangle].astype(np.float64)
         if not self.has_textures or len(triangle) == 0:
             return albedo
-        layer = self.texture.reshape(-1, 3, 3)[triangle, 0, 0].astype(int)
+        layer = self.materials[self.triangle_material[triangle], 8].astype(int)
         rows = np.flatnonzero(layer >= 0)
         if len(rows) == 0:
             return albedo
@@ -90,6 +112,12 @@ class WorldGeometry:
             group = layer[rows] == k
             albedo[rows[group]] = tex.sample(self.textures[k], at[group])
         return np.clip(albedo, 0.0, MAX_ALBEDO)
+
+
+def empty_geometry() -> WorldGeometry:
+    """Geometry without triangles (one material row of zeros, as the GPU needs a buffer)."""
+    return WorldGeometry(np.zeros((0, 6), np.float32), np.zeros(0, np.int32),
+                         np.zeros((1, MATERIAL_COLUMNS), np.float32))
 
 
 def _transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -123,66 +151,82 @@ def _albedo_table(materials: list[Material], warnings: list[str]) -> np.ndarray:
     return np.clip(table, 0.0, MAX_ALBEDO)
 
 
-def _material_tables(materials: list[Material], warnings: list[str],
-                     textures: tex.TextureSet | None) -> tuple[np.ndarray, ...]:
-    """Albedo (capped, see ``_albedo_table``), emission (finite, >= 0) and, with ``textures``,
-    the texture attribute per material slot; textures count with their average colour."""
+def _material_rows(materials: list[Material], warnings: list[str],
+                   textures: tex.TextureSet) -> np.ndarray:
+    """Material-table rows (n, MATERIAL_COLUMNS) of one material list: albedo (capped, see
+    ``_albedo_table``), emission (finite, >= 0) and texture attribute; textures count with
+    their average colour."""
     albedo = _albedo_table(materials, warnings)
-    emission = np.array([m.emission for m in materials] or [(0.0, 0.0, 0.0)], np.float64)
+    emission = np.array([m.emission for m in materials], np.float64)
     emission = np.where(np.isfinite(emission), np.maximum(emission, 0), 0)
-    if textures is None:
-        return albedo, emission
     for row, material in enumerate(materials):
         if material.base_color_texture is not None:
             albedo[row] = np.clip(tex.mean_color(material.base_color_texture), 0, MAX_ALBEDO)
         if material.emission_texture is not None:
             emission[row] *= tex.mean_color(material.emission_texture)
-    attribute = np.array([textures.columns(m) for m in materials], np.float64)
-    return albedo, emission, attribute
+    rows = np.zeros((len(materials), MATERIAL_COLUMNS), np.float32)
+    rows[:, 0:3], rows[:, 4:7] = albedo, emission
+    rows[:, 8:11] = [textures.columns(m) for m in materials]
+    return rows
 
 
-def _instance_tables(members: list[Instance], width: int, tables: dict, warnings: list[str],
-                     textures: tex.TextureSet | None) -> list[np.ndarray]:
-    """Albedo, emission and, with ``textures``, the texture attribute per instance and mesh
-    slot, (n, width, 3) float32: n = 1 when all instances share their materials (it broadcasts
-    over them), else one row per instance. Slots past an instance's materials take its last."""
-    index_of: dict[tuple, int] = {}
-    distinct: list[list[Material]] = []
-    index = np.empty(len(members), np.intp)
-    for row, inst in enumerate(members):
-        key = tuple(id(m) for m in inst.materials)
-        if key not in index_of:
-            index_of[key] = len(distinct)
-            distinct.append(inst.materials)
-        index[row] = index_of[key]
-    per_slot = [np.zeros((len(distinct), width, 3), np.float32)
-                for _ in range(2 if textures is None else 3)]
-    for row, (key, materials) in enumerate(zip(index_of, distinct, strict=True)):
-        if key not in tables:
-            tables[key] = _material_tables(materials or [Material("(no material)")], warnings,
-                                           textures)
-        clipped = np.minimum(np.arange(width), len(tables[key][0]) - 1)
-        for table, values in zip(per_slot, tables[key], strict=True):
-            table[row] = values[clipped]
-    return per_slot if len(distinct) == 1 else [table[index] for table in per_slot]
+class _MaterialTable:
+    """The frame's material table: one block of rows per distinct material list (one row per
+    slot), shared by every instance with that list."""
+
+    def __init__(self, warnings: list[str]) -> None:
+        self.warnings = warnings
+        self.textures = tex.TextureSet()
+        self.blocks: list[np.ndarray] = []
+        self._first: dict[tuple[int, ...], int] = {}
+        self.row_count = 0
+
+    def first_rows(self, members: list[Instance]) -> tuple[np.ndarray, np.ndarray]:
+        """Each instance's first row and row count (k,), adding new material lists."""
+        found: dict[int, tuple[int, int]] = {}  # by list object: instances of one object share it
+        rows = []
+        for inst in members:
+            known = found.get(id(inst.materials))
+            if known is None:
+                known = found[id(inst.materials)] = self._block(inst.materials or NO_MATERIAL)
+            rows.append(known)
+        first, count = np.array(rows, np.int64).reshape(-1, 2).T
+        return first, count
+
+    def _block(self, materials: list[Material]) -> tuple[int, int]:
+        key = tuple(id(m) for m in materials)
+        if key not in self._first:
+            self._first[key] = self.row_count
+            self.blocks.append(_material_rows(materials, self.warnings, self.textures))
+            self.row_count += len(materials)
+        return self._first[key], len(materials)
+
+    def rows(self) -> np.ndarray:
+        """All rows, (M, MATERIAL_COLUMNS) float32 (one row of zeros when empty)."""
+        if not self.blocks:
+            return np.zeros((1, MATERIAL_COLUMNS), np.float32)
+        return np.concatenate(self.blocks)
 
 
-def _per_corner(table: np.ndarray, slots: np.ndarray) -> np.ndarray:
-    """Per-slot rows (n, width, c) as (n, T, 1, c), to broadcast over triangles' corners."""
-    return table[:, :, None] if table.shape[1] == 1 else table[:, slots, None]
+def _gather_rows(values: np.ndarray, index: np.ndarray | None) -> np.ndarray:
+    """(k, R, 3) float32 rows as (k, C) 12-byte records, gathered at ``index`` (C,) or all
+    rows when None (numpy's float loops over the 3 floats of each row take several times
+    longer than moving whole records)."""
+    records = np.ascontiguousarray(values, np.float32).view("V12")[..., 0]
+    return records if index is None else np.take(records, index, axis=1)
 
 
-def _flatten_group(members: list[Instance], tables: dict, warnings: list[str],
-                   textures: tex.TextureSet | None, out: np.ndarray,
-                   texture_out: np.ndarray | None) -> np.ndarray | None:
-    """Write world positions, normals, albedo and emission of every instance of one shared mesh
-    into ``out`` (k·V, 12), transformed together in float32 as the GPU gets them, and with
-    ``textures`` UVs and the texture attribute into ``texture_out`` (k·V, 5). Returns the mask
-    of vertices on finite triangles, or None when all are finite."""
+def _flatten_group(members: list[Instance], table: _MaterialTable, warnings: list[str],
+                   out: np.ndarray, uv_out: np.ndarray | None, material_out: np.ndarray
+                   ) -> np.ndarray | None:
+    """Write world positions and normals of every instance of one shared mesh into ``out``
+    (k·V, 6), transformed together in float32 as the GPU gets them (each stored point and
+    normal once, then gathered per corner), UVs into ``uv_out`` (k·V, 2) if given, and each
+    triangle's material row into ``material_out`` (k·T,). Returns the mask of vertices on
+    finite triangles, or None when all are finite."""
     mesh = members[0].mesh
-    k, vertices, triangles = len(members), len(mesh.positions), mesh.triangle_count
-    block = out.reshape(k, vertices, 12)
-    records = block.view("V12")  # (k, V, 4): position, normal, albedo, emission
+    k, triangles = len(members), mesh.triangle_count
+    corners = 3 * triangles
     matrices = np.stack([inst.matrix for inst in members]).astype(np.float64)
     identity = k == 1 and np.array_equal(matrices[0], np.eye(4))
     normals = mesh.normals if np.isfinite(mesh.normals).all() else np.nan_to_num(mesh.normals)
@@ -202,35 +246,33 @@ def _flatten_group(members: list[Instance], tables: dict, warnings: list[str],
         positive = length > 0
         if not positive.all():
             normals[~positive] = 0.0
-    # contiguous results copied in as 12-byte records: numpy's float loops over the 3 floats
-    # of each strided vertex take about twice as long
-    records[..., 0] = np.ascontiguousarray(world, np.float32).view("V12")[..., 0]
-    records[..., 1] = normals.view("V12")[..., 0]
+    records = out.reshape(k, corners, 6).view("V12")  # (k, C, 2): position, normal
+    records[..., 0] = _gather_rows(world, mesh.position_index)
+    records[..., 1] = _gather_rows(normals, mesh.normal_index)
     keep = None
     if not np.isfinite(world).all():
-        finite = np.isfinite(world).all(axis=2).reshape(k, -1, 3).all(axis=2)
+        finite_points = np.isfinite(world).all(axis=2)
+        if mesh.position_index is not None:
+            finite_points = finite_points[:, mesh.position_index]
+        finite = finite_points.reshape(k, triangles, 3).all(axis=2)
         for row in np.flatnonzero(~finite.all(axis=1)):
             warnings.append(f"mesh '{mesh.name}': {int((~finite[row]).sum())} of "
-                            f"{finite.shape[1]} triangles have NaN/Inf positions and were left out")
+                            f"{triangles} triangles have NaN/Inf positions and were left out")
         keep = np.repeat(finite, 3, axis=1).ravel()
+    if uv_out is not None:
+        uvs = mesh.corner_uvs()
+        uv_out.reshape(k, corners, 2)[:] = 0.0 if uvs is None else uvs
+    first, count = table.first_rows(members)
     slots = np.clip(mesh.material_slots, 0, None)
-    width = int(slots.max(initial=0)) + 1
-    per_slot = _instance_tables(members, width, tables, warnings, textures)
-    # albedo and emission in one pass, copied as 24-byte records (numpy's float loop over the
-    # 6 floats of each vertex would take about twice as long)
-    colours = np.ascontiguousarray(np.concatenate(per_slot[:2], axis=2)).view("V24")
-    block.view("V24").reshape(k, triangles, 3, 2)[..., 1] = _per_corner(colours, slots)[..., 0]
-    if texture_out is not None:
-        stream = texture_out.reshape(k, vertices, 5)
-        stream[..., 0:2] = mesh.uvs if mesh.uvs is not None else 0.0
-        stream.reshape(k, triangles, 3, 5)[..., 2:5] = _per_corner(per_slot[2], slots)
+    rows = first[:, None] + np.minimum(slots[None], count[:, None] - 1)
+    material_out.reshape(k, triangles)[:] = rows
     return keep
 
 
 def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
-    """All instances in world space, with each triangle's material spread to its vertices,
-    written straight into the interleaved vertex arrays. Instances of one mesh are transformed
-    together (the order is by each mesh's first instance).
+    """All instances in world space with each triangle's material row, written straight into
+    the interleaved vertex array. Instances of one mesh are transformed together (the order is
+    by each mesh's first instance).
 
     Triangles whose world positions are not finite (NaN/Inf vertices or transforms) are left
     out, with one warning per instance."""
@@ -238,27 +280,29 @@ def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
     for inst in scene.instances:
         if inst.mesh.triangle_count:
             groups.setdefault(id(inst.mesh), []).append(inst)
-    tables: dict[tuple, tuple[np.ndarray, ...]] = {}
     textured = any(m.base_color_texture or m.emission_texture
                    for members in groups.values() for inst in members for m in inst.materials)
-    textures = tex.TextureSet() if textured else None
-    sizes = [len(members) * len(members[0].mesh.positions) for members in groups.values()]
-    vertices = np.empty((sum(sizes), 12), np.float32)
-    stream = np.empty((sum(sizes), 5), np.float32) if textured else None
+    sizes = [len(members) * members[0].mesh.triangle_count for members in groups.values()]
+    table = _MaterialTable(warnings)
+    vertices = np.empty((3 * sum(sizes), 6), np.float32)
+    uv = np.empty((3 * sum(sizes), 2), np.float32) if textured else None
+    triangle_material = np.empty(sum(sizes), np.int32)
     masks, start = [], 0
     for members, size in zip(groups.values(), sizes, strict=True):
-        part = slice(start, start + size)
-        masks.append(_flatten_group(members, tables, warnings, textures, vertices[part],
-                                    None if stream is None else stream[part]))
+        corners = slice(3 * start, 3 * (start + size))
+        masks.append(_flatten_group(members, table, warnings, vertices[corners],
+                                    None if uv is None else uv[corners],
+                                    triangle_material[start:start + size]))
         start += size
     if any(mask is not None for mask in masks):
-        keep = np.concatenate([np.ones(size, bool) if mask is None else mask
+        keep = np.concatenate([np.ones(3 * size, bool) if mask is None else mask
                                for mask, size in zip(masks, sizes, strict=True)])
         vertices = vertices[keep]
-        stream = None if stream is None else stream[keep]
-    if textures is None or not textures.textures:
-        return WorldGeometry(vertices)
-    return WorldGeometry(vertices, stream, textures.textures)
+        uv = None if uv is None else uv[keep]
+        triangle_material = triangle_material[keep[::3]]
+    textures = table.textures.textures
+    return WorldGeometry(vertices, triangle_material, table.rows(), uv if textures else None,
+                         textures)
 
 
 def bounding_sphere(positions: np.ndarray) -> tuple[np.ndarray, float]:
@@ -306,7 +350,8 @@ def light_shapes(scene: Scene) -> WorldGeometry:
         normals.append(np.repeat(facing[None], len(world), axis=0))
         emission.append(np.repeat(radiance[None], len(world), axis=0))
     if not positions:
-        return WorldGeometry(np.zeros((0, 12), np.float32))
+        return empty_geometry()
     pos = np.concatenate(positions)
-    return WorldGeometry.from_columns(pos, np.concatenate(normals), np.zeros_like(pos),
-                                      np.concatenate(emission))
+    return WorldGeometry.from_triangles(pos, np.concatenate(normals),
+                                        np.zeros((len(pos) // 3, 3)),
+                                        np.concatenate(emission)[::3])

@@ -245,7 +245,7 @@ def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator)
 
 def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
                   rng: np.random.Generator) -> None:
-    emission = geometry.emission.reshape(-1, 3, 3)[:, 0]
+    emission = geometry.emission
     emitting = np.flatnonzero(emission.max(axis=1) > 0)
     if len(emitting) == 0:
         return

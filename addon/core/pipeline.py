@@ -26,6 +26,7 @@ from .planner import Bounds, plan_frame, plan_gather, reaches_bounds, visible_bo
 from .raytrace import RayTracer
 from .rsm import render_rsm, rsm_hits, rsm_light_samples
 from .scene import Camera, Scene
+from .scene_buffers import POSITION_FORMAT, VERTEX_ATTRIBUTES, VERTEX_FORMAT, SceneBuffers
 from .sequences import scrambled_halton
 from .settings import Settings
 from .shading import GeometryAwareBlur
@@ -37,9 +38,6 @@ MAX_TILE = 1024  # supersampled pixels per image tile edge
 ATLAS_TEXELS = 1 << 25  # texels per shadow atlas batch (128 MiB of float32)
 MAX_BATCH = 8192  # samples or tiles per batch (rows of a table texture)
 MAX_FRAME_SAMPLES = 1 << 27  # supersampled pixels per frame: the passes alone take 80 B each
-VERTEX_FORMAT = "3f 3f 3f 3f"
-VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_albedo", "in_emission")
-TEXTURE_VERTEX_FORMAT = "2f 3f"  # the texture path's second stream: uv, texture attribute
 TEXTURE_UNITS = 0, 1  # the g-buffer's array texture and its table of sizes
 ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see core/ism.py)
 ISM_POINT_SUBSETS = 512  # stratified point sets sampled on the CPU (~0.4 µs a point); VPL k uses
@@ -554,13 +552,12 @@ class Renderer:
         samples = rsm_light_samples(scene, settings)
         if len(samples) == 0:
             return VPLs.empty()
-        vbo = self.ctx.buffer(geometry.vertices)
+        buffers = SceneBuffers(self.ctx, geometry)
         try:
-            table, position, normal, albedo = render_rsm(self.ctx, self.programs, vbo,
-                                                        geometry.vertex_count, samples, centre,
-                                                        radius)
+            table, position, normal, albedo = render_rsm(self.ctx, self.programs, buffers,
+                                                        samples, centre, radius)
         finally:
-            vbo.release()
+            buffers.release()
         first = rsm_hits(table, position, normal, albedo, samples, radius, settings.vpl_count,
                          settings.seed)
         directions = scrambled_halton(settings.vpl_count, 2 * max(0, settings.bounces - 1),
@@ -717,15 +714,12 @@ class _FrameResources:
         self._objects: list = []
         self._tile_objects: list = []
         self._atlas_objects: list = []
-        self.scene_vbo = self._buffer(geometry)
-        self.scene_vertices = geometry.vertex_count
-        self.shape_vbo = self._buffer(shapes)
-        self.shape_vertices = shapes.vertex_count
+        self.scene = self._buffers(geometry)
+        self.shapes = self._buffers(shapes)
         self.geometry = geometry
-        self.textured = None  # the texture path: (vertex buffer, array texture, size table)
+        self.textures = None  # the texture path: (array texture, size table)
         if geometry.has_textures:
-            self.textured = (self._own(self.ctx.buffer(geometry.texture_vertices)),
-                             *(self._own(t) for t in upload_textures(ctx, geometry.textures)))
+            self.textures = tuple(self._own(t) for t in upload_textures(ctx, geometry.textures))
         self._surfaces: tuple[moderngl.Buffer, moderngl.Buffer] | None = None
         self._atlas: tuple[moderngl.Texture, _Batch] | None = None
         self.kept_hits = 0  # atlases taken from an earlier frame
@@ -735,10 +729,14 @@ class _FrameResources:
         self._objects.append(obj)
         return obj
 
-    def _buffer(self, geometry: WorldGeometry) -> moderngl.Buffer | None:
+    def _buffers(self, geometry: WorldGeometry) -> SceneBuffers | None:
         if geometry.vertex_count == 0:
             return None
-        return self._own(self.ctx.buffer(geometry.vertices))
+        try:
+            return self._own(SceneBuffers(self.ctx, geometry))
+        except ValueError as exc:  # more triangles or materials than the GPU's textures hold
+            self.release()
+            raise RenderError(f"the scene is too large for this GPU: {exc}") from None
 
     def release(self) -> None:
         self._release_tile()
@@ -779,23 +777,23 @@ class _FrameResources:
                                       np.linalg.norm(camera_to_world[:3, 2])),
             "u_orthographic": camera.is_orthographic,
         }
-        scene_defines = {"TEXTURED": 1} if self.textured else None
-        for vbo, count, defines in ((self.scene_vbo, self.scene_vertices, scene_defines),
-                                    (self.shape_vbo, self.shape_vertices, {"ONE_SIDED": 1})):
-            if vbo is None:
+        scene_defines = {"TEXTURED": 1} if self.textures else None
+        for buffers, defines in ((self.scene, scene_defines), (self.shapes, {"ONE_SIDED": 1})):
+            if buffers is None:
                 continue
             program = self.programs.get("gbuffer_vert.glsl", "gbuffer_frag.glsl", defines)
             _set_uniforms(program, **uniforms)
-            streams = [(vbo, VERTEX_FORMAT, *VERTEX_ATTRIBUTES)]
-            if defines is scene_defines and self.textured:
-                buffer, array, sizes = self.textured
-                streams.append((buffer, TEXTURE_VERTEX_FORMAT, "in_uv", "in_texture"))
+            streams = [(buffers.vertices, VERTEX_FORMAT, *VERTEX_ATTRIBUTES)]
+            if defines is scene_defines and self.textures:
+                array, sizes = self.textures
+                streams.append((buffers.uv, "2f", "in_uv"))
                 array.use(TEXTURE_UNITS[0])
                 sizes.use(TEXTURE_UNITS[1])
                 _set_uniforms(program, u_textures=TEXTURE_UNITS[0],
                               u_texture_sizes=TEXTURE_UNITS[1])
+            buffers.bind_materials(program)
             vao = self._tile(self.ctx.vertex_array(program, streams, skip_errors=True))
-            vao.render(moderngl.TRIANGLES, vertices=count)
+            vao.render(moderngl.TRIANGLES, vertices=buffers.vertex_count)
         self.ctx.disable(moderngl.DEPTH_TEST)
         self._gbuffer_textures = dict(zip(names, textures, strict=True))
         return {name: np.frombuffer(tex.read(), dtype=np.float32).reshape(size[1], size[0], 4)
@@ -839,18 +837,19 @@ class _FrameResources:
         fbo.clear(3.0e38, 0.0, 0.0, 0.0, depth=1.0)
         self._atlas = (texture, batch)
         s = batch.samples
-        if self.scene_vbo is None or not s.casts_shadow.any():
+        if self.scene is None or not s.casts_shadow.any():
             return texture
         table = tile_table(s, batch.first_tile, batch.columns, centre, radius)
         tiles = table.texture(self.ctx)
         keep(tiles)
         tiles.use(0)
         program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl")
-        vao = self.ctx.vertex_array(program, [(self.scene_vbo, "3f 36x", "in_position")])
+        vao = self.ctx.vertex_array(program, [(self.scene.vertices, POSITION_FORMAT,
+                                               "in_position")])
         keep(vao)
         _set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
                       u_scene_centre=tuple(centre), u_scene_radius=radius)
-        draw_tiles(self.ctx, vao, self.scene_vertices, len(table.rows))
+        draw_tiles(self.ctx, vao, self.scene.vertex_count, len(table.rows))
         return texture
 
     # -- shading --------------------------------------------------------------------------
@@ -907,8 +906,8 @@ class _FrameResources:
             g = self.geometry
             vertices = np.zeros((g.vertex_count, 4), np.float32)
             vertices[:, :3] = g.positions
-            albedo = np.zeros((g.vertex_count // 3, 4), np.float32)
-            albedo[:, :3] = g.albedo[::3]
+            albedo = np.zeros((g.triangle_count, 4), np.float32)
+            albedo[:, :3] = g.albedo
             self._surfaces = (self._own(self.ctx.buffer(vertices.tobytes())),
                               self._own(self.ctx.buffer(albedo.tobytes())))
         self._surfaces[0].bind_to_storage_buffer(SURFACE_VERTICES_BINDING)

@@ -12,10 +12,11 @@ import moderngl
 import numpy as np
 
 from .atlas import TileTable, draw_tiles, tile_table
-from .geometry import WorldGeometry
+from .geometry import empty_geometry
 from .gl import ProgramCache
 from .lights import KIND_COSINE, LightSamples, build_light_samples, spot_mask, spread_attenuation
 from .scene import Scene, World
+from .scene_buffers import POSITION_FORMAT, SceneBuffers
 from .settings import Settings
 from .vpl import LUMINANCE, SurfaceHits
 
@@ -26,7 +27,7 @@ def rsm_light_samples(scene: Scene, settings: Settings) -> LightSamples:
     lights = [replace(light, radius=0.0, sun_angle=0.0, size_x=0.0, size_y=0.0)
               for light in scene.lights]
     plain = Scene([], lights, World(), scene.camera)
-    samples = build_light_samples(plain, WorldGeometry(np.zeros((0, 12), np.float32)),
+    samples = build_light_samples(plain, empty_geometry(),
                                   replace(settings, light_samples=1), [])
     samples.resolution = np.full(len(samples), settings.rsm_resolution)
     samples.casts_shadow = np.ones(len(samples), bool)
@@ -40,8 +41,8 @@ def _texel_solid_angle(resolution: int) -> np.ndarray:
     return (2.0 / resolution) ** 2 / (1 + u * u + v * v) ** 1.5
 
 
-def render_rsm(ctx: moderngl.Context, programs: ProgramCache, vbo: moderngl.Buffer,
-               vertices: int, samples: LightSamples, centre: np.ndarray, radius: float
+def render_rsm(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffers,
+               samples: LightSamples, centre: np.ndarray, radius: float
                ) -> tuple[TileTable, np.ndarray, np.ndarray, np.ndarray]:
     """The tiles and their position, normal and albedo images (tiles, res, res, 4)."""
     res = int(samples.resolution[0]) if len(samples) else 1
@@ -65,9 +66,10 @@ def render_rsm(ctx: moderngl.Context, programs: ProgramCache, vbo: moderngl.Buff
                             "u_scene_centre": tuple(centre), "u_scene_radius": radius}.items():
             if name in program:
                 program[name].value = value
-        vao = ctx.vertex_array(program, [(vbo, "3f 12x 3f 12x", "in_position", "in_albedo")])
+        scene.bind_materials(program)
+        vao = ctx.vertex_array(program, [(scene.vertices, POSITION_FORMAT, "in_position")])
         objects.append(vao)
-        draw_tiles(ctx, vao, vertices, count)
+        draw_tiles(ctx, vao, scene.vertex_count, count)
         images = [np.frombuffer(t.read(), np.float32).reshape(size[1] // res, res, columns, res,
                                                               4).transpose(0, 2, 1, 3, 4)
                   .reshape(-1, res, res, 4)[:count] for t in targets]

@@ -115,7 +115,7 @@ def average_reflectance(geometry: WorldGeometry) -> float:
     if len(tri) == 0:
         return 0.0
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    albedo = geometry.albedo.reshape(-1, 3, 3)[:, 0] @ LUMINANCE
+    albedo = geometry.albedo @ LUMINANCE
     return float((area * albedo).sum() / max(area.sum(), 1e-300))
 
 
@@ -211,7 +211,7 @@ def _world_emitter(scene: Scene, centre: np.ndarray, radius: float) -> _Emitter 
 
 def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
     """Emissive triangles, two-sided Lambertian: flux 2 π L A each."""
-    emission = geometry.emission.reshape(-1, 3, 3)[:, 0].astype(np.float64)
+    emission = geometry.emission.astype(np.float64)
     emitting = np.flatnonzero(emission.max(axis=1) > 0)
     if len(emitting) == 0:
         return None

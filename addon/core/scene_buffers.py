@@ -1,0 +1,65 @@
+"""A WorldGeometry on the GPU: its vertex buffer, material table and per-triangle rows (as
+textures read by gpu_shaders/materials_lib.glsl), and its UVs when textured."""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from .geometry import WorldGeometry
+
+VERTEX_FORMAT = "3f 3f"  # position, normal (WorldGeometry.vertices)
+VERTEX_ATTRIBUTES = ("in_position", "in_normal")
+POSITION_FORMAT = "3f 12x"  # the position alone, for passes that need no normal
+MATERIAL_UNITS = 2, 3  # texture units of the triangles' rows and the material table
+TABLE_WIDTH = 4096  # texels per line of both tables
+
+
+def _table_texture(ctx: moderngl.Context, values: np.ndarray, components: int, dtype: str
+                   ) -> moderngl.Texture:
+    """``values`` (n, components) as a texture of TABLE_WIDTH-texel lines (entry i at
+    (i % width, i // width)); ValueError when it exceeds the GPU's texture size."""
+    count = max(len(values), 1)
+    width = min(count, TABLE_WIDTH)
+    height = -(-count // width)
+    if height > ctx.info["GL_MAX_TEXTURE_SIZE"]:
+        raise ValueError(f"{len(values):,} table entries exceed the GPU's texture size")
+    padded = np.zeros((width * height, components), values.dtype)
+    padded[:len(values)] = values
+    texture = ctx.texture((width, height), components, padded, dtype=dtype)
+    texture.filter = moderngl.NEAREST, moderngl.NEAREST
+    return texture
+
+
+class SceneBuffers:
+    """GPU copies of one WorldGeometry with at least one triangle; release() frees them."""
+
+    def __init__(self, ctx: moderngl.Context, geometry: WorldGeometry) -> None:
+        self.vertex_count = geometry.vertex_count
+        self.vertices = ctx.buffer(geometry.vertices)
+        self._objects: list = [self.vertices]
+        try:
+            rows = geometry.triangle_material.astype(np.int32, copy=False)[:, None]
+            self.triangle_material = self._own(_table_texture(ctx, rows, 1, "i4"))
+            table = geometry.materials.reshape(-1, 4)  # three RGBA texels a row
+            self.materials = self._own(_table_texture(ctx, table, 4, "f4"))
+            self.uv = None if geometry.uv is None else self._own(ctx.buffer(geometry.uv))
+        except Exception:
+            self.release()
+            raise
+
+    def _own(self, obj):
+        self._objects.append(obj)
+        return obj
+
+    def bind_materials(self, program: moderngl.Program) -> None:
+        """Bind the triangles' rows and the material table for materials_lib.glsl."""
+        self.triangle_material.use(MATERIAL_UNITS[0])
+        self.materials.use(MATERIAL_UNITS[1])
+        program["u_triangle_materials"].value = MATERIAL_UNITS[0]
+        program["u_materials"].value = MATERIAL_UNITS[1]
+
+    def release(self) -> None:
+        for obj in self._objects:
+            obj.release()
+        self._objects.clear()

@@ -1,0 +1,29 @@
+// The material table of core/geometry.py and each triangle's row in it, as textures
+// (core/scene_buffers.py; OpenGL 4.1 has no storage buffers): entry i of a table is texel
+// (i % width, i / width). A material row is three texels: albedo, emission, texture attribute.
+// Vertex shaders pass the triangle index (gl_VertexID / 3, which instanced draws do not reset).
+#ifndef MATERIALS_LIB_GLSL
+#define MATERIALS_LIB_GLSL
+
+uniform isampler2D u_triangle_materials;
+uniform sampler2D u_materials;
+
+struct Material {
+    vec4 albedo;
+    vec4 emission;
+    vec4 texture;  // albedo layer, emission layer (-1 = none), emission strength
+};
+
+vec4 material_texel(int i) {
+    int width = textureSize(u_materials, 0).x;
+    return texelFetch(u_materials, ivec2(i % width, i / width), 0);
+}
+
+Material material_of(int triangle) {
+    int width = textureSize(u_triangle_materials, 0).x;
+    int row = texelFetch(u_triangle_materials, ivec2(triangle % width, triangle / width), 0).r;
+    return Material(material_texel(3 * row), material_texel(3 * row + 1),
+                    material_texel(3 * row + 2));
+}
+
+#endif
