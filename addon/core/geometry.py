@@ -1,5 +1,5 @@
-"""World-space triangle data for the GPU: instances flattened into one vertex stream with
-per-vertex material values, visible light shapes, and the scene's bounding sphere."""
+"""World-space triangle data for the GPU: instances flattened into one vertex stream with a
+material-table row per triangle, visible light shapes, and the scene's bounding sphere."""
 
 from __future__ import annotations
 

@@ -80,7 +80,7 @@ class TextureSet:
         return float(self._layers[key])
 
     def columns(self, material: Material) -> tuple[float, float, float]:
-        """A material's per-vertex texture attribute: albedo layer, emission layer, and the
+        """A material's texture attribute: albedo layer, emission layer, and the
         emission strength the emission texture is multiplied by."""
         scale = float(np.max(material.emission)) if material.emission_texture else 0.0
         return (self.layer(material.base_color_texture),
