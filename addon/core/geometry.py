@@ -22,9 +22,9 @@ NO_MATERIAL = [Material("(no material)")]  # an instance without material slots
 
 @dataclass
 class WorldGeometry:
-    """Flattened triangles: 3 vertices per triangle (position and normal, float32, interleaved
-    as the GPU reads them; ``positions`` and ``normals`` are views of ``vertices``), and a row
-    of the material table per triangle.
+    """Flattened triangles: 3 vertices per triangle (positions and normals, float32, each a
+    vertex stream of its own as the GPU reads them), and a row of the material table per
+    triangle.
 
     A material row holds the albedo, the emission and the texture attribute (albedo layer,
     emission layer — NO_TEXTURE for none — and the strength the emission texture is multiplied
@@ -32,7 +32,8 @@ class WorldGeometry:
     as albedo and emission (the per-triangle values light sampling and path termination use);
     ``uv`` (per vertex) is set only when some material has a texture."""
 
-    vertices: np.ndarray  # (V, 6) C-contiguous float32: position, normal
+    positions: np.ndarray  # (V, 3) C-contiguous float32
+    normals: np.ndarray  # (V, 3) C-contiguous float32
     triangle_material: np.ndarray  # (V/3,) int32 rows of ``materials``
     materials: np.ndarray  # (M, MATERIAL_COLUMNS) float32
     uv: np.ndarray | None = None  # (V, 2) float32, only with textures
@@ -43,20 +44,13 @@ class WorldGeometry:
                        emission: np.ndarray) -> WorldGeometry:
         """Untextured geometry from vertex positions and normals (V, 3) and each triangle's
         albedo and emission (V/3, 3), one material row per triangle."""
-        vertices = np.hstack([positions, normals]).astype(np.float32)
-        count = len(vertices) // 3
+        count = len(positions) // 3
         materials = np.zeros((count, MATERIAL_COLUMNS), np.float32)
         materials[:, 0:3], materials[:, 4:7] = albedo, emission
         materials[:, 8:11] = NO_TEXTURE_ATTRIBUTE
-        return cls(vertices, np.arange(count, dtype=np.int32), materials)
-
-    @property
-    def positions(self) -> np.ndarray:
-        return self.vertices[:, 0:3]
-
-    @property
-    def normals(self) -> np.ndarray:
-        return self.vertices[:, 3:6]
+        return cls(np.ascontiguousarray(positions, np.float32),
+                   np.ascontiguousarray(normals, np.float32),
+                   np.arange(count, dtype=np.int32), materials)
 
     @cached_property
     def albedo(self) -> np.ndarray:
@@ -79,7 +73,7 @@ class WorldGeometry:
 
     @property
     def vertex_count(self) -> int:
-        return len(self.vertices)
+        return len(self.positions)
 
     @property
     def triangle_count(self) -> int:
@@ -116,7 +110,8 @@ class WorldGeometry:
 
 def empty_geometry() -> WorldGeometry:
     """Geometry without triangles (one material row of zeros, as the GPU needs a buffer)."""
-    return WorldGeometry(np.zeros((0, 6), np.float32), np.zeros(0, np.int32),
+    empty = np.zeros((0, 3), np.float32)
+    return WorldGeometry(empty, empty, np.zeros(0, np.int32),
                          np.zeros((1, MATERIAL_COLUMNS), np.float32))
 
 
@@ -208,22 +203,26 @@ class _MaterialTable:
         return np.concatenate(self.blocks)
 
 
-def _gather_rows(values: np.ndarray, index: np.ndarray | None) -> np.ndarray:
-    """(k, R, 3) float32 rows as (k, C) 12-byte records, gathered at ``index`` (C,) or all
-    rows when None (numpy's float loops over the 3 floats of each row take several times
-    longer than moving whole records)."""
+def _gather_rows(values: np.ndarray, index: np.ndarray | None, out: np.ndarray) -> None:
+    """Write (k, R, 3) float32 rows into ``out`` (k·C, 3), gathered at ``index`` (C,), or all
+    rows when None, as 12-byte records (numpy's float loops over the 3 floats of each row take
+    several times longer than moving whole records)."""
     records = np.ascontiguousarray(values, np.float32).view("V12")[..., 0]
-    return records if index is None else np.take(records, index, axis=1)
+    target = out.view("V12").reshape(len(records), -1)
+    if index is None:
+        target[:] = records
+    else:
+        np.take(records, index, axis=1, out=target, mode="clip")  # clip: unbuffered
 
 
 def _flatten_group(members: list[Instance], table: _MaterialTable, warnings: list[str],
-                   out: np.ndarray, uv_out: np.ndarray | None, material_out: np.ndarray
-                   ) -> np.ndarray | None:
-    """Write world positions and normals of every instance of one shared mesh into ``out``
-    (k·V, 6), transformed together in float32 as the GPU gets them (each stored point and
-    normal once, then gathered per corner), UVs into ``uv_out`` (k·V, 2) if given, and each
-    triangle's material row into ``material_out`` (k·T,). Returns the mask of vertices on
-    finite triangles, or None when all are finite."""
+                   positions_out: np.ndarray, normals_out: np.ndarray,
+                   uv_out: np.ndarray | None, material_out: np.ndarray) -> np.ndarray | None:
+    """Write world positions and normals of every instance of one shared mesh into
+    ``positions_out`` and ``normals_out`` (k·V, 3), transformed together in float32 as the GPU
+    gets them (each stored point and normal once, then gathered per corner), UVs into
+    ``uv_out`` (k·V, 2) if given, and each triangle's material row into ``material_out``
+    (k·T,). Returns the mask of vertices on finite triangles, or None when all are finite."""
     mesh = members[0].mesh
     k, triangles = len(members), mesh.triangle_count
     corners = 3 * triangles
@@ -246,9 +245,8 @@ def _flatten_group(members: list[Instance], table: _MaterialTable, warnings: lis
         positive = length > 0
         if not positive.all():
             normals[~positive] = 0.0
-    records = out.reshape(k, corners, 6).view("V12")  # (k, C, 2): position, normal
-    records[..., 0] = _gather_rows(world, mesh.position_index)
-    records[..., 1] = _gather_rows(normals, mesh.normal_index)
+    _gather_rows(world, mesh.position_index, positions_out)
+    _gather_rows(normals, mesh.normal_index, normals_out)
     keep = None
     if not np.isfinite(world).all():
         finite_points = np.isfinite(world).all(axis=2)
@@ -271,7 +269,7 @@ def _flatten_group(members: list[Instance], table: _MaterialTable, warnings: lis
 
 def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
     """All instances in world space with each triangle's material row, written straight into
-    the interleaved vertex array. Instances of one mesh are transformed together (the order is
+    the vertex streams. Instances of one mesh are transformed together (the order is
     by each mesh's first instance).
 
     Triangles whose world positions are not finite (NaN/Inf vertices or transforms) are left
@@ -284,25 +282,26 @@ def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
                    for members in groups.values() for inst in members for m in inst.materials)
     sizes = [len(members) * members[0].mesh.triangle_count for members in groups.values()]
     table = _MaterialTable(warnings)
-    vertices = np.empty((3 * sum(sizes), 6), np.float32)
+    positions = np.empty((3 * sum(sizes), 3), np.float32)
+    normals = np.empty((3 * sum(sizes), 3), np.float32)
     uv = np.empty((3 * sum(sizes), 2), np.float32) if textured else None
     triangle_material = np.empty(sum(sizes), np.int32)
     masks, start = [], 0
     for members, size in zip(groups.values(), sizes, strict=True):
         corners = slice(3 * start, 3 * (start + size))
-        masks.append(_flatten_group(members, table, warnings, vertices[corners],
-                                    None if uv is None else uv[corners],
+        masks.append(_flatten_group(members, table, warnings, positions[corners],
+                                    normals[corners], None if uv is None else uv[corners],
                                     triangle_material[start:start + size]))
         start += size
     if any(mask is not None for mask in masks):
         keep = np.concatenate([np.ones(3 * size, bool) if mask is None else mask
                                for mask, size in zip(masks, sizes, strict=True)])
-        vertices = vertices[keep]
+        positions, normals = positions[keep], normals[keep]
         uv = None if uv is None else uv[keep]
         triangle_material = triangle_material[keep[::3]]
     textures = table.textures.textures
-    return WorldGeometry(vertices, triangle_material, table.rows(), uv if textures else None,
-                         textures)
+    return WorldGeometry(positions, normals, triangle_material, table.rows(),
+                         uv if textures else None, textures)
 
 
 def bounding_sphere(positions: np.ndarray) -> tuple[np.ndarray, float]:

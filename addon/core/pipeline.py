@@ -26,7 +26,7 @@ from .planner import Bounds, plan_frame, plan_gather, reaches_bounds, visible_bo
 from .raytrace import RayTracer
 from .rsm import render_rsm, rsm_hits, rsm_light_samples
 from .scene import Camera, Scene
-from .scene_buffers import POSITION_FORMAT, VERTEX_ATTRIBUTES, VERTEX_FORMAT, SceneBuffers
+from .scene_buffers import SceneBuffers
 from .sequences import scrambled_halton
 from .settings import Settings
 from .shading import GeometryAwareBlur
@@ -783,7 +783,7 @@ class _FrameResources:
                 continue
             program = self.programs.get("gbuffer_vert.glsl", "gbuffer_frag.glsl", defines)
             _set_uniforms(program, **uniforms)
-            streams = [(buffers.vertices, VERTEX_FORMAT, *VERTEX_ATTRIBUTES)]
+            streams = buffers.streams()
             if defines is scene_defines and self.textures:
                 array, sizes = self.textures
                 streams.append((buffers.uv, "2f", "in_uv"))
@@ -844,8 +844,7 @@ class _FrameResources:
         keep(tiles)
         tiles.use(0)
         program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl")
-        vao = self.ctx.vertex_array(program, [(self.scene.vertices, POSITION_FORMAT,
-                                               "in_position")])
+        vao = self.ctx.vertex_array(program, self.scene.streams(normals=False))
         keep(vao)
         _set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
                       u_scene_centre=tuple(centre), u_scene_radius=radius)

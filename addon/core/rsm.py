@@ -16,7 +16,7 @@ from .geometry import empty_geometry
 from .gl import ProgramCache
 from .lights import KIND_COSINE, LightSamples, build_light_samples, spot_mask, spread_attenuation
 from .scene import Scene, World
-from .scene_buffers import POSITION_FORMAT, SceneBuffers
+from .scene_buffers import SceneBuffers
 from .settings import Settings
 from .vpl import LUMINANCE, SurfaceHits
 
@@ -67,7 +67,7 @@ def render_rsm(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffer
             if name in program:
                 program[name].value = value
         scene.bind_materials(program)
-        vao = ctx.vertex_array(program, [(scene.vertices, POSITION_FORMAT, "in_position")])
+        vao = ctx.vertex_array(program, scene.streams(normals=False))
         objects.append(vao)
         draw_tiles(ctx, vao, scene.vertex_count, count)
         images = [np.frombuffer(t.read(), np.float32).reshape(size[1] // res, res, columns, res,

@@ -1,5 +1,5 @@
-"""A WorldGeometry on the GPU: its vertex buffer, material table and per-triangle rows (as
-textures read by gpu_shaders/materials_lib.glsl), and its UVs when textured."""
+"""A WorldGeometry on the GPU: its position and normal buffers, its material table and each
+triangle's row (as textures read by gpu_shaders/materials_lib.glsl), and its UVs when textured."""
 
 from __future__ import annotations
 
@@ -8,9 +8,6 @@ import numpy as np
 
 from .geometry import WorldGeometry
 
-VERTEX_FORMAT = "3f 3f"  # position, normal (WorldGeometry.vertices)
-VERTEX_ATTRIBUTES = ("in_position", "in_normal")
-POSITION_FORMAT = "3f 12x"  # the position alone, for passes that need no normal
 MATERIAL_UNITS = 2, 3  # texture units of the triangles' rows and the material table
 TABLE_WIDTH = 4096  # texels per line of both tables
 
@@ -36,9 +33,10 @@ class SceneBuffers:
 
     def __init__(self, ctx: moderngl.Context, geometry: WorldGeometry) -> None:
         self.vertex_count = geometry.vertex_count
-        self.vertices = ctx.buffer(geometry.vertices)
-        self._objects: list = [self.vertices]
+        self._objects: list = []
         try:
+            self.positions = self._own(ctx.buffer(geometry.positions))
+            self.normals = self._own(ctx.buffer(geometry.normals))
             rows = geometry.triangle_material.astype(np.int32, copy=False)[:, None]
             self.triangle_material = self._own(_table_texture(ctx, rows, 1, "i4"))
             table = geometry.materials.reshape(-1, 4)  # three RGBA texels a row
@@ -51,6 +49,12 @@ class SceneBuffers:
     def _own(self, obj):
         self._objects.append(obj)
         return obj
+
+    def streams(self, normals: bool = True) -> list[tuple]:
+        """Vertex-array streams of the positions (``in_position``) and, with ``normals``, the
+        normals (``in_normal``)."""
+        streams = [(self.positions, "3f", "in_position")]
+        return [*streams, (self.normals, "3f", "in_normal")] if normals else streams
 
     def bind_materials(self, program: moderngl.Program) -> None:
         """Bind the triangles' rows and the material table for materials_lib.glsl."""
