@@ -9,7 +9,6 @@ unit is one metre for light falloff (measured with Cycles 4.5, tests/blender/tes
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import chain
 
 import bpy
 import numpy as np
@@ -55,49 +54,114 @@ def _int_attribute(mesh: bpy.types.Mesh, name: str, size: int) -> np.ndarray | N
     return values
 
 
-def _quad_flip(v0: np.ndarray, v1: np.ndarray, v2: np.ndarray, v3: np.ndarray) -> np.ndarray:
-    """Blender's is_quad_flip_v3_first_third_fast: quads split along 1-3 instead of 0-2."""
-    d12, d13, d14 = v1 - v0, v2 - v0, v3 - v0
-    a = np.cross(d12, d13)
-    a *= np.cross(d14, d13)
-    return a.sum(axis=1) > 0
+def _vectors(collection: bpy.types.bpy_prop_collection, size: int) -> np.ndarray:
+    """The 'vector' of each of ``size`` items (normals), (size, 3) float32."""
+    values = np.empty(size * 3, dtype=np.float32)
+    collection.foreach_get("vector", values)
+    return values.reshape(-1, 3)
 
 
-QUAD_SPLIT = np.array([[0, 1, 2, 0, 2, 3], [0, 1, 3, 1, 2, 3]], dtype=np.int32)
+def _cross(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """a × b from component arrays, rounded as np.cross rounds (float32 products, then their
+    difference)."""
+    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
 
 
-def _triangles(mesh: bpy.types.Mesh, co: np.ndarray, corner_vert: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """Corners (T*3) and face (T) of each triangle, as Blender's loop triangles.
+def _edges(xyz: np.ndarray, vertex: np.ndarray) -> list[tuple[np.ndarray, ...]]:
+    """Components of the vectors from each row's first vertex to its others (``vertex``:
+    (n, k) indices into the positions' components ``xyz``, (3, P))."""
+    columns = np.ascontiguousarray(vertex.T, dtype=np.intp)  # else each np.take converts
+    origin = [np.take(c, columns[0]) for c in xyz]
+    return [tuple(np.take(c, end) - o for c, o in zip(xyz, origin, strict=True))
+            for end in columns[1:]]
 
-    Triangles and quads are split in numpy with Blender's own rule (about 20× faster than
-    reading loop_triangles through RNA); meshes with n-gons use Blender's triangulation."""
-    faces, corners = len(mesh.polygons), len(corner_vert)
-    start = np.empty(faces, dtype=np.int32)
-    mesh.polygons.foreach_get("loop_start", start)
-    size = np.diff(start, append=np.int32(corners))
-    if faces and size.max() > 4:
+
+def _zero_area(xyz: np.ndarray, vertex: np.ndarray) -> np.ndarray:
+    """Triangles (rows of ``vertex``) whose (v1 - v0) × (v2 - v0) is exactly zero."""
+    c = _cross(*_edges(xyz, vertex))
+    return (c[0] == 0) & (c[1] == 0) & (c[2] == 0)
+
+
+def _quad_dot(xyz: np.ndarray, vertex: np.ndarray) -> np.ndarray:
+    """(d12 × d13) · (d14 × d13) of quads (rows of ``vertex``), di = vi - v0, summed in x, y,
+    z order: Blender's is_quad_flip_v3_first_third_fast is dot > 0.
+
+    The two cross products are (up to sign, exactly) those of triangles 0-1-2 and 0-2-3, so
+    where dot < 0 neither triangle has zero area."""
+    d12, d13, d14 = _edges(xyz, vertex)
+    a, b = _cross(d12, d13), _cross(d14, d13)
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+QUAD_SPLIT = np.array([0, 1, 2, 0, 2, 3])  # a quad's two triangles; flipped: 0 1 3, 1 2 3
+
+
+def _split(quads: np.ndarray, flip: np.ndarray) -> np.ndarray:
+    """Rows of the two triangles (Q*2, 3) of quads (Q, 4) split along 0-2, or 1-3 if flip."""
+    # C order, unlike quads[:, QUAD_SPLIT]; "clip" skips checking these in-range indices
+    triangles = np.take(quads, QUAD_SPLIT, axis=1, mode="clip")
+    flipped = np.flatnonzero(flip)
+    triangles[flipped, 2:4] = quads[flipped][:, [3, 1]]
+    return triangles.reshape(-1, 3)
+
+
+def _triangles(mesh: bpy.types.Mesh, xyz: np.ndarray, corner_vert: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Corners and vertices (T, 3), face (T) and zero area (T, bool) of each triangle, as
+    Blender's loop triangles.
+
+    Triangles and quads are split in numpy with Blender's own rule, triangles first (about
+    20× faster than reading loop_triangles through RNA); meshes with n-gons use Blender's
+    triangulation. Zero area: (v1 - v0) × (v2 - v0) of the positions (``xyz``, (3, P)) is
+    exactly zero."""
+    face = np.empty(len(mesh.loop_triangle_polygons), dtype=np.int32)  # no triangulation
+    mesh.loop_triangle_polygons.foreach_get("value", face)
+    # faces' sizes from their triangle counts: reading loop_start is much slower
+    size = np.bincount(face, minlength=len(mesh.polygons)).astype(np.int32) + 2
+    if size.max(initial=0) > 4:
         mesh.calc_loop_triangles()
-        tris = mesh.loop_triangles
-        corner = np.empty(len(tris) * 3, dtype=np.int32)
-        tris.foreach_get("loops", corner)
-        face = np.empty(len(tris), dtype=np.int32)
-        tris.foreach_get("polygon_index", face)
-        return corner, face
+        corner = np.empty((len(face), 3), dtype=np.int32)
+        mesh.loop_triangles.foreach_get("loops", corner.ravel())
+        vertex = corner_vert[corner]
+        return corner, vertex, face, _zero_area(xyz, vertex)
     is_quad = size == 4
-    tri = np.flatnonzero(~is_quad)
-    quad = np.flatnonzero(is_quad)
-    q = start[quad]
-    flip = _quad_flip(*(co[corner_vert[q + k]] for k in range(4)))
-    quad_corners = q[:, None] + QUAD_SPLIT[flip.view(np.int8)]
-    corner = np.concatenate([(start[tri, None] + np.arange(3, dtype=np.int32)).ravel(),
-                             quad_corners.ravel()])
-    return corner, np.concatenate([tri, np.repeat(quad, 2)]).astype(np.int32)
+    in_quad = np.repeat(is_quad, size)  # per corner
+    in_tri = ~in_quad
+    quad_corner = np.flatnonzero(in_quad).astype(np.int32).reshape(-1, 4)
+    quad_vertex = corner_vert[in_quad].reshape(-1, 4)
+    dot = _quad_dot(xyz, quad_vertex)
+    flip = dot > 0
+    tri_corner = np.flatnonzero(in_tri).astype(np.int32).reshape(-1, 3)
+    tri_vertex = corner_vert[in_tri].reshape(-1, 3)
+    quad_triangles = _split(quad_vertex, flip)
+    # zero area: quads' triangles only where the dot does not rule it out
+    unsure = (2 * np.flatnonzero(~(dot < 0))[:, None] + [0, 1]).ravel()
+    quad_zero = np.zeros(len(quad_triangles), dtype=bool)
+    quad_zero[unsure] = _zero_area(xyz, quad_triangles[unsure])
+    quad = np.flatnonzero(is_quad).astype(np.int32)
+    return (np.concatenate([tri_corner, _split(quad_corner, flip)]),
+            np.concatenate([tri_vertex, quad_triangles]),
+            np.concatenate([np.flatnonzero(~is_quad).astype(np.int32), np.repeat(quad, 2)]),
+            np.concatenate([_zero_area(xyz, tri_vertex), quad_zero]))
+
+
+def _normals(mesh: bpy.types.Mesh, corner: np.ndarray, face: np.ndarray,
+             position_index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Blender's normals in their own domain (vertex, face or corner) and their row per corner
+    (Blender's corner normals are these, gathered)."""
+    domain = mesh.normals_domain
+    if domain == "POINT":
+        return _vectors(mesh.vertex_normals, len(mesh.vertices)), position_index
+    if domain == "FACE":
+        return _vectors(mesh.polygon_normals, len(mesh.polygons)), np.repeat(face, 3)
+    return _vectors(mesh.corner_normals, len(mesh.loops)), corner
 
 
 def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bool
                  ) -> tuple[Mesh, list[str]]:
-    """Triangles of an evaluated mesh as corner arrays, and what was wrong with them.
+    """Triangles of an evaluated mesh, indexing its vertices, normals (in their own domain) and
+    UVs, and what was wrong with them. Index arrays may be shared: a smooth mesh's normals use
+    the positions' index, corner normals the UVs'.
 
     Triangles with NaN/Inf corners or zero area are left out (one warning each kind); a mesh
     object with vertices but no faces gets a warning (curves without bevel do not)."""
@@ -113,50 +177,44 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
     if corner_vert is None:
         corner_vert = np.empty(len(mesh.loops), dtype=np.int32)
         mesh.loops.foreach_get("vertex_index", corner_vert)
-    corner, face = _triangles(mesh, co, corner_vert)
+    with np.errstate(invalid="ignore", over="ignore"):  # NaN/Inf vertices are reported below
+        corner, vertex, face, zero = _triangles(mesh, co.T.copy(), corner_vert)
     count = len(face)
     if count == 0:
         if faces_expected and len(mesh.vertices):
             problems.append(f"{label} has no faces ({len(mesh.vertices)} vertices): "
                             f"nothing to render")
-        empty = np.zeros((0, 3), dtype=np.float32)
-        return Mesh(name, empty, empty, np.zeros(0, dtype=np.int32)), problems
-    material_index = _int_attribute(mesh, "material_index", len(mesh.polygons))
-    slots = np.zeros(count, np.int32) if material_index is None else material_index[face]
-    normals = np.empty(len(mesh.loops) * 3, dtype=np.float32)
-    mesh.corner_normals.foreach_get("vector", normals)
-    positions = co[corner_vert[corner]]
-    normals = normals.reshape(-1, 3)[corner]
-    uvs = _uvs(mesh, corner)
-    corners = positions.reshape(-1, 3, 3)
+        return _no_mesh(name), problems
     keep = np.ones(count, dtype=bool)
     if not np.isfinite(co).all():
-        keep = np.isfinite(corners).all(axis=(1, 2))
+        keep = np.isfinite(co).all(axis=1)[vertex].all(axis=1)
         problems.append(f"{label}: {count - int(keep.sum())} of {count} triangles have NaN/Inf "
                         f"vertices and were left out")
-    with np.errstate(invalid="ignore"):
-        cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    degenerate = keep & ~cross.any(axis=1)
+    degenerate = keep & zero
     if degenerate.any():
         keep &= ~degenerate
         problems.append(f"{label}: {int(degenerate.sum())} of {count} triangles have zero area "
                         f"and were left out")
     if not keep.all():
-        per_corner = np.repeat(keep, 3)
-        positions, normals, slots = positions[per_corner], normals[per_corner], slots[keep]
-        uvs = None if uvs is None else uvs[per_corner]
-    return Mesh(name, positions, normals, slots, uvs), problems
+        corner, vertex, face = corner[keep], vertex[keep], face[keep]
+    material_index = _int_attribute(mesh, "material_index", len(mesh.polygons))
+    slots = np.zeros(len(face), np.int32) if material_index is None else material_index[face]
+    corner, position_index = corner.ravel(), vertex.ravel()
+    normals, normal_index = _normals(mesh, corner, face, position_index)
+    uvs = _uvs(mesh)
+    return Mesh(name, co, normals, slots, uvs, position_index, normal_index,
+                None if uvs is None else corner), problems
 
 
-def _uvs(mesh: bpy.types.Mesh, corner: np.ndarray) -> np.ndarray | None:
-    """The active render UV map's coordinates at the given corners, or None without one."""
+def _uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
+    """The active render UV map's coordinates per corner, (L, 2), or None without one."""
     layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
     attribute = mesh.attributes.get(layer.name) if layer is not None else None
     if attribute is None:
         return None
     uv = np.empty(len(mesh.loops) * 2, dtype=np.float32)
     attribute.data.foreach_get("vector", uv)
-    return uv.reshape(-1, 2)[corner]
+    return uv.reshape(-1, 2)
 
 
 @dataclass
@@ -557,9 +615,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     cache.stats.update(meshes_read=0, meshes_reused=0)
     state = _Export(depsgraph, cache, result)
     placed: list[tuple[Mesh, list[Material], str]] = []
-    # Per (object, data): its mesh and materials, or None when no ray sees it.
-    placements: dict[tuple[int, int], tuple[Mesh, list[Material]] | None] = {}
-    flat: list[float] = []  # matrices, converted to numpy at once (much faster than one by one)
+    # Per (object, data): its mesh, materials and name, or None when no ray sees it. Keyed by
+    # the structs themselves (hashed and compared by pointer: no as_pointer() call each).
+    placements: dict[tuple[bpy.types.Object, bpy.types.ID],
+                     tuple[Mesh, list[Material], str] | None] = {}
+    # world matrices, as RNA stores them (float32, column by column): one foreach_get each
+    columns: list[np.ndarray] = []
     for inst in depsgraph.object_instances:
         obj = inst.object
         kind = obj.type
@@ -573,18 +634,20 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             continue
         if kind not in GEOMETRY_TYPES or not inst.show_self:
             continue
-        memo = (obj.original.as_pointer(), obj.data.as_pointer())
+        memo = (obj.original, obj.data)
         known = placements.get(memo)
         if known is None:
-            known = placements[memo] = (state.mesh(inst, obj), state.materials_of(obj)) \
-                if state.include(obj) else None
+            known = placements[memo] = (state.mesh(inst, obj), state.materials_of(obj),
+                                        obj.name) if state.include(obj) else None
         elif known:
             cache.stats["meshes_reused"] += 1
         if known and known[0].triangle_count:
-            flat.extend(chain.from_iterable(inst.matrix_world))
-            placed.append((*known, obj.name))
-    matrices = np.array(flat, dtype=np.float64).reshape(-1, 4, 4)
-    finite = np.isfinite(matrices).all(axis=(1, 2))
+            matrix = np.empty(16, dtype=np.float32)
+            inst.path_resolve("matrix_world", False).foreach_get(matrix)
+            columns.append(matrix)
+            placed.append(known)
+    matrices = np.array(columns, dtype=np.float64).reshape(-1, 4, 4).transpose(0, 2, 1).copy()
+    finite = np.isfinite(matrices).all(axis=(1, 2)).tolist()
     for (mesh, materials, name), matrix, ok in zip(placed, matrices, finite, strict=True):
         if ok:
             result.instances.append(Instance(mesh, matrix, materials))

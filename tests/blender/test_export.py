@@ -239,11 +239,12 @@ def test_triangulation_matches_blenders_loop_triangles(blender, ngon):
     mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
     co = np.array([v.co for v in mesh.vertices], dtype=np.float32)
     corner_vert = np.array([loop.vertex_index for loop in mesh.loops], dtype=np.int32)
-    corner, face = _triangles(mesh, co, corner_vert)
+    corner, vertex, face, _ = _triangles(mesh, co.T.copy(), corner_vert)
     mesh.calc_loop_triangles()
     expected = np.array([t.loops[:] for t in mesh.loop_triangles])
     assert _rotated(corner) == _rotated(expected)
-    assert len(face) == len(expected)
+    assert np.array_equal(vertex, corner_vert[corner])
+    assert sorted(face) == sorted(t.polygon_index for t in mesh.loop_triangles)
     exported = export_scene(bpy.context.evaluated_depsgraph_get()).instances[0].mesh
     assert exported.triangle_count == len(expected)
 
