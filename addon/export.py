@@ -619,9 +619,9 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     # the structs themselves (hashed and compared by pointer: no as_pointer() call each).
     placements: dict[tuple[bpy.types.Object, bpy.types.ID],
                      tuple[Mesh, list[Material], str] | None] = {}
-    # world matrices, as RNA stores them (float32, column by column): one foreach_get each
-    columns: list[np.ndarray] = []
-    for inst in depsgraph.object_instances:
+    ordinals: list[int] = []  # of the placed instances in depsgraph.object_instances
+    count = 0
+    for count, inst in enumerate(depsgraph.object_instances, start=1):
         obj = inst.object
         kind = obj.type
         if kind == "LIGHT":
@@ -642,11 +642,13 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         elif known:
             cache.stats["meshes_reused"] += 1
         if known and known[0].triangle_count:
-            matrix = np.empty(16, dtype=np.float32)
-            inst.path_resolve("matrix_world", False).foreach_get(matrix)
-            columns.append(matrix)
+            ordinals.append(count - 1)
             placed.append(known)
-    matrices = np.array(columns, dtype=np.float64).reshape(-1, 4, 4).transpose(0, 2, 1).copy()
+    # every instance's world matrix in one foreach_get over the same (deterministic) instance
+    # iteration, as RNA stores them (float32, column by column)
+    columns = np.empty(count * 16, dtype=np.float32)
+    depsgraph.object_instances.foreach_get("matrix_world", columns)
+    matrices = columns.reshape(-1, 4, 4)[ordinals].transpose(0, 2, 1).astype(np.float64)
     finite = np.isfinite(matrices).all(axis=(1, 2)).tolist()
     for (mesh, materials, name), matrix, ok in zip(placed, matrices, finite, strict=True):
         if ok:

@@ -275,11 +275,13 @@ def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
     Triangles whose world positions are not finite (NaN/Inf vertices or transforms) are left
     out, with one warning per instance."""
     groups: dict[int, list[Instance]] = {}
+    material_lists: dict[int, list[Material]] = {}  # distinct lists (instances share them)
     for inst in scene.instances:
-        if inst.mesh.triangle_count:
-            groups.setdefault(id(inst.mesh), []).append(inst)
+        groups.setdefault(id(inst.mesh), []).append(inst)
+        material_lists[id(inst.materials)] = inst.materials
+    groups = {key: members for key, members in groups.items() if members[0].mesh.triangle_count}
     textured = any(m.base_color_texture or m.emission_texture
-                   for members in groups.values() for inst in members for m in inst.materials)
+                   for materials in material_lists.values() for m in materials)
     sizes = [len(members) * members[0].mesh.triangle_count for members in groups.values()]
     table = _MaterialTable(warnings)
     positions = np.empty((3 * sum(sizes), 3), np.float32)
