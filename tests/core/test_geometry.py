@@ -1,0 +1,94 @@
+"""Flattening: indexed meshes give exactly their per-corner equivalents, each triangle finds
+its material row, and non-finite points drop only the triangles that use them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.geometry import flatten_instances
+from addon.core.scene import Instance, Material, Mesh, Scene
+from addon.core.textures import NO_TEXTURE
+
+
+def _indexed_mesh(rng: np.random.Generator, points: int = 30, triangles: int = 50) -> Mesh:
+    """A random mesh with shared points, one normal per triangle (a flat mesh: Blender's FACE
+    domain), per-corner UVs, and three material slots."""
+    position_index = rng.integers(0, points, 3 * triangles).astype(np.int32)
+    normals = rng.normal(size=(triangles, 3)).astype(np.float32)
+    return Mesh("indexed", rng.normal(size=(points, 3)).astype(np.float32), normals,
+                rng.integers(0, 3, triangles).astype(np.int32),
+                rng.random((3 * triangles, 2)).astype(np.float32), position_index,
+                np.repeat(np.arange(triangles, dtype=np.int32), 3), None)
+
+
+def _soup(mesh: Mesh) -> Mesh:
+    return Mesh("soup", mesh.corner_positions(), mesh.corner_normals(), mesh.material_slots,
+                mesh.corner_uvs())
+
+
+def _transforms() -> list[np.ndarray]:
+    turned = np.eye(4)
+    turned[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    turned[:3, 3] = (1.0, 2.0, 3.0)
+    mirrored = np.diag([-1.0, 2.0, 0.5, 1.0])
+    return [np.eye(4), turned, mirrored]
+
+
+def _materials() -> tuple[list[Material], list[Material]]:
+    red, green = Material("red", (0.8, 0.1, 0.1)), Material("green", (0.1, 0.8, 0.1))
+    lamp = Material("lamp", (0.0, 0.0, 0.0), (5.0, 4.0, 3.0))
+    return [red, green, lamp], [green]
+
+
+def _scene(mesh: Mesh) -> Scene:
+    full, short = _materials()
+    lists = [full, full, short]
+    return Scene([Instance(mesh, m, materials) for m, materials in
+                  zip(_transforms(), lists, strict=True)])
+
+
+def test_an_indexed_mesh_flattens_exactly_like_its_per_corner_soup():
+    mesh = _indexed_mesh(np.random.default_rng(1))
+    indexed, soup = (flatten_instances(_scene(m), []) for m in (mesh, _soup(mesh)))
+    for name in ("positions", "normals", "albedo", "emission"):
+        np.testing.assert_array_equal(getattr(indexed, name), getattr(soup, name), err_msg=name)
+    assert indexed.triangle_count == 3 * mesh.triangle_count
+    assert indexed.positions.flags.c_contiguous and indexed.normals.flags.c_contiguous
+
+
+def test_each_triangle_takes_its_slots_material_and_lists_share_rows():
+    mesh = _indexed_mesh(np.random.default_rng(2))
+    geometry = flatten_instances(_scene(mesh), [])
+    full, short = _materials()
+    assert len(geometry.materials) == len(full) + len(short)  # the two instances of `full` share
+    triangles = mesh.triangle_count
+    for instance, materials in enumerate([full, full, short]):
+        rows = slice(instance * triangles, (instance + 1) * triangles)
+        # slots past a list's end take its last material, as in Blender
+        expected = [materials[min(slot, len(materials) - 1)] for slot in mesh.material_slots]
+        np.testing.assert_allclose(geometry.albedo[rows], [m.base_color for m in expected])
+        np.testing.assert_allclose(geometry.emission[rows], [m.emission for m in expected])
+    assert np.all(geometry.materials[:, 8:10] == NO_TEXTURE)
+    assert not geometry.has_textures and geometry.uv is None
+
+
+@pytest.mark.parametrize("used", [True, False])
+def test_a_non_finite_point_drops_only_the_triangles_using_it(used):
+    rng = np.random.default_rng(3)
+    mesh = _indexed_mesh(rng)
+    nan_point = int(mesh.position_index[0]) if used else len(mesh.positions)
+    if not used:  # an extra point no triangle uses
+        mesh.positions = np.vstack([mesh.positions, np.zeros((1, 3), np.float32)])
+    mesh.positions[nan_point] = np.nan
+    warnings: list[str] = []
+    geometry = flatten_instances(Scene([Instance(mesh, np.eye(4), _materials()[0])]), warnings)
+    users = (mesh.position_index.reshape(-1, 3) == nan_point).any(axis=1)
+    assert geometry.triangle_count == mesh.triangle_count - int(users.sum())
+    assert np.isfinite(geometry.positions).all()
+    assert len(warnings) == int(used)
+    if used:
+        assert f"{int(users.sum())} of {mesh.triangle_count} triangles" in warnings[0]
+        kept = flatten_instances(Scene([Instance(_soup(mesh), np.eye(4), _materials()[0])]), [])
+        np.testing.assert_array_equal(geometry.positions, kept.positions)
+        np.testing.assert_array_equal(geometry.albedo, kept.albedo)
