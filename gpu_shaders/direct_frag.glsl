@@ -34,13 +34,17 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation) {
 
 #ifdef BIAS_COMPENSATION
 #include "raytrace_lib.glsl"
-// Per triangle, in the scene's order (the ray tracer returns those indices).
-layout(std430, binding = SURFACE_ALBEDO_BINDING) readonly buffer TriangleAlbedo {
-    vec4 triangle_albedo[];
-};
+#include "materials_lib.glsl"
+// The scene's position stream (x, y, z of 3 vertices per triangle, in the order whose
+// triangle indices the ray tracer returns), read as floats: std430 pads vec3 arrays.
 layout(std430, binding = SURFACE_VERTICES_BINDING) readonly buffer TriangleVertices {
-    vec4 triangle_vertices[];  // 3 per triangle
+    float triangle_positions[];
 };
+
+vec3 triangle_vertex(int triangle, int corner) {
+    int i = 9 * triangle + 3 * corner;
+    return vec3(triangle_positions[i], triangle_positions[i + 1], triangle_positions[i + 2]);
+}
 uniform float u_clamp_distance;
 uniform int u_bias_samples;
 uniform uint u_seed;
@@ -74,13 +78,13 @@ vec3 compensation(vec3 world, vec3 normal, vec3 geometric) {
         int triangle;
         vec2 uv;
         if (!rt_closest_hit(origin, dir, 0.0, u_clamp_distance, t, triangle, uv)) continue;
-        vec3 a = triangle_vertices[3 * triangle].xyz;
-        vec3 n_y = normalize(cross(triangle_vertices[3 * triangle + 1].xyz - a,
-                                   triangle_vertices[3 * triangle + 2].xyz - a));
+        vec3 a = triangle_vertex(triangle, 0);
+        vec3 n_y = normalize(cross(triangle_vertex(triangle, 1) - a,
+                                   triangle_vertex(triangle, 2) - a));
         if (dot(n_y, dir) > 0.0) n_y = -n_y;
         float weight = 1.0 - (t * t) / (u_clamp_distance * u_clamp_distance);
         vec3 y = origin + dir * t;
-        vec3 radiance = triangle_albedo[triangle].rgb / PI
+        vec3 radiance = material_of(triangle).albedo.rgb / PI
                         * gather(y, n_y, n_y, u_max_generation);
         sum += weight * radiance;
     }

@@ -42,7 +42,7 @@ TEXTURE_UNITS = 0, 1  # the g-buffer's array texture and its table of sizes
 ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see core/ism.py)
 ISM_POINT_SUBSETS = 512  # stratified point sets sampled on the CPU (~0.4 µs a point); VPL k uses
 # set k % 512, moved within its triangles by a per-VPL random shift beyond the first 512
-SURFACE_VERTICES_BINDING, SURFACE_ALBEDO_BINDING = 4, 5  # SSBOs of direct_frag.glsl
+SURFACE_VERTICES_BINDING = 4  # the position stream as direct_frag.glsl's storage buffer
 PROBE_PATHS = 64  # light paths the automatic mode traces to learn how many VPLs a path leaves
 
 
@@ -716,11 +716,9 @@ class _FrameResources:
         self._atlas_objects: list = []
         self.scene = self._buffers(geometry)
         self.shapes = self._buffers(shapes)
-        self.geometry = geometry
         self.textures = None  # the texture path: (array texture, size table)
         if geometry.has_textures:
             self.textures = tuple(self._own(t) for t in upload_textures(ctx, geometry.textures))
-        self._surfaces: tuple[moderngl.Buffer, moderngl.Buffer] | None = None
         self._atlas: tuple[moderngl.Texture, _Batch] | None = None
         self.kept_hits = 0  # atlases taken from an earlier frame
         self._light_table: moderngl.Texture | None = None
@@ -872,12 +870,10 @@ class _FrameResources:
         }.get(light_pass.visibility, {})
         uniforms: dict[str, object] = {}
         if compensation is not None:
-            defines.update(BIAS_COMPENSATION=1, SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING,
-                           SURFACE_ALBEDO_BINDING=SURFACE_ALBEDO_BINDING)
+            defines.update(BIAS_COMPENSATION=1, SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
             uniforms.update(u_clamp_distance=compensation.clamp_distance,
                             u_bias_samples=compensation.samples, u_seed=compensation.seed,
                             u_max_generation=compensation.max_generation)
-            self._bind_surfaces()
         needs_430 = light_pass.visibility == "exact" or compensation is not None
         program = self.programs.get("fullscreen_vert.glsl", "direct_frag.glsl", defines,
                                     version=430 if needs_430 else 410)
@@ -887,6 +883,9 @@ class _FrameResources:
                       u_scene_centre=tuple(centre), u_scene_radius=radius, u_shadow_bias=bias,
                       u_min_distance2=light_pass.min_distance**2, u_ray_offset=1e-4 * radius,
                       **uniforms)
+        if compensation is not None:  # the surfaces rays reach: positions and materials
+            self.scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
+            self.scene.bind_materials(program)
         accumulator.use()
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE
@@ -898,19 +897,6 @@ class _FrameResources:
         self.ctx.disable(moderngl.BLEND)
         vao.release()
         light_table.release()
-
-    def _bind_surfaces(self) -> None:
-        """Per-triangle vertices and albedo for shaders that follow rays to surfaces."""
-        if self._surfaces is None:
-            g = self.geometry
-            vertices = np.zeros((g.vertex_count, 4), np.float32)
-            vertices[:, :3] = g.positions
-            albedo = np.zeros((g.triangle_count, 4), np.float32)
-            albedo[:, :3] = g.albedo
-            self._surfaces = (self._own(self.ctx.buffer(vertices.tobytes())),
-                              self._own(self.ctx.buffer(albedo.tobytes())))
-        self._surfaces[0].bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
-        self._surfaces[1].bind_to_storage_buffer(SURFACE_ALBEDO_BINDING)
 
     def blurred(self, blur: GeometryAwareBlur, accumulator: moderngl.Framebuffer,
                 radius: int) -> np.ndarray:

@@ -8,7 +8,8 @@ import numpy as np
 
 from .geometry import WorldGeometry
 
-MATERIAL_UNITS = 2, 3  # texture units of the triangles' rows and the material table
+MATERIAL_UNITS = 6, 7  # texture units of the triangles' rows and the material table (units
+# 0-5 are the passes' own)
 TABLE_WIDTH = 4096  # texels per line of both tables
 
 
