@@ -15,7 +15,7 @@ DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
 
 
-MATERIAL_COLUMNS = 12  # albedo, 0, emission, 0, texture attribute, 0 (std430 vec4 × 3)
+MATERIAL_COLUMNS = 12  # albedo, 0, emission, 0, texture attribute, 0: three RGBA texels
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [Material("(no material)")]  # an instance without material slots
 
@@ -28,9 +28,10 @@ class WorldGeometry:
 
     A material row holds the albedo, the emission and the texture attribute (albedo layer,
     emission layer — NO_TEXTURE for none — and the strength the emission texture is multiplied
-    by), laid out as three std430 vec4s. Textured materials have their textures' average colour
-    as albedo and emission (the per-triangle values light sampling and path termination use);
-    ``uv`` (per vertex) is set only when some material has a texture."""
+    by), laid out as three RGBA texels (gpu_shaders/materials_lib.glsl). Textured materials
+    have their textures' average colour as albedo and emission (the per-triangle values light
+    sampling and path termination use); ``uv`` (per vertex) is set only when some material has
+    a texture."""
 
     positions: np.ndarray  # (V, 3) C-contiguous float32
     normals: np.ndarray  # (V, 3) C-contiguous float32
