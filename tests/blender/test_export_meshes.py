@@ -18,23 +18,22 @@ def _rows(values) -> np.ndarray:
 
 def reference(mesh, label: str) -> tuple[dict[str, np.ndarray | None], list[str]]:
     """Per-corner arrays of an evaluated mesh, read item by item: triangle faces, then quads
-    split by is_quad_flip_v3_first_third_fast as np.cross rounds it; Blender's loop triangles
-    when the mesh has n-gons."""
+    split by is_quad_flip_v3_first_third_fast as np.cross rounds it, then Blender's loop
+    triangles of the n-gons."""
     co = _rows(v.co for v in mesh.vertices)
     corner_vert = [loop.vertex_index for loop in mesh.loops]
     faces = [range(p.loop_start, p.loop_start + p.loop_total) for p in mesh.polygons]
-    if any(len(f) > 4 for f in faces):
-        mesh.calc_loop_triangles()
-        triangles = [(tuple(t.loops), t.polygon_index) for t in mesh.loop_triangles]
-    else:
-        triangles = [(tuple(f), i) for i, f in enumerate(faces) if len(f) == 3]
-        for i, f in enumerate(faces):
-            if len(f) == 4:
-                v0, v1, v2, v3 = (co[corner_vert[c]] for c in f)
-                d12, d13, d14 = v1 - v0, v2 - v0, v3 - v0
-                flip = (np.cross(d12, d13) * np.cross(d14, d13)).sum() > 0
-                split = [(0, 1, 3), (1, 2, 3)] if flip else [(0, 1, 2), (0, 2, 3)]
-                triangles += [(tuple(f[k] for k in t), i) for t in split]
+    triangles = [(tuple(f), i) for i, f in enumerate(faces) if len(f) == 3]
+    for i, f in enumerate(faces):
+        if len(f) == 4:
+            v0, v1, v2, v3 = (co[corner_vert[c]] for c in f)
+            d12, d13, d14 = v1 - v0, v2 - v0, v3 - v0
+            flip = (np.cross(d12, d13) * np.cross(d14, d13)).sum() > 0
+            split = [(0, 1, 3), (1, 2, 3)] if flip else [(0, 1, 2), (0, 2, 3)]
+            triangles += [(tuple(f[k] for k in t), i) for t in split]
+    mesh.calc_loop_triangles()
+    triangles += [(tuple(t.loops), t.polygon_index) for t in mesh.loop_triangles
+                  if len(faces[t.polygon_index]) > 4]
     normals = _rows(n.vector for n in mesh.corner_normals)
     layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
     uvs = None if layer is None else np.array([d.uv for d in layer.data], dtype=np.float32)
@@ -83,16 +82,17 @@ def quads_and_triangles(rng: np.random.Generator, side: int) -> tuple[list, list
 
 
 def add_case(bpy, name: str, seed: int, shading: str, uvs: bool, slots: int = 1,
-             ngon: bool = False, bad: tuple = ()) -> object:
-    """A mesh object of quads and triangles (and a hexagon), shaded flat, smooth, mixed, with
-    custom split normals or free custom normals on the POINT or FACE domain."""
+             ngons: int = 0, bad: tuple = ()) -> object:
+    """A mesh object of quads and triangles (and ``ngons`` non-planar hexagons), shaded flat,
+    smooth, mixed, with custom split normals or free custom normals on the POINT or FACE
+    domain."""
     rng = np.random.default_rng(seed)
     verts, faces = quads_and_triangles(rng, 16)
     for index, value in zip((5, 50), bad, strict=False):
         verts[index] = (value, 0.0, 1.0)
-    if ngon:
+    for k in range(ngons):
         faces.append(tuple(range(len(verts), len(verts) + 6)))
-        verts += [(30 + np.cos(a), np.sin(a), 0.1 * np.sin(3 * a))
+        verts += [(30 + 3 * k + np.cos(a), np.sin(a), 0.1 * np.sin(3 * a))
                   for a in np.linspace(0, 2 * np.pi, 7)[:-1]]
     obj = add_mesh(bpy, name, verts, faces)
     mesh = obj.data
@@ -121,15 +121,15 @@ def add_case(bpy, name: str, seed: int, shading: str, uvs: bool, slots: int = 1,
     return obj
 
 
-CASES = {  # name: shading, UVs, material slots, n-gon, NaN/Inf vertex positions
-    "Flat": ("flat", True, 3, False, ()),
-    "Smooth": ("smooth", False, 1, False, (NAN, INF)),
-    "Mixed": ("mixed", True, 2, False, (NAN,)),
-    "MixedNgon": ("mixed", True, 2, True, (INF,)),
-    "SmoothNgon": ("smooth", False, 1, True, ()),
-    "Custom": ("custom", True, 1, False, ()),
-    "FreePoint": ("free POINT", False, 2, False, ()),
-    "FreeFace": ("free FACE", True, 1, False, (NAN,)),
+CASES = {  # name: shading, UVs, material slots, n-gons, NaN/Inf vertex positions
+    "Flat": ("flat", True, 3, 0, ()),
+    "Smooth": ("smooth", False, 1, 0, (NAN, INF)),
+    "Mixed": ("mixed", True, 2, 0, (NAN,)),
+    "MixedNgon": ("mixed", True, 2, 1, (INF,)),  # n-gon triangles read one by one
+    "SmoothNgons": ("smooth", False, 1, 300, ()),  # read with all loop triangles
+    "Custom": ("custom", True, 1, 0, ()),
+    "FreePoint": ("free POINT", False, 2, 0, ()),
+    "FreeFace": ("free FACE", True, 1, 0, (NAN,)),
 }
 
 
