@@ -204,6 +204,14 @@ class _MaterialTable:
         return np.concatenate(self.blocks)
 
 
+def _apply(rows: np.ndarray, linear: np.ndarray) -> np.ndarray:
+    """(R, 3) rows through (k, 3, 3) linear maps in float32, as (k, R, 3): one matrix product
+    of the rows with all maps side by side (a stacked matmul pays per small matrix)."""
+    side_by_side = linear.astype(np.float32).transpose(2, 0, 1).reshape(3, -1)
+    product = np.asarray(rows, np.float32) @ side_by_side  # (R, k·3)
+    return product.reshape(len(rows), -1, 3).transpose(1, 0, 2)
+
+
 def _gather_rows(values: np.ndarray, index: np.ndarray | None, out: np.ndarray) -> None:
     """Write (k, R, 3) float32 rows into ``out`` (k·C, 3), gathered at ``index`` (C,), or all
     rows when None, as 12-byte records (numpy's float loops over the 3 floats of each row take
@@ -235,11 +243,9 @@ def _flatten_group(members: list[Instance], table: _MaterialTable, warnings: lis
         if identity:  # the identity's normal matrix is the identity too
             world = mesh.positions[None]
         else:
-            world = np.matmul(mesh.positions.astype(np.float32, copy=False)[None],
-                              matrices[:, :3, :3].transpose(0, 2, 1).astype(np.float32))
+            world = _apply(mesh.positions, matrices[:, :3, :3])
             world += matrices[:, None, :3, 3].astype(np.float32)
-            normal_matrices = _normal_matrices(np.nan_to_num(matrices[:, :3, :3]))
-            normals = np.matmul(normals, normal_matrices.transpose(0, 2, 1).astype(np.float32))
+            normals = _apply(normals[0], _normal_matrices(np.nan_to_num(matrices[:, :3, :3])))
         x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
         length = np.sqrt(x * x + y * y + z * z)  # np.linalg.norm's sums, without its reduce
         normals = normals / length[..., None]
