@@ -1,7 +1,8 @@
 """Benchmark of the scene export against Cycles' scene sync, measured in the same run.
 
-For each scene (a tessellated grid of N triangles under a sun, or 10k instances of a small
-mesh scattered by geometry nodes) it prints: our export time (cold, and again with a warm
+For each scene (a tessellated grid of N triangles under a sun — "1Mngon" with one hexagon, so
+that its mesh takes the n-gon path — or 10k instances of a small mesh scattered by geometry
+nodes) it prints: our export time (cold, and again with a warm
 ExportCache), our upload time (core.geometry.flatten_instances plus
 core.scene_buffers.SceneBuffers: the vertex buffer and material tables the renderer uploads),
 Cycles' time to its first sample (a 1-sample 8×8 render minus the same render of an empty
@@ -23,7 +24,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENES = {"100k": 100_000, "1M": 1_000_000, "5M": 5_000_000, "inst10k": 10_000}
+SCENES = {"100k": 100_000, "1M": 1_000_000, "1Mngon": 1_000_000, "5M": 5_000_000,
+          "inst10k": 10_000}
 
 
 def peak_rss_mib() -> float:
@@ -32,6 +34,7 @@ def peak_rss_mib() -> float:
 
 def build_scene(bpy, name: str) -> None:
     """The named benchmark scene in a fresh file: camera, sun, and the geometry."""
+    import bmesh
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
@@ -64,6 +67,15 @@ def build_scene(bpy, name: str) -> None:
         return
     side = max(1, round((SCENES[name] / 2) ** 0.5))  # side² quads = 2 side² triangles
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=side, y_subdivisions=side, size=10)
+    if name.endswith("ngon"):  # two quads become one hexagon
+        mesh = bpy.context.object.data
+        editable = bmesh.new()
+        editable.from_mesh(mesh)
+        editable.faces.ensure_lookup_table()
+        shared = next(e for e in editable.faces[0].edges if len(e.link_faces) == 2)
+        bmesh.ops.dissolve_edges(editable, edges=[shared])
+        editable.to_mesh(mesh)
+        editable.free()
 
 
 def cycles_render_seconds(bpy) -> float:

@@ -9,7 +9,7 @@ from functools import cached_property
 import numpy as np
 
 from . import textures as tex
-from .scene import Instance, Light, LightKind, Material, Scene, Texture
+from .scene import Light, LightKind, Material, Mesh, Scene, Texture
 
 DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
@@ -177,19 +177,8 @@ class _MaterialTable:
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
 
-    def first_rows(self, members: list[Instance]) -> tuple[np.ndarray, np.ndarray]:
-        """Each instance's first row and row count (k,), adding new material lists."""
-        found: dict[int, tuple[int, int]] = {}  # by list object: instances of one object share it
-        rows = []
-        for inst in members:
-            known = found.get(id(inst.materials))
-            if known is None:
-                known = found[id(inst.materials)] = self._block(inst.materials or NO_MATERIAL)
-            rows.append(known)
-        first, count = np.array(rows, np.int64).reshape(-1, 2).T
-        return first, count
-
-    def _block(self, materials: list[Material]) -> tuple[int, int]:
+    def block(self, materials: list[Material]) -> tuple[int, int]:
+        """The first row and row count of a material list's block (added on first use)."""
         key = tuple(id(m) for m in materials)
         if key not in self._first:
             self._first[key] = self.row_count
@@ -224,18 +213,28 @@ def _gather_rows(values: np.ndarray, index: np.ndarray | None, out: np.ndarray) 
         np.take(records, index, axis=1, out=target, mode="clip")  # clip: unbuffered
 
 
-def _flatten_group(members: list[Instance], table: _MaterialTable, warnings: list[str],
-                   positions_out: np.ndarray, normals_out: np.ndarray,
-                   uv_out: np.ndarray | None, material_out: np.ndarray) -> np.ndarray | None:
+@dataclass
+class _Group:
+    """The instances of one mesh: their matrices, and the first row and row count of each
+    one's material list in the material table."""
+
+    mesh: Mesh
+    matrices: list[np.ndarray] = field(default_factory=list)
+    rows: list[tuple[int, int]] = field(default_factory=list)
+
+
+def _flatten_group(group: _Group, warnings: list[str], positions_out: np.ndarray,
+                   normals_out: np.ndarray, uv_out: np.ndarray | None,
+                   material_out: np.ndarray) -> np.ndarray | None:
     """Write world positions and normals of every instance of one shared mesh into
     ``positions_out`` and ``normals_out`` (k·V, 3), transformed together in float32 as the GPU
     gets them (each stored point and normal once, then gathered per corner), UVs into
     ``uv_out`` (k·V, 2) if given, and each triangle's material row into ``material_out``
     (k·T,). Returns the mask of vertices on finite triangles, or None when all are finite."""
-    mesh = members[0].mesh
-    k, triangles = len(members), mesh.triangle_count
+    mesh = group.mesh
+    k, triangles = len(group.matrices), mesh.triangle_count
     corners = 3 * triangles
-    matrices = np.stack([inst.matrix for inst in members]).astype(np.float64)
+    matrices = np.stack(group.matrices).astype(np.float64)
     identity = k == 1 and np.array_equal(matrices[0], np.eye(4))
     normals = mesh.normals if np.isfinite(mesh.normals).all() else np.nan_to_num(mesh.normals)
     normals = normals[None]
@@ -267,7 +266,7 @@ def _flatten_group(members: list[Instance], table: _MaterialTable, warnings: lis
     if uv_out is not None:
         uvs = mesh.corner_uvs()
         uv_out.reshape(k, corners, 2)[:] = 0.0 if uvs is None else uvs
-    first, count = table.first_rows(members)
+    first, count = np.array(group.rows, np.int64).reshape(-1, 2).T
     slots = np.clip(mesh.material_slots, 0, None)
     rows = first[:, None] + np.minimum(slots[None], count[:, None] - 1)
     material_out.reshape(k, triangles)[:] = rows
@@ -281,25 +280,30 @@ def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
 
     Triangles whose world positions are not finite (NaN/Inf vertices or transforms) are left
     out, with one warning per instance."""
-    groups: dict[int, list[Instance]] = {}
-    material_lists: dict[int, list[Material]] = {}  # distinct lists (instances share them)
-    for inst in scene.instances:
-        groups.setdefault(id(inst.mesh), []).append(inst)
-        material_lists[id(inst.materials)] = inst.materials
-    groups = {key: members for key, members in groups.items() if members[0].mesh.triangle_count}
-    textured = any(m.base_color_texture or m.emission_texture
-                   for materials in material_lists.values() for m in materials)
-    sizes = [len(members) * members[0].mesh.triangle_count for members in groups.values()]
     table = _MaterialTable(warnings)
+    found: dict[int, _Group] = {}
+    blocks: dict[int, tuple[int, int]] = {}  # by material list: instances of an object share it
+    for inst in scene.instances:  # one pass: scenes may hold many thousand instances
+        group = found.get(id(inst.mesh))
+        if group is None:
+            group = found[id(inst.mesh)] = _Group(inst.mesh)
+        rows = blocks.get(id(inst.materials))
+        if rows is None:
+            rows = blocks[id(inst.materials)] = table.block(inst.materials or NO_MATERIAL)
+        group.matrices.append(inst.matrix)
+        group.rows.append(rows)
+    groups = [group for group in found.values() if group.mesh.triangle_count]
+    textured = bool(table.textures.textures)
+    sizes = [len(group.matrices) * group.mesh.triangle_count for group in groups]
     positions = np.empty((3 * sum(sizes), 3), np.float32)
     normals = np.empty((3 * sum(sizes), 3), np.float32)
     uv = np.empty((3 * sum(sizes), 2), np.float32) if textured else None
     triangle_material = np.empty(sum(sizes), np.int32)
     masks, start = [], 0
-    for members, size in zip(groups.values(), sizes, strict=True):
+    for group, size in zip(groups, sizes, strict=True):
         corners = slice(3 * start, 3 * (start + size))
-        masks.append(_flatten_group(members, table, warnings, positions[corners],
-                                    normals[corners], None if uv is None else uv[corners],
+        masks.append(_flatten_group(group, warnings, positions[corners], normals[corners],
+                                    None if uv is None else uv[corners],
                                     triangle_material[start:start + size]))
         start += size
     if any(mask is not None for mask in masks):
