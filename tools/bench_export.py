@@ -9,7 +9,7 @@ Cycles' time to its first sample (a 1-sample 8×8 render minus the same render o
 scene, median of --repeat), and peak RSS after building the scene and of our export + upload
 and of Cycles, each measured in its own process (so each peak is its own).
 
-    .venv/bin/python tools/bench_export.py [--scenes 100k 1M 5M inst10k] [--repeat 3]
+    .venv/bin/python tools/bench_export.py [--scenes 100k 1M 1Mngon 5M inst10k] [--repeat 5]
 """
 
 from __future__ import annotations
