@@ -15,6 +15,7 @@ import numpy as np
 
 from .core.environment import mean_radiance
 from .core.scene import (
+    DEFAULT_MATERIAL,
     AreaShape,
     Camera,
     EnvironmentMap,
@@ -30,7 +31,6 @@ from .core.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, read_pixels
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
-DEFAULT_MATERIAL = Material("(no material)")
 RAY_FLAGS = {"visible_camera": "camera", "visible_diffuse": "diffuse",
              "visible_shadow": "shadow"}
 

@@ -9,7 +9,7 @@ from functools import cached_property
 import numpy as np
 
 from . import textures as tex
-from .scene import Light, LightKind, Material, Mesh, Scene, Texture
+from .scene import DEFAULT_MATERIAL, Light, LightKind, Material, Mesh, Scene, Texture
 
 DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
@@ -17,7 +17,7 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 
 MATERIAL_COLUMNS = 12  # albedo, 0, emission, 0, texture attribute, 0: three RGBA texels
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
-NO_MATERIAL = [Material("(no material)")]  # an instance without material slots
+NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 
 
 @dataclass

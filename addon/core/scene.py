@@ -46,6 +46,9 @@ class Material:
     emission_texture: Texture | None = None
 
 
+DEFAULT_MATERIAL = Material("(no material)")  # an empty slot, or an object without slots
+
+
 @dataclass
 class Mesh:
     """Triangles in object space: 3 corners per triangle, a material slot per triangle.
