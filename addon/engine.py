@@ -9,9 +9,9 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from .core.frame import Frame, Stats
-from .core.gl import GLUnavailableError
-from .core.pipeline import RenderCancelled, Renderer, RenderError
+from .core.frame.renderer import RenderCancelled, Renderer, RenderError
+from .core.frame.result import Frame, Stats
+from .core.gpu.gl import GLUnavailableError
 from .core.settings import SettingsError
 from .export import export_scene
 from .ui import ENGINE_ID

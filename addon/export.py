@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from .core.environment import mean_radiance
-from .core.scene import (
+from .core.scene.environment import mean_radiance
+from .core.scene.model import (
     DEFAULT_MATERIAL,
     AreaShape,
     Camera,
@@ -27,7 +27,7 @@ from .core.scene import (
     Scene,
     World,
 )
-from .core.textures import MISSING_COLOR, decode_srgb
+from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, read_pixels
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}

@@ -12,8 +12,8 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from .core.scene import Texture
-from .core.textures import missing_texture
+from .core.scene.model import Texture
+from .core.scene.textures import missing_texture
 
 RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear"}
 SUPPORTED_MODES = {"interpolation": "Linear", "extension": "REPEAT", "projection": "FLAT"}

@@ -28,7 +28,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .core import metrics
-from .core.gl import GLUnavailableError, shared_context
+from .core.gpu.gl import GLUnavailableError, shared_context
 from .engine import monitor
 from .obj_scene import scene_from_obj
 

@@ -8,8 +8,8 @@ import sys
 
 import pytest
 
-from addon.core.gl import ProgramCache, shared_context
-from addon.core.pipeline import Renderer
+from addon.core.frame.renderer import Renderer
+from addon.core.gpu.gl import ProgramCache, shared_context
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -96,9 +96,9 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
     """Export (cold and with a warm cache) and upload of one scene, in this process."""
     import bpy
 
-    from addon.core.geometry import flatten_instances
-    from addon.core.gl import create_context
-    from addon.core.scene_buffers import SceneBuffers
+    from addon.core.gpu.gl import create_context
+    from addon.core.gpu.scene_buffers import SceneBuffers
+    from addon.core.scene.geometry import flatten_instances
     from addon.export import ExportCache, export_scene
 
     build_scene(bpy, name)

@@ -54,8 +54,8 @@ def main() -> None:
                         help="radius of the light's circle, as a fraction of the scene radius")
     args = parser.parse_args()
 
-    from addon.core.geometry import bounding_sphere, flatten_instances
-    from addon.core.pipeline import Renderer
+    from addon.core.frame.renderer import Renderer
+    from addon.core.scene.geometry import bounding_sphere, flatten_instances
     from addon.core.settings import Settings
 
     scene = export(args.scene, args.size)

@@ -18,8 +18,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from addon.core.gl import ProgramCache, shared_context
-from addon.core.ism import (
+from addon.core.gpu.gl import ProgramCache, shared_context
+from addon.core.gpu.ism import (
     FOOTPRINT_SCALE,
     MAX_FOOTPRINT,
     ImperfectShadowMaps,

@@ -39,7 +39,7 @@ def orbit(camera, degrees: float):
 
 def away_from_view(scene):
     """The scene with an extra spot light behind the camera, pointing away from the view."""
-    from addon.core.scene import Light, LightKind
+    from addon.core.scene.model import Light, LightKind
 
     behind = np.linalg.inv(scene.camera.view_matrix)  # a light at the camera, facing back
     flip = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -68,7 +68,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args()
 
-    from addon.core.pipeline import Renderer
+    from addon.core.frame.renderer import Renderer
     from addon.core.settings import Settings
 
     files = ("cornell_box", "interior", "multi_light", "light_spot", "light_area")

@@ -16,8 +16,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from addon.core.gl import ProgramCache, shared_context
-from addon.core.raytrace import RayTracer, build_bvh
+from addon.core.gpu.gl import ProgramCache, shared_context
+from addon.core.gpu.raytrace import RayTracer, build_bvh
 
 
 def soup(count: int, rng: np.random.Generator) -> np.ndarray:

@@ -72,7 +72,7 @@ def build_scene(case: Case):
     red wall and a point light, seen from under the ceiling by an orthographic camera."""
     import numpy as np
 
-    from addon.core.scene import Camera, Instance, Light, LightKind, Material, Mesh, Scene
+    from addon.core.scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene
     from tests.core.builders import grid
 
     def placed(mesh: Mesh, x: list[float], y: list[float], origin: list[float],
@@ -109,7 +109,7 @@ def run_case(name: str) -> dict:
     """Render one case in this process; the result as a dict (printed as JSON by --child)."""
     import numpy as np
 
-    from addon.core.pipeline import Renderer, RenderError
+    from addon.core.frame.renderer import Renderer, RenderError
     from addon.core.settings import Settings, SettingsError
 
     case = CASES[name]

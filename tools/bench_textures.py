@@ -21,9 +21,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from addon.core.geometry import flatten_instances  # noqa: E402
-from addon.core.pipeline import Renderer  # noqa: E402
-from addon.core.scene import Scene, Texture  # noqa: E402
+from addon.core.frame.renderer import Renderer  # noqa: E402
+from addon.core.scene.geometry import flatten_instances  # noqa: E402
+from addon.core.scene.model import Scene, Texture  # noqa: E402
 from addon.core.settings import Settings  # noqa: E402
 
 

@@ -42,7 +42,7 @@ def main() -> None:
     parser.add_argument("--vpls", type=int, default=1024, help="VPLs wanted (about)")
     args = parser.parse_args()
 
-    from addon.core.pipeline import Renderer
+    from addon.core.frame.renderer import Renderer
     from addon.core.settings import Settings
 
     scene = export(args.scene, args.size)

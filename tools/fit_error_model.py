@@ -70,7 +70,7 @@ def fit_noise(reports: list[dict]) -> tuple[float, list[float], dict[str, float]
 
 def ism_errors(size: int) -> dict[str, float]:
     """Per 'resolution/points': ISM visibility error beyond the default pair's."""
-    from addon.core.pipeline import Renderer
+    from addon.core.frame.renderer import Renderer
     from addon.core.settings import Settings
 
     renderer = Renderer()

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addon.core.frame import PASS_CHANNELS
-from addon.core.pipeline import Renderer
-from addon.core.scene import LightKind
+from addon.core.frame.renderer import Renderer
+from addon.core.frame.result import PASS_CHANNELS
+from addon.core.scene.model import LightKind
 from addon.core.settings import Settings
 from addon.export import export_scene
 from tests.blender.rendering import open_scene, render_linear
@@ -90,7 +90,7 @@ def test_render_without_camera_is_refused(blender):
 
 def test_engine_failure_is_reported_not_raised_into_blender(blender, monkeypatch):
     from addon import engine
-    from addon.core.gl import GLUnavailableError
+    from addon.core.gpu.gl import GLUnavailableError
 
     def no_gl():
         raise GLUnavailableError("could not create an OpenGL 4.1 context (test)")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import addon.engine
-from addon.core.pipeline import Renderer
+from addon.core.frame.renderer import Renderer
 from addon.core.settings import Settings
 from addon.export import ExportCache, _triangles, export_scene
 from tests.blender.rendering import configure_cycles, render_linear

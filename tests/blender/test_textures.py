@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.pipeline import Renderer
+from addon.core.frame.renderer import Renderer
+from addon.core.scene.textures import decode_srgb
 from addon.core.settings import Settings
-from addon.core.textures import decode_srgb
 from addon.export import export_scene
 from tests.blender.rendering import configure_cycles, render_linear
 from tests.blender.test_export import add_light, add_mesh, add_plane, engine_export, new_scene

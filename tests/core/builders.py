@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from addon.core.scene import Camera, Instance, Light, LightKind, Material, Mesh, Scene, World
+from addon.core.scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene, World
 
 
 def quad(half_x: float, half_y: float, z: float = 0.0, flip: bool = False) -> Mesh:

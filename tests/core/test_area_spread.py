@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from addon.core import vpl
-from addon.core.lights import spread_attenuation, spread_parameters
-from addon.core.scene import LightKind
-from addon.core.sequences import scrambled_halton
+from addon.core.scene.model import LightKind
+from addon.core.transport import vpl
+from addon.core.transport.lights import spread_attenuation, spread_parameters
+from addon.core.transport.sequences import scrambled_halton
 from tests.core.builders import light, translation
 
 

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from addon.core import autotune
+from addon.core.frame import autotune
 from addon.core.settings import Settings, SettingsError
 
 COST = autotune.CostModel("test GL", paths=2e-5, splat=2e-9, texels=1e-9, gather=4e-9,

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core import environment, vpl
-from addon.core.geometry import flatten_instances
-from addon.core.lights import fibonacci_square
-from addon.core.scene import EnvironmentMap, World
-from addon.core.sequences import scrambled_halton
+from addon.core.scene import environment, vpl
+from addon.core.scene.geometry import flatten_instances
+from addon.core.scene.model import EnvironmentMap, World
 from addon.core.settings import Settings
+from addon.core.transport.lights import fibonacci_square
+from addon.core.transport.sequences import scrambled_halton
 from tests.core.builders import floor_scene, inside_sphere_camera, rotation_x
 
 SUN = np.array([np.cos(0.7) * np.cos(0.4), np.cos(0.7) * np.sin(0.4), np.sin(0.7)])

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.geometry import flatten_instances
-from addon.core.scene import Instance, Material, Mesh, Scene
-from addon.core.textures import NO_TEXTURE
+from addon.core.scene.geometry import flatten_instances
+from addon.core.scene.model import Instance, Material, Mesh, Scene
+from addon.core.scene.textures import NO_TEXTURE
 
 
 def _indexed_mesh(rng: np.random.Generator, points: int = 30, triangles: int = 50) -> Mesh:

@@ -6,16 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.geometry import bounding_sphere, flatten_instances
-from addon.core.incremental import (
+from addon.core.scene.geometry import bounding_sphere, flatten_instances
+from addon.core.scene.model import Instance, LightKind, Material, Scene, World
+from addon.core.settings import Settings
+from addon.core.transport.incremental import (
     IncrementalVPLs,
     cell_integrals,
     light_domain,
     shortest_edge,
     voronoi_vertices,
 )
-from addon.core.scene import Instance, LightKind, Material, Scene, World
-from addon.core.settings import Settings
 from tests.core.builders import (
     floor_scene,
     icosphere,

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.scene import Instance, LightKind, Material, Scene, World
+from addon.core.scene.model import Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
 from tests.core.builders import icosphere, inside_sphere_camera, light, rotation_x, translation
 
@@ -73,7 +73,7 @@ def test_clamp_removes_the_predicted_share_and_compensation_restores_it(renderer
 
 
 def test_scrambled_halton_is_stratified_and_seeded():
-    from addon.core.sequences import scrambled_halton
+    from addon.core.transport.sequences import scrambled_halton
 
     points = scrambled_halton(256, 4, seed=1)
     assert points.shape == (256, 4) and points.min() >= 0 and points.max() < 1

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from addon.core import metrics
-from addon.core.scene import Instance, LightKind, Material
+from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import Settings
 from tests.core.builders import floor_scene, light, quad, rotation_x, translation
 

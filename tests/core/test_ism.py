@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core import ism
-from addon.core.gl import SHADER_DIR
-from addon.core.ism import ImperfectShadowMaps, sample_surface_points, spread_order
+from addon.core.gpu import ism
+from addon.core.gpu.gl import SHADER_DIR
+from addon.core.gpu.ism import ImperfectShadowMaps, sample_surface_points, spread_order
 
 RESOLUTION = 128
 POINTS = 8192

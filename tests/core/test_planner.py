@@ -7,8 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from addon.core.planner import needed_pull_push_levels, reaches_bounds, visible_bounds
-from addon.core.scene import Instance, LightKind, Material, Scene
+from addon.core.frame.planner import needed_pull_push_levels, reaches_bounds, visible_bounds
+from addon.core.scene.model import Instance, LightKind, Material, Scene
 from addon.core.settings import Settings
 from tests.core.builders import (
     floor_scene,
@@ -139,8 +139,8 @@ def test_a_camera_that_sees_no_surface_runs_no_light_work(renderer):
 @pytest.mark.parametrize("spot_degrees, x, reaches", [(30, 0, True), (30, 40, False),
                                                       (179, 40, True)])
 def test_spot_cones_are_tested_against_the_visible_box(spot_degrees, x, reaches):
-    from addon.core.geometry import flatten_instances
-    from addon.core.lights import build_light_samples
+    from addon.core.scene.geometry import flatten_instances
+    from addon.core.transport.lights import build_light_samples
 
     scene = floor_scene([light(LightKind.SPOT, translation(x, 0, 2), power=1.0,
                                spot_size=np.radians(spot_degrees))])

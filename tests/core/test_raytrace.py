@@ -7,13 +7,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from addon.core import raytrace
-from addon.core.gl import (
+from addon.core.gpu import raytrace
+from addon.core.gpu.gl import (
     SHADER_DIR,
     GLUnavailableError,
     require_compute,
 )
-from addon.core.raytrace import BVH, RayTracer, build_bvh
+from addon.core.gpu.raytrace import BVH, RayTracer, build_bvh
 
 
 @pytest.fixture(scope="session")

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.pipeline import RenderCancelled, RenderError
-from addon.core.scene import Instance, LightKind, Material, Mesh, Scene, World
+from addon.core.frame.renderer import RenderCancelled, RenderError
+from addon.core.scene.model import Instance, LightKind, Material, Mesh, Scene, World
 from addon.core.settings import Settings, SettingsError
 from tests.core.builders import floor_scene, light, quad, translation
 

@@ -7,8 +7,8 @@ import moderngl
 import numpy as np
 import pytest
 
-from addon.core.gl import ProgramCache
-from addon.core.shading import GeometryAwareBlur
+from addon.core.gpu.blur import GeometryAwareBlur
+from addon.core.gpu.gl import ProgramCache
 
 SIZE = 128
 SPACING = 0.05  # world units between pixel centres

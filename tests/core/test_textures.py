@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core import textures as tex
-from addon.core.geometry import flatten_instances
-from addon.core.pipeline import Renderer
-from addon.core.scene import Instance, LightKind, Material, Mesh, Scene, Texture
+from addon.core.frame.renderer import Renderer
+from addon.core.scene import textures as tex
+from addon.core.scene.geometry import flatten_instances
+from addon.core.scene.model import Instance, LightKind, Material, Mesh, Scene, Texture
 from addon.core.settings import Settings
 from tests.core.builders import floor_scene, light, pixel_centres, quad, top_down_camera
 

@@ -6,10 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.pipeline import Renderer
-from addon.core.scene import Instance, LightKind, Material
-from addon.core.settings import Settings
-from addon.core.viewport import (
+from addon.core.frame.renderer import Renderer
+from addon.core.frame.viewport_session import (
     Changes,
     Update,
     ViewportSession,
@@ -17,6 +15,8 @@ from addon.core.viewport import (
     display_image,
     refinement_levels,
 )
+from addon.core.scene.model import Instance, LightKind, Material
+from addon.core.settings import Settings
 from tests.core.builders import floor_scene, icosphere, light, top_down_camera, translation
 
 SETTINGS = Settings(vpl_count=128, bounces=2, ism_points=1024, interleave=1)
@@ -127,7 +127,7 @@ def test_close_releases_the_worker_and_its_gpu_objects():
     made: list[Renderer] = []
 
     def factory() -> Renderer:
-        from addon.core.gl import create_context
+        from addon.core.gpu.gl import create_context
         made.append(Renderer(create_context()))
         return made[-1]
 
@@ -142,7 +142,7 @@ def test_close_releases_the_worker_and_its_gpu_objects():
 def test_display_image_rejects_nothing_and_keeps_alpha():
     frame_passes = {name: np.ones((4, 4, c), np.float32) for name, c in
                     {"Combined": 4, "DiffDir": 3, "DiffInd": 3, "DiffCol": 3, "Emit": 3}.items()}
-    from addon.core.frame import Frame
+    from addon.core.frame.result import Frame
     frame = Frame(4, 4, frame_passes)
     for mode in ("combined", "direct", "indirect", "vpls", "ism"):
         image = display_image(frame, mode, top_down_camera(4))

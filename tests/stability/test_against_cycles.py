@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addon.core.geometry import bounding_sphere, flatten_instances
+from addon.core.scene.geometry import bounding_sphere, flatten_instances
 from addon.core.settings import Settings
 
 bpy = pytest.importorskip("bpy")

@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 from hypothesis import strategies as st
 
-from addon.core.pipeline import RenderError
-from addon.core.scene import (
+from addon.core.frame.renderer import RenderError
+from addon.core.scene.model import (
     AreaShape,
     Camera,
     Instance,
@@ -275,7 +275,7 @@ def test_narrow_wedge_clamp_removes_the_predicted_share(renderer, record, angle)
     """In a narrow wedge the two planes exchange light over distances below the clamp: the
     clamp must remove the share the parallel-plate estimate predicts (same VPLs with and
     without the clamp, exact visibility), and leave every pass finite."""
-    from addon.core.geometry import bounding_sphere, flatten_instances
+    from addon.core.scene.geometry import bounding_sphere, flatten_instances
 
     size = 32
     scene = wedge_scene(angle, size)

@@ -25,11 +25,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .frame import Frame, Stats
-from .gl import GLUnavailableError, create_context
-from .pipeline import RenderCancelled, Renderer, RenderError
-from .scene import Camera, Scene
-from .settings import Settings, SettingsError
+from ..gpu.gl import GLUnavailableError, create_context
+from ..scene.model import Camera, Scene
+from ..settings import Settings, SettingsError
+from .renderer import RenderCancelled, Renderer, RenderError
+from .result import Frame, Stats
 
 DISPLAY_MODES = ("combined", "direct", "indirect", "vpls", "ism")
 DISPLAY_PASSES = {"direct": frozenset({"DiffDir", "DiffCol", "Emit"}),

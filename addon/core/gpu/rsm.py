@@ -11,14 +11,20 @@ from dataclasses import replace
 import moderngl
 import numpy as np
 
-from .atlas import TileTable, draw_tiles, tile_table
-from .geometry import empty_geometry
+from ..scene.geometry import empty_geometry
+from ..scene.model import Scene, World
+from ..settings import Settings
+from ..transport.lights import (
+    KIND_COSINE,
+    LightSamples,
+    build_light_samples,
+    spot_mask,
+    spread_attenuation,
+)
+from ..transport.vpl import LUMINANCE, SurfaceHits
 from .gl import ProgramCache
-from .lights import KIND_COSINE, LightSamples, build_light_samples, spot_mask, spread_attenuation
-from .scene import Scene, World
 from .scene_buffers import SceneBuffers
-from .settings import Settings
-from .vpl import LUMINANCE, SurfaceHits
+from .shadow_atlas import TileTable, draw_tiles, tile_table
 
 
 def rsm_light_samples(scene: Scene, settings: Settings) -> LightSamples:

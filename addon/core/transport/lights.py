@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .environment import EnvironmentSampler
-from .geometry import WorldGeometry
-from .scene import Light, LightKind, Scene
-from .settings import Settings
+from ..scene.environment import EnvironmentSampler
+from ..scene.geometry import WorldGeometry
+from ..scene.model import Light, LightKind, Scene
+from ..settings import Settings
 
 KIND_OMNI, KIND_COSINE, KIND_COSINE2, KIND_DIRECTIONAL = 0, 1, 2, 3
 NO_SPOT = -2.0

@@ -9,7 +9,7 @@ from functools import cached_property
 import numpy as np
 
 from . import textures as tex
-from .scene import DEFAULT_MATERIAL, Light, LightKind, Material, Mesh, Scene, Texture
+from .model import DEFAULT_MATERIAL, Light, LightKind, Material, Mesh, Scene, Texture
 
 DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32

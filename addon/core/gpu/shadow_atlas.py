@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from .lights import KIND_DIRECTIONAL, LightSamples
+from ..transport.lights import KIND_DIRECTIONAL, LightSamples
 
 GL_CLIP_DISTANCE0 = 0x3000
 

@@ -12,26 +12,26 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
+from ..gpu.blur import GeometryAwareBlur
+from ..gpu.gl import GLUnavailableError, ProgramCache, shared_context
+from ..gpu.ism import ImperfectShadowMaps, atlas_grid
+from ..gpu.raytrace import RayTracer
+from ..gpu.rsm import render_rsm, rsm_hits, rsm_light_samples
+from ..gpu.scene_buffers import SceneBuffers
+from ..gpu.shadow_atlas import draw_tiles, near_far, tile_table
+from ..gpu.texture_array import upload as upload_textures
+from ..scene.environment import background
+from ..scene.geometry import WorldGeometry, bounding_sphere, flatten_instances, light_shapes
+from ..scene.model import Camera, Scene
+from ..settings import Settings
+from ..transport.incremental import IncrementalVPLs
+from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
+from ..transport.sequences import scrambled_halton
+from ..transport.vpl import VPLs, generate_vpls, propagate
 from . import autotune
-from .atlas import draw_tiles, near_far, tile_table
-from .environment import background
-from .frame import PASS_CHANNELS, Frame, Stats
-from .geometry import WorldGeometry, bounding_sphere, flatten_instances, light_shapes
-from .gl import GLUnavailableError, ProgramCache, shared_context
-from .incremental import IncrementalVPLs
-from .ism import ImperfectShadowMaps, atlas_grid
 from .ism_reuse import ReusedISMAtlas
-from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .planner import Bounds, plan_frame, plan_gather, reaches_bounds, visible_bounds
-from .raytrace import RayTracer
-from .rsm import render_rsm, rsm_hits, rsm_light_samples
-from .scene import Camera, Scene
-from .scene_buffers import SceneBuffers
-from .sequences import scrambled_halton
-from .settings import Settings
-from .shading import GeometryAwareBlur
-from .textures import upload as upload_textures
-from .vpl import VPLs, generate_vpls, propagate
+from .result import PASS_CHANNELS, Frame, Stats
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
 MAX_TILE = 1024  # supersampled pixels per image tile edge

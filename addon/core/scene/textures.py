@@ -1,5 +1,5 @@
-"""Image textures: the frame's images packed into one array texture for the g-buffer, and
-bilinear sampling on the CPU for light paths.
+"""Image textures on the CPU: sRGB decoding, mean colours, bilinear sampling for light paths,
+and the frame's set of distinct textures (their GPU packing is in ``gpu/texture_array.py``).
 
 Packing: one ``sampler2DArray`` whose layers are as large as the largest image; each image
 lies unresampled in its layer's lower-left corner and the shader interpolates it itself
@@ -12,10 +12,9 @@ from __future__ import annotations
 
 from weakref import WeakKeyDictionary
 
-import moderngl
 import numpy as np
 
-from .scene import Material, Texture
+from .model import Material, Texture
 
 MISSING_COLOR = (1.0, 0.0, 1.0)  # Blender's colour for an image it cannot read
 NO_TEXTURE = -1.0
@@ -85,22 +84,3 @@ class TextureSet:
         scale = float(np.max(material.emission)) if material.emission_texture else 0.0
         return (self.layer(material.base_color_texture),
                 self.layer(material.emission_texture), scale)
-
-
-def upload(ctx: moderngl.Context, textures: list[Texture]
-           ) -> tuple[moderngl.TextureArray, moderngl.Texture]:
-    """The textures as one float32 RGBA array texture (one layer each, in the lower-left
-    corner), and a (layers × 1) table of each layer's width, height and sRGB flag."""
-    width = max(t.pixels.shape[1] for t in textures)
-    height = max(t.pixels.shape[0] for t in textures)
-    layers = np.zeros((len(textures), height, width, 4), np.float32)
-    table = np.zeros((len(textures), 4), np.float32)
-    for k, texture in enumerate(textures):
-        h, w = texture.pixels.shape[:2]
-        layers[k, :h, :w] = texture.pixels
-        table[k] = (w, h, float(texture.srgb), 0.0)
-    array = ctx.texture_array((width, height, len(textures)), 4, layers.tobytes(), dtype="f4")
-    array.filter = moderngl.NEAREST, moderngl.NEAREST
-    sizes = ctx.texture((len(textures), 1), 4, table.tobytes(), dtype="f4")
-    sizes.filter = moderngl.NEAREST, moderngl.NEAREST
-    return array, sizes

@@ -6,7 +6,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from .geometry import WorldGeometry
+from ..scene.geometry import WorldGeometry
 
 MATERIAL_UNITS = 6, 7  # texture units of the triangles' rows and the material table (units
 # 0-5 are the passes' own)

@@ -39,12 +39,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
 
-from .geometry import WorldGeometry
+from ..scene.geometry import WorldGeometry
+from ..scene.model import Light, LightKind, Scene
+from ..settings import Settings
 from .lights import concentric_disk, spot_mask, spot_parameters
-from .raytrace import RayTracer
-from .scene import Light, LightKind, Scene
+from .ray_caster import RayCaster
 from .sequences import scrambled_halton
-from .settings import Settings
 from .vpl import (
     START_DIMENSIONS,
     SurfaceHits,
@@ -320,7 +320,7 @@ class IncrementalVPLs:
     _environment_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def update(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
-               tracer: RayTracer, centre: np.ndarray, radius: float,
+               tracer: RayCaster, centre: np.ndarray, radius: float,
                shape_version: int) -> VPLs:
         """This frame's VPLs, reusing last frame's where they are still valid.
         ``shape_version`` is the caller's version of the triangle positions: a new value means
@@ -394,7 +394,7 @@ class IncrementalVPLs:
         self._next_id += count
         return ids
 
-    def _validate(self, anchors: _Anchors, domain: LightDomain, tracer: RayTracer,
+    def _validate(self, anchors: _Anchors, domain: LightDomain, tracer: RayCaster,
                   geometry: WorldGeometry, epsilon: float, retrace_all: bool) -> _Anchors:
         """Drop anchors whose hit the light no longer reaches; trace missed (and, after a
         geometry change, all) paths again from their domain points."""
@@ -426,7 +426,7 @@ class IncrementalVPLs:
         return kept
 
     def _trace(self, domain: LightDomain, coords: np.ndarray, offsets: np.ndarray,
-               slots: np.ndarray, tracer: RayTracer, geometry: WorldGeometry,
+               slots: np.ndarray, tracer: RayCaster, geometry: WorldGeometry,
                epsilon: float) -> _Anchors:
         """New anchors: paths from domain points traced to their first hit (misses kept)."""
         n = len(coords)
@@ -444,7 +444,7 @@ class IncrementalVPLs:
                         self._ids(n))
 
     def _create(self, anchors: _Anchors, domain: LightDomain, slots: np.ndarray,
-                tracer: RayTracer, geometry: WorldGeometry, epsilon: float,
+                tracer: RayCaster, geometry: WorldGeometry, epsilon: float,
                 seed: int) -> _Anchors:
         if len(slots) == 0:
             return anchors
@@ -465,7 +465,7 @@ class IncrementalVPLs:
         worst = edge[int(np.argmin(second))]
         return anchors.keep(np.arange(len(anchors)) != worst)
 
-    def _redistribute(self, anchors: _Anchors, domain: LightDomain, tracer: RayTracer,
+    def _redistribute(self, anchors: _Anchors, domain: LightDomain, tracer: RayCaster,
                       geometry: WorldGeometry, epsilon: float, settings: Settings) -> _Anchors:
         """Up to ``incremental_budget`` times: move the worst anchor to the best spot while the
         best spot is farther from its neighbours than the shortest edge is long."""
@@ -497,7 +497,7 @@ class IncrementalVPLs:
                            anchors.triangle[hit]), anchors.path_id[hit]
 
     def _environment_hits(self, emitters: list, slots: np.ndarray, count: int,
-                          permutation: np.ndarray, tracer: RayTracer, geometry: WorldGeometry,
+                          permutation: np.ndarray, tracer: RayCaster, geometry: WorldGeometry,
                           epsilon: float, seed: int) -> tuple[SurfaceHits, np.ndarray]:
         """First hits of the world's and emissive surfaces' paths: the same seeded path for a
         slot every frame (ids change only with the geometry or the slot set)."""

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import moderngl
 
-SHADER_DIR = Path(__file__).resolve().parents[2] / "gpu_shaders"
+SHADER_DIR = Path(__file__).resolve().parents[3] / "gpu_shaders"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 
 

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from .ism import ImperfectShadowMaps, atlas_grid
-from .lights import KIND_DIRECTIONAL, LightSamples
+from ..gpu.ism import ImperfectShadowMaps, atlas_grid
+from ..transport.lights import KIND_DIRECTIONAL, LightSamples
 
 SPARE_TILES = 0.25  # extra tiles a keyed atlas reserves for VPL counts that grow a little
 

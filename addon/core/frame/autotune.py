@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .scene import Camera, Instance, Light, LightKind, Material, Mesh, Scene
-from .settings import Settings
+from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene
+from ..settings import Settings
 
 COST_MODEL_VERSION = 2
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")

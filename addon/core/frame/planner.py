@@ -13,11 +13,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .frame import PASS_CHANNELS
-from .geometry import WorldGeometry
-from .lights import KIND_COSINE, KIND_DIRECTIONAL, NO_SPOT, LightSamples
-from .scene import Camera, Scene
-from .settings import Settings
+from ..scene.geometry import WorldGeometry
+from ..scene.model import Camera, Scene
+from ..settings import Settings
+from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, NO_SPOT, LightSamples
+from .result import PASS_CHANNELS
 
 Bounds = tuple[np.ndarray, np.ndarray]  # (lo, hi) corners of an axis-aligned box
 

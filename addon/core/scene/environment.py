@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scene import Camera, EnvironmentMap, World
+from .model import Camera, EnvironmentMap, World
 
 
 def _row_elevations(height: int) -> np.ndarray:

@@ -20,8 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .environment import EnvironmentSampler
-from .geometry import WorldGeometry
+from ..scene.environment import EnvironmentSampler
+from ..scene.geometry import WorldGeometry
+from ..scene.model import Light, LightKind, Scene
+from ..settings import Settings
 from .lights import (
     KIND_COSINE,
     NO_SPOT,
@@ -32,10 +34,8 @@ from .lights import (
     spread_attenuation,
     spread_parameters,
 )
-from .raytrace import RayTracer
-from .scene import Light, LightKind, Scene
+from .ray_caster import RayCaster
 from .sequences import scrambled_halton
-from .settings import Settings
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 START_DIMENSIONS = 5  # emitter choice, position (2), direction (2)
@@ -288,7 +288,7 @@ class SurfaceHits:
     triangle: np.ndarray | None = None  # (m,) int, the triangle hit (where known)
 
 
-def trace_hits(tracer: RayTracer, geometry: WorldGeometry, origin: np.ndarray,
+def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
            direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float
            ) -> SurfaceHits:
     """The surfaces the rays hit (misses dropped), normals turned towards the ray."""
@@ -304,7 +304,7 @@ def trace_hits(tracer: RayTracer, geometry: WorldGeometry, origin: np.ndarray,
 
 
 def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: Settings,
-              tracer: RayTracer, geometry: WorldGeometry, radius: float) -> VPLs:
+              tracer: RayCaster, geometry: WorldGeometry, radius: float) -> VPLs:
     """VPLs at the first hits of ``count`` paths and at every further hit up to
     ``settings.bounces``; ``directions`` (count, 2 (bounces - 1)) are the unit-square samples
     of the cosine-distributed reflections, per rank."""
@@ -338,7 +338,7 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
     return VPLs(*(np.concatenate(c) for c in zip(*out, strict=True)))
 
 
-def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tracer: RayTracer,
+def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tracer: RayCaster,
                   centre: np.ndarray, radius: float) -> VPLs:
     """Trace ``settings.vpl_count`` light paths for up to ``settings.bounces`` hits each."""
     emitters = _emitters(scene, geometry, centre, radius)

@@ -1,0 +1,25 @@
+"""What light transport needs of a ray tracer (the GPU's, ``gpu/raytrace.py``, is one)."""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+
+class RayHits(Protocol):
+    """Closest hits of a batch of rays."""
+
+    distance: np.ndarray  # (R,) inf where missed
+    triangle: np.ndarray  # (R,) triangle index, -1 where missed
+    barycentric: np.ndarray  # (R, 2) weights of vertices 1 and 2
+
+
+class RayCaster(Protocol):
+    """Closest-hit queries against the frame's triangles."""
+
+    def intersect(self, origins: np.ndarray, directions: np.ndarray,
+                  t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf
+                  ) -> RayHits:
+        """Closest hit of each ray (R, 3) with ``t_min < t < t_max``."""
+        ...
