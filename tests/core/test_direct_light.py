@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.frame import renderer as renderer_module
+from addon.core.frame import batches
+from addon.core.frame import image as image_stage
 from addon.core.scene.model import AreaShape, Instance, LightKind, Material, World
 from addon.core.settings import Settings
 from tests.core.builders import floor_scene, light, pixel_centres, quad, rotation_x, translation
@@ -115,8 +116,8 @@ def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch):
     scene = floor_scene(lights, extra=[blocker])
     settings = Settings(bounces=0, antialiasing=2, shadow_resolution=256)
     whole, _ = renderer.render(scene, settings)
-    monkeypatch.setattr(renderer_module, "MAX_TILE", 48)
-    monkeypatch.setattr(renderer_module, "ATLAS_TEXELS", 6 * 256 * 256)
+    monkeypatch.setattr(image_stage, "MAX_TILE", 48)
+    monkeypatch.setattr(batches, "ATLAS_TEXELS", 6 * 256 * 256)
     split, _ = renderer.render(scene, settings)
     for name, image in whole.passes.items():
         np.testing.assert_allclose(split.passes[name], image, rtol=1e-5, atol=1e-6, err_msg=name)

@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.scene import environment, vpl
+from addon.core.scene import environment
 from addon.core.scene.geometry import flatten_instances
 from addon.core.scene.model import EnvironmentMap, World
 from addon.core.settings import Settings
+from addon.core.transport import vpl
 from addon.core.transport.lights import fibonacci_square
 from addon.core.transport.sequences import scrambled_halton
 from tests.core.builders import floor_scene, inside_sphere_camera, rotation_x

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from addon.core.frame.reuse import settings_key
+from addon.core.frame.vpl_stage import INCREMENTAL_FIELDS
 from addon.core.scene.geometry import bounding_sphere, flatten_instances
 from addon.core.scene.model import Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
@@ -103,7 +105,8 @@ def update(state: IncrementalVPLs, scene: Scene, renderer, settings: Settings):
     centre, radius = bounding_sphere(geometry.positions)
     renderer.tracer.upload(geometry.positions.reshape(-1, 3, 3))
     return state.update(scene, geometry, settings, renderer.tracer, centre, radius,
-                        shape_version=0)  # each test keeps its surfaces where they are
+                        shape_version=0,  # each test keeps its surfaces where they are
+                        key=settings_key(settings, INCREMENTAL_FIELDS))
 
 
 def first_bounce_flux(vpls, albedo: float) -> float:
@@ -187,7 +190,7 @@ def test_kept_imperfect_shadow_maps_shade_like_fresh_ones(renderer):
     renderer.render(scene(0.0), settings)
     kept, stats = renderer.render(scene(0.2), settings)
     assert 0 < stats.counts["isms_rendered"] == stats.counts["vpls_new"] < stats.counts["vpls"]
-    renderer._ism_atlas.forget()
+    renderer.kept.ism_atlas.forget()
     fresh, stats = renderer.render(scene(0.2), settings)
     assert stats.counts["isms_rendered"] == stats.counts["vpls"]
     exact, _ = renderer.render(scene(0.2), Settings(**{**settings.__dict__,

@@ -77,7 +77,7 @@ def test_texture_variant_is_compiled_only_for_textured_scenes():
     renderer = Renderer()
     try:
         def variants() -> list[tuple]:
-            return [key for key in renderer.programs._programs
+            return [key for key in renderer.gpu.programs._programs
                     if key[:2] == ("gbuffer_vert.glsl", "gbuffer_frag.glsl")]
         renderer.render(plain, Settings(bounces=0, antialiasing=1))
         assert not flatten_instances(plain, []).has_textures

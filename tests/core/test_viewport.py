@@ -136,7 +136,7 @@ def test_close_releases_the_worker_and_its_gpu_objects():
         settings=SETTINGS)
     session.close()
     assert not session.alive
-    assert made[0]._helpers == {} and made[0].last_vpls is None
+    assert made[0].gpu.helpers == () and made[0].last_vpls is None
 
 
 def test_display_image_rejects_nothing_and_keeps_alpha():

@@ -90,3 +90,10 @@ class ProgramCache:
         for program in self._programs.values():
             program.release()
         self._programs.clear()
+
+
+def set_uniforms(program: moderngl.Program, **values: object) -> None:
+    """Set the uniforms the compiler kept (unused ones are optimised away)."""
+    for name, value in values.items():
+        if name in program:
+            program[name].value = value

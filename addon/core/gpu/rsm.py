@@ -22,7 +22,7 @@ from ..transport.lights import (
     spread_attenuation,
 )
 from ..transport.vpl import LUMINANCE, SurfaceHits
-from .gl import ProgramCache
+from .gl import ProgramCache, set_uniforms
 from .scene_buffers import SceneBuffers
 from .shadow_atlas import TileTable, draw_tiles, tile_table
 
@@ -68,10 +68,8 @@ def render_rsm(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffer
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         objects[0].use(0)
         program = programs.get("rsm_vert.glsl", "rsm_frag.glsl")
-        for name, value in {"u_tiles": 0, "u_atlas_tiles": (columns, size[1] // res),
-                            "u_scene_centre": tuple(centre), "u_scene_radius": radius}.items():
-            if name in program:
-                program[name].value = value
+        set_uniforms(program, u_tiles=0, u_atlas_tiles=(columns, size[1] // res),
+                     u_scene_centre=tuple(centre), u_scene_radius=radius)
         scene.bind_materials(program)
         vao = ctx.vertex_array(program, scene.streams(normals=False))
         objects.append(vao)

@@ -321,13 +321,13 @@ class IncrementalVPLs:
 
     def update(self, scene: Scene, geometry: WorldGeometry, settings: Settings,
                tracer: RayCaster, centre: np.ndarray, radius: float,
-               shape_version: int) -> VPLs:
+               shape_version: int, key: tuple) -> VPLs:
         """This frame's VPLs, reusing last frame's where they are still valid.
         ``shape_version`` is the caller's version of the triangle positions: a new value means
-        surfaces moved, and every path is traced again."""
+        surfaces moved, and every path is traced again; a new ``key`` (the settings the paths
+        depend on) starts afresh."""
         self.stats = IncrementalStats()
         self._frame += 1
-        key = (settings.vpl_count, settings.bounces, settings.seed, settings.termination)
         same_geometry = shape_version == self._shape_version
         if key != self._key:
             self.lights.clear()

@@ -1,0 +1,101 @@
+"""The automatic mode's stage: parameters chosen from a cost model measured once on this
+machine and an error model, for the frame's workload."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+from ..gpu.gl import GLUnavailableError
+from ..scene.model import Scene
+from ..settings import Settings
+from ..transport.vpl import generate_vpls
+from . import autotune
+from .gpu_session import GpuSession
+from .ism_maps import ISM_POINT_SUBSETS
+from .planner import reaches_bounds
+from .result import Frame, Stats
+from .reuse import KeptProducts
+from .state import FrameState, Stage
+from .vpl_stage import upload_triangles
+
+PROBE_PATHS = 64  # light paths the automatic mode traces to learn how many VPLs a path leaves
+
+RenderFunction = Callable[[Scene, Settings], tuple[Frame, Stats]]
+
+
+class ChooseParameters(Stage):
+    """Replace the frame's settings by the automatic mode's choice (when it is on and the
+    frame has indirect light)."""
+
+    name = "automatic parameters"
+    needs = ("camera", "geometry", "centre", "plan", "light_samples")
+
+    def __init__(self, gpu: GpuSession, kept: KeptProducts, render: RenderFunction) -> None:
+        self.gpu, self.kept, self.render = gpu, kept, render
+        self.cost_cache: Path | None = autotune.default_cost_cache()
+        """Where the measured cost model is kept (None: measure each time)."""
+
+    def run(self, frame: FrameState) -> None:
+        if frame.settings.auto_parameters == "off" or not frame.plan.indirect:
+            return
+        settings, stats = frame.settings, frame.stats
+        name = str(self.gpu.ctx.info["GL_RENDERER"])
+
+        def measure() -> autotune.CostModel:
+            frame.report(0.0, "Measuring this machine's cost model (once)")
+            with stats.timed("cost model calibration"):
+                model = autotune.calibrate(self._calibration_frame, name,
+                                           Settings(antialiasing=1))
+            self.kept.forget(anchors=False)
+            return model
+
+        cost = autotune.cached_cost_model(self.cost_cache, name, measure)
+        camera = frame.camera
+        with stats.timed("automatic parameters"):
+            work = autotune.Workload(
+                pixels=camera.width * camera.height * settings.antialiasing**2,
+                triangles=frame.geometry.vertex_count // 3,
+                shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
+                vpls_per_path=self._vpls_per_path(frame),
+                bounces=settings.bounces, max_subsets=ISM_POINT_SUBSETS,
+                pooled=self._ism_pool(frame))
+        choice = autotune.choose(settings, work, cost, autotune.load_error_model())
+        stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
+                           f"{choice.describe()}")
+        stats.counts.update(auto_vpl_count=choice.settings.vpl_count)
+        frame.settings = choice.settings
+
+    def _ism_pool(self, frame: FrameState) -> tuple[int, int]:
+        """(points per VPL, subsets) of the ISM point pool sampled for these triangles."""
+        key = getattr(self.gpu.ism_if_made, "pool_key", None)
+        if key is None or key[0] != frame.geometry.vertex_count // 3:
+            return 0, 0
+        return key[2], key[1]
+
+    def _vpls_per_path(self, frame: FrameState) -> float:
+        """VPLs that can light the view per light path, from a probe of PROBE_PATHS paths."""
+        settings = frame.settings
+        probe = replace(settings, vpl_count=PROBE_PATHS, incremental=False)
+        try:
+            tracer = upload_triangles(self.gpu, self.kept, frame.geometry, frame.stats)
+        except GLUnavailableError:
+            return float(settings.bounces)
+        vpls = generate_vpls(frame.scene, frame.geometry, probe, tracer, frame.centre,
+                             frame.radius)
+        samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
+        in_view_count = int(reaches_bounds(samples, frame.in_view).sum()) \
+            if frame.in_view is not None else len(vpls)
+        return max(in_view_count, 1) / PROBE_PATHS
+
+    def _calibration_frame(self, settings: Settings) -> dict[str, float | int]:
+        """Stage timings and counts of one frame of the calibration scene."""
+        self.kept.forget(anchors=False)
+        scene = autotune.calibration_scene()
+        _, stats = self.render(scene, settings)
+        camera = scene.camera
+        return {**stats.timings, "vpls": stats.counts["vpls"],
+                "pixels": camera.width * camera.height * settings.antialiasing**2,
+                "triangles": stats.counts["triangles"],
+                "shadow_tiles": stats.counts["shadow_maps"]}

@@ -1,0 +1,53 @@
+"""Blender's passes from a tile's supersampled buffers, and the final check for NaN."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene.environment import background
+from ..scene.model import Scene
+from .result import Stats
+
+BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
+
+
+def downsample(image: np.ndarray, factor: int) -> np.ndarray:
+    """Mean of each factor × factor block of an (h, w, c) image."""
+    if factor == 1:
+        return image
+    h, w, c = image.shape
+    return image.reshape(h // factor, factor, w // factor, factor, c).mean(axis=(1, 3))
+
+
+def compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray], direct: np.ndarray,
+            indirect: np.ndarray, scene: Scene, aa: int, x0: int, y0: int,
+            passes: frozenset[str]) -> None:
+    """Write one supersampled tile's ``passes`` into ``output`` at output resolution."""
+    covered = gbuffer["normal"][..., 3:4]
+    albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
+    diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
+    combined = np.concatenate([(diff_dir + diff_ind) * albedo + emission, covered], axis=-1)
+    if not scene.film_transparent:
+        combined[..., 3:] += 1.0 - covered
+        combined[..., :3] += (1.0 - covered) * background(
+            scene.world, scene.camera, aa, x0, y0, covered.shape[1], covered.shape[0])
+    h, w = covered.shape[0] // aa, covered.shape[1] // aa
+    region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
+    images = {"Combined": lambda: combined, "DiffDir": lambda: diff_dir,
+              "DiffInd": lambda: diff_ind, "DiffCol": lambda: albedo,
+              "Emit": lambda: emission, "Normal": lambda: gbuffer["normal"][..., :3]}
+    for name, image in images.items():
+        if name in passes:
+            output[name][region] = downsample(image(), aa)
+    if "Depth" in passes:
+        depth = np.where(covered > 0, gbuffer["position"][..., 3:4], BACKGROUND_DEPTH)
+        output["Depth"][region] = depth.reshape(h, aa, w, aa, 1).min(axis=(1, 3))
+
+
+def sanitize(output: dict[str, np.ndarray], stats: Stats) -> None:
+    """Never hand out NaN or Inf: replace them and say how many there were."""
+    for name, image in output.items():
+        bad = ~np.isfinite(image)
+        if bad.any():
+            stats.warnings.append(f"{int(bad.sum())} non-finite values in {name} set to 0")
+            image[bad] = 0.0

@@ -1,0 +1,120 @@
+"""Gathering light at every g-buffer sample from a batch of light samples (direct light) or
+VPLs (indirect light), with the batch's visibility, into an accumulator."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import moderngl
+import numpy as np
+
+from ..gpu.gl import ProgramCache, set_uniforms
+from ..gpu.scene_buffers import SceneBuffers
+from ..gpu.shadow_atlas import near_far
+from .batches import Batch
+from .gbuffer import GBuffer
+from .gpu_scope import GpuScope
+
+if TYPE_CHECKING:
+    from .visibility import Visibility
+
+SURFACE_VERTICES_BINDING = 4  # the position stream as gather_frag.glsl's storage buffer
+ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see gpu/ism.py)
+
+
+@dataclass
+class LightPass:
+    """One batch of light samples to gather, with its distance clamp and visibility."""
+
+    name: str  # "direct light" or "indirect light": the stage's name in the stats
+    batch: Batch
+    min_distance: float
+    visibility: Visibility
+    interleave: int = 1
+
+    @property
+    def indirect(self) -> bool:
+        return self.name == "indirect light"
+
+
+@dataclass
+class Compensation:
+    """Parameters of the bias-compensation pass (Kollig & Keller 2004)."""
+
+    clamp_distance: float
+    samples: int
+    seed: int
+    max_generation: int
+
+
+def samples_per_draw(rays_per_sample: int, compensation: Compensation | None) -> int:
+    """Light samples one full-screen draw may loop over. Software OpenGL (Mesa llvmpipe) stops
+    a shader invocation's loops after 65535 iterations in all; a ray's BVH traversal takes a
+    few hundred, so ray-traced passes are split into draws of few samples."""
+    if compensation is not None:
+        rays_per_sample = compensation.samples * (1 + rays_per_sample)
+    return 4096 if rays_per_sample == 0 else max(1, 48 // rays_per_sample)
+
+
+def new_accumulator(ctx: moderngl.Context, size: tuple[int, int], scope: GpuScope
+                    ) -> moderngl.Framebuffer:
+    """A cleared float32 RGBA target of ``size`` that light is added to."""
+    fbo = scope.own(ctx.framebuffer([scope.own(ctx.texture(size, 4, dtype="f4"))]))
+    fbo.clear(0.0, 0.0, 0.0, 0.0)
+    return fbo
+
+
+def read_accumulator(accumulator: moderngl.Framebuffer) -> np.ndarray:
+    """The accumulator as (h, w, 4) float32."""
+    w, h = accumulator.size
+    return np.frombuffer(accumulator.read(components=4, dtype="f4"),
+                         dtype=np.float32).reshape(h, w, 4)
+
+
+def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
+           atlas: moderngl.Texture, gbuffer: GBuffer, accumulator: moderngl.Framebuffer,
+           scene: SceneBuffers | None, centre: np.ndarray, radius: float, bias: float,
+           compensation: Compensation | None = None) -> None:
+    """Add one batch's light to the accumulator (additive blending); with
+    ``compensation``, add the light its distance clamp removed instead."""
+    batch = light_pass.batch
+    s = batch.samples
+    near, far = near_far(s, centre, radius)
+    table = s.table(batch.first_tile, near, far)
+    with GpuScope() as scope:
+        light_table = scope.own(ctx.texture((table.shape[1], len(s)), 4, table.tobytes(),
+                                            dtype="f4"))
+        for unit, name in enumerate(("position", "normal", "geometric")):
+            gbuffer.textures[name].use(unit)
+        light_table.use(3)
+        atlas.use(4)
+        visibility = light_pass.visibility
+        defines: dict[str, object] = dict(visibility.defines)
+        uniforms: dict[str, object] = {}
+        if compensation is not None:
+            defines.update(BIAS_COMPENSATION=1, SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
+            uniforms.update(u_clamp_distance=compensation.clamp_distance,
+                            u_bias_samples=compensation.samples, u_seed=compensation.seed,
+                            u_max_generation=compensation.max_generation)
+        needs_430 = visibility.rays_per_sample > 0 or compensation is not None
+        program = programs.get("fullscreen_vert.glsl", "gather_frag.glsl", defines,
+                               version=430 if needs_430 else 410)
+        set_uniforms(program, u_position=0, u_normal=1, u_geometric=2, u_light_table=3,
+                     u_shadow_atlas=4, u_atlas_columns=batch.columns,
+                     u_interleave=light_pass.interleave, u_ism_bias=ISM_BIAS_TEXELS,
+                     u_scene_centre=tuple(centre), u_scene_radius=radius, u_shadow_bias=bias,
+                     u_min_distance2=light_pass.min_distance**2, u_ray_offset=1e-4 * radius,
+                     **uniforms)
+        if compensation is not None:  # the surfaces rays reach: positions and materials
+            scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
+            scene.bind_materials(program)
+        accumulator.use()
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        vao = scope.own(ctx.vertex_array(program, []))
+        chunk = samples_per_draw(visibility.rays_per_sample, compensation)
+        for first in range(0, len(s), chunk):
+            set_uniforms(program, u_first=first, u_count=min(chunk, len(s) - first))
+            vao.render(moderngl.TRIANGLES, vertices=3)
+        ctx.disable(moderngl.BLEND)

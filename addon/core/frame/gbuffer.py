@@ -1,0 +1,95 @@
+"""The g-buffer of one image tile: position, normals, albedo and emission per supersample."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from ..gpu.gl import ProgramCache, set_uniforms
+from ..gpu.scene_buffers import SceneBuffers
+from ..scene.model import Camera
+from .gpu_scope import GpuScope
+
+LAYERS = ("position", "normal", "geometric", "albedo", "emission")
+TEXTURE_UNITS = 0, 1  # the image textures' array texture and its table of sizes
+
+
+@dataclass(frozen=True)
+class Tile:
+    """Supersampled pixels [x0, x1) × [y0, y1) of an image of width × height."""
+
+    x0: int
+    x1: int
+    y0: int
+    y1: int
+    width: int
+    height: int
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.x1 - self.x0, self.y1 - self.y0
+
+
+@dataclass
+class GBuffer:
+    """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays."""
+
+    textures: dict[str, moderngl.Texture]
+    images: dict[str, np.ndarray]
+
+
+def tile_projection(projection: np.ndarray, tile: Tile) -> np.ndarray:
+    """Projection whose clip volume covers only the tile's pixels of the image."""
+    hx, hy = (tile.x1 - tile.x0) / tile.width, (tile.y1 - tile.y0) / tile.height
+    cx, cy = (tile.x0 + tile.x1) / tile.width - 1.0, (tile.y0 + tile.y1) / tile.height - 1.0
+    crop = np.array([[1 / hx, 0, 0, -cx / hx], [0, 1 / hy, 0, -cy / hy], [0, 0, 1, 0],
+                     [0, 0, 0, 1]])
+    return crop @ projection
+
+
+def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffers | None,
+                   shapes: SceneBuffers | None,
+                   textures: tuple[moderngl.TextureArray, moderngl.Texture] | None,
+                   camera: Camera, tile: Tile, scope: GpuScope) -> GBuffer:
+    """Rasterise the scene's triangles and the lights' outlines into the tile's g-buffer,
+    whose textures ``scope`` owns."""
+    size = tile.size
+    layers = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in LAYERS]
+    fbo = scope.own(ctx.framebuffer(layers, scope.own(ctx.depth_renderbuffer(size))))
+    fbo.use()
+    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+    ctx.enable(moderngl.DEPTH_TEST)
+    ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+    view_projection = tile_projection(camera.projection_matrix, tile) @ camera.view_matrix
+    camera_to_world = np.linalg.inv(camera.view_matrix)
+    uniforms = {
+        "u_view_projection": tuple(view_projection.T.astype("f4").ravel()),
+        "u_view": tuple(camera.view_matrix.T.astype("f4").ravel()),
+        "u_camera_position": tuple(camera_to_world[:3, 3]),
+        "u_camera_forward": tuple(-camera_to_world[:3, 2] /
+                                  np.linalg.norm(camera_to_world[:3, 2])),
+        "u_orthographic": camera.is_orthographic,
+    }
+    scene_defines = {"TEXTURED": 1} if textures else None
+    for buffers, defines in ((scene, scene_defines), (shapes, {"ONE_SIDED": 1})):
+        if buffers is None:
+            continue
+        program = programs.get("gbuffer_vert.glsl", "gbuffer_frag.glsl", defines)
+        set_uniforms(program, **uniforms)
+        streams = buffers.streams()
+        if defines is scene_defines and textures:
+            array, sizes = textures
+            streams.append((buffers.uv, "2f", "in_uv"))
+            array.use(TEXTURE_UNITS[0])
+            sizes.use(TEXTURE_UNITS[1])
+            set_uniforms(program, u_textures=TEXTURE_UNITS[0], u_texture_sizes=TEXTURE_UNITS[1])
+        buffers.bind_materials(program)
+        vao = scope.own(ctx.vertex_array(program, streams, skip_errors=True))
+        vao.render(moderngl.TRIANGLES, vertices=buffers.vertex_count)
+    ctx.disable(moderngl.DEPTH_TEST)
+    by_name = dict(zip(LAYERS, layers, strict=True))
+    images = {name: np.frombuffer(tex.read(), dtype=np.float32).reshape(size[1], size[0], 4)
+              for name, tex in by_name.items()}
+    return GBuffer(by_name, images)

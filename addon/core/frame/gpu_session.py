@@ -1,0 +1,59 @@
+"""A GL context with its compiled programs and the GPU helpers made on first use."""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+import moderngl
+
+from ..gpu.blur import GeometryAwareBlur
+from ..gpu.gl import ProgramCache
+from ..gpu.ism import ImperfectShadowMaps
+from ..gpu.raytrace import RayTracer
+
+Helper = TypeVar("Helper", RayTracer, ImperfectShadowMaps, GeometryAwareBlur)
+
+
+class GpuSession:
+    """The context frames render with; the ray tracer and imperfect shadow maps raise
+    GLUnavailableError on first use without OpenGL 4.3."""
+
+    def __init__(self, ctx: moderngl.Context) -> None:
+        self.ctx = ctx
+        self.programs = ProgramCache(ctx)
+        self.max_texture = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
+        self._helpers: dict[type, RayTracer | ImperfectShadowMaps | GeometryAwareBlur] = {}
+
+    def _helper(self, cls: type[Helper]) -> Helper:
+        if cls not in self._helpers:
+            self._helpers[cls] = cls(self.ctx, self.programs)
+        return self._helpers[cls]  # type: ignore[return-value]
+
+    @property
+    def tracer(self) -> RayTracer:
+        return self._helper(RayTracer)
+
+    @property
+    def ism(self) -> ImperfectShadowMaps:
+        return self._helper(ImperfectShadowMaps)
+
+    @property
+    def blur(self) -> GeometryAwareBlur:
+        return self._helper(GeometryAwareBlur)
+
+    @property
+    def helpers(self) -> tuple[RayTracer | ImperfectShadowMaps | GeometryAwareBlur, ...]:
+        """The helpers made so far."""
+        return tuple(self._helpers.values())
+
+    @property
+    def ism_if_made(self) -> ImperfectShadowMaps | None:
+        """The imperfect shadow maps helper if a frame made it (None otherwise)."""
+        return self._helpers.get(ImperfectShadowMaps)  # type: ignore[return-value]
+
+    def release(self) -> None:
+        """Release the helpers and programs (the context stays the caller's)."""
+        for helper in self._helpers.values():
+            helper.release()
+        self._helpers.clear()
+        self.programs.release()

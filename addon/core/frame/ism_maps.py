@@ -1,0 +1,83 @@
+"""Imperfect shadow maps of one frame's batches: surface points sampled once per scene and
+VPL count, and the atlas kept between frames when the frame has a single ISM batch."""
+
+from __future__ import annotations
+
+import time
+
+import moderngl
+import numpy as np
+
+from ..gpu.ism import ImperfectShadowMaps
+from ..scene.geometry import WorldGeometry
+from ..settings import Settings
+from ..transport.lights import KIND_DIRECTIONAL
+from .batches import Batch, ism_tiles_per_atlas
+from .result import Stats
+from .reuse import KeptProducts, settings_key
+from .state import RenderError
+
+ISM_POINT_SUBSETS = 512  # stratified point sets sampled on the CPU (~0.4 µs a point); VPL k uses
+# set k % 512, moved within its triangles by a per-VPL random shift beyond the first 512
+ATLAS_FIELDS = ("ism_points", "ism_resolution", "pull_push_levels", "seed")
+"""Settings the kept ISM atlas depends on (with the triangle positions' version)."""
+
+
+class ImperfectShadowMapFrame:
+    """Renders the imperfect shadow maps of a frame's batches. With a single batch its atlas
+    is kept between frames: ``keys`` identify the VPLs of ``keyed_batch``, and only maps of
+    VPLs with new keys are rendered."""
+
+    def __init__(self, ism: ImperfectShadowMaps, kept: KeptProducts, geometry: WorldGeometry,
+                 settings: Settings, batches: list[Batch], sphere: tuple[np.ndarray, float],
+                 stats: Stats, keyed_batch: Batch | None, keys: np.ndarray | None) -> None:
+        self.ism, self.kept, self.settings, self.batches = ism, kept, settings, batches
+        self.sphere, self.stats, self.keyed_batch, self.keys = sphere, stats, keyed_batch, keys
+        self.triangles = geometry.positions.reshape(-1, 3, 3)
+        self.empty = geometry.vertex_count == 0
+        most = max(len(b.samples) for b in batches)  # rounded up to a power of two, so that
+        subsets = min(ISM_POINT_SUBSETS, 1 << max(0, most - 1).bit_length())  # counts that
+        # vary a little from frame to frame (Incremental Instant Radiosity) keep the pool
+        start = time.perf_counter()
+        try:
+            sampled = ism.prepare(self.triangles, subsets, settings.ism_points, settings.seed)
+        except ValueError as exc:  # the point pool exceeds the GPU's storage-buffer limit
+            raise RenderError(f"imperfect shadow maps: {exc} (lower ism_points)") from None
+        if sampled:
+            stats.timings["ism points"] = time.perf_counter() - start
+        else:
+            stats.skipped["ism points"] = "triangle count and point settings unchanged"
+        self.levels = min(settings.pull_push_levels, int(np.log2(settings.ism_resolution)))
+        stats.counts["isms"] = sum(len(b.samples) for b in batches)
+        self.atlas_key = (kept.versions.shape, *settings_key(settings, ATLAS_FIELDS))
+        self._rendered: dict[int, moderngl.Texture] = {}
+
+    def render(self, batch: Batch) -> moderngl.Texture:
+        """The batch's atlas of maps (tile k for sample k, or as the kept atlas assigns)."""
+        ism, settings, stats = self.ism, self.settings, self.stats
+        if self.empty:
+            return ism.render(self.triangles, np.zeros((0, 3)), np.zeros((0, 3)),
+                              settings.ism_resolution, self.levels)
+        if id(batch) in self._rendered:
+            return self._rendered[id(batch)]
+        s = batch.samples
+        if len(self.batches) > 1:  # several atlases per frame: nothing is kept between frames
+            self.kept.ism_atlas.forget()
+            texture = ism.render(self.triangles, s.position, s.axis, settings.ism_resolution,
+                                 self.levels, s.kind == KIND_DIRECTIONAL, self.sphere)
+            rendered = len(s)
+        else:
+            use = self.kept.ism_atlas.render(
+                ism, self.triangles, s, self.keys if batch is self.keyed_batch else None,
+                self.atlas_key, settings.ism_resolution, self.levels, self.sphere,
+                ism_tiles_per_atlas(settings.ism_resolution))
+            texture, rendered = use.texture, use.rendered
+            batch.first_tile, batch.columns, batch.rows = use.tiles, use.columns, use.rows
+            self._rendered[id(batch)] = texture
+        stats.counts["isms_rendered"] = stats.counts.get("isms_rendered", 0) + rendered
+        if rendered == 0:
+            stats.skipped["ism"] = "VPLs and geometry unchanged since the last frame"
+            return texture
+        for stage, seconds in ism.timings.items():
+            stats.timings[f"ism {stage}"] = stats.timings.get(f"ism {stage}", 0) + seconds
+        return texture

@@ -1,0 +1,188 @@
+"""The frame's stages before and after the image: input checks, geometry, planning, light
+samples, gather settings, light passes with their visibility, and the final NaN check."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..scene.geometry import bounding_sphere, flatten_instances, light_shapes
+from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, build_light_samples
+from .batches import shadow_map_batches
+from .compose import sanitize
+from .gather import Compensation, LightPass
+from .gpu_session import GpuSession
+from .ism_maps import ImperfectShadowMapFrame
+from .planner import plan_frame, plan_gather, visible_bounds
+from .reuse import KeptProducts
+from .state import FrameState, RenderError, Stage
+from .visibility import VISIBILITY, ImperfectVisibility, ShadowMapVisibility
+from .vpl_stage import cull
+
+MAX_FRAME_SAMPLES = 1 << 27  # supersampled pixels per frame: the passes alone take 80 B each
+
+
+class CheckInput(Stage):
+    """Settings in range and a camera with a non-empty image of a size the GPU can hold."""
+
+    name = "check input"
+    makes = ("camera",)
+
+    def run(self, frame: FrameState) -> None:
+        frame.settings.validate()
+        camera = frame.scene.camera
+        if camera is None:
+            raise RenderError("the scene has no camera")
+        if camera.width < 1 or camera.height < 1:
+            raise RenderError(f"resolution {camera.width}×{camera.height} is empty")
+        aa = frame.settings.antialiasing
+        samples = camera.width * camera.height * aa**2
+        if samples > MAX_FRAME_SAMPLES:
+            raise RenderError(f"{camera.width}×{camera.height} pixels at antialiasing {aa} is "
+                              f"{samples:,} samples; the limit is {MAX_FRAME_SAMPLES:,} (lower "
+                              f"the resolution or the antialiasing)")
+        frame.camera = camera
+
+
+class FlattenGeometry(Stage):
+    """Every instance's triangles in world space, the lights' visible outlines, the bounding
+    sphere, and the versions of what changed since the last frame."""
+
+    name = "geometry"
+    makes = ("geometry", "shapes", "centre")
+
+    def __init__(self, kept: KeptProducts) -> None:
+        self.kept = kept
+
+    def run(self, frame: FrameState) -> None:
+        with frame.stats.timed(self.name):
+            frame.geometry = flatten_instances(frame.scene, frame.stats.warnings)
+            frame.shapes = light_shapes(frame.scene)
+            frame.centre, frame.radius = bounding_sphere(frame.geometry.positions)
+            self.kept.versions.note(frame.geometry)
+
+
+class PlanFrame(Stage):
+    """What the frame needs (the planner), and the bounds of the surfaces in view."""
+
+    name = "planning"
+    needs = ("camera", "geometry")
+    makes = ("plan",)
+
+    def __init__(self, kept: KeptProducts) -> None:
+        self.kept = kept
+
+    def run(self, frame: FrameState) -> None:
+        stats = frame.stats
+        with stats.timed(self.name):
+            plan = plan_frame(frame.scene, frame.geometry, frame.settings, frame.passes)
+            stats.skipped.update(plan.skipped)
+            if not frame.settings.planner:
+                self.kept.forget(anchors=False)
+            in_view = visible_bounds(frame.camera, frame.geometry.positions) \
+                if plan.cull_to_view else None
+            if plan.cull_to_view and in_view is None and plan.indirect:
+                plan.indirect = False
+                stats.skipped["indirect light"] = "the camera sees no surface"
+        frame.plan, frame.in_view = plan, in_view
+
+
+class SampleLights(Stage):
+    """Point samples of every light, emissive surface and the world, culled to the view."""
+
+    name = "light samples"
+    needs = ("geometry", "plan")
+    makes = ("light_samples",)
+
+    def run(self, frame: FrameState) -> None:
+        with frame.stats.timed(self.name):
+            samples = build_light_samples(frame.scene, frame.geometry, frame.settings,
+                                          frame.stats.warnings, frame.plan.sample_dark)
+            if frame.plan.cull_to_view:
+                samples = cull(samples, frame.in_view, "light samples", frame.stats)
+        frame.light_samples = samples
+
+
+class PlanGather(Stage):
+    """The pull-push levels the frame's final settings need."""
+
+    name = "gather plan"
+    needs = ("plan",)
+
+    def run(self, frame: FrameState) -> None:
+        levels, skipped = plan_gather(frame.plan, frame.settings)
+        frame.stats.skipped.update(skipped)
+        frame.settings = replace(frame.settings, pull_push_levels=levels)
+
+
+def blur_radius(interleave: int, radius: int) -> int:
+    """The blur radius, rounded up to a multiple of K/2 (0 without interleaving)."""
+    if interleave == 1:
+        return 0
+    step = interleave // 2
+    return -(-radius // step) * step
+
+
+class PlanLightPasses(Stage):
+    """Light samples and VPLs in batches, each with its visibility mode; the bias
+    compensation, the blur, and the frame's imperfect shadow maps."""
+
+    name = "visibility"
+    needs = ("geometry", "centre", "light_samples", "vpls", "vpl_samples")
+    makes = ("light_passes",)
+
+    def __init__(self, gpu: GpuSession, kept: KeptProducts) -> None:
+        self.gpu, self.kept = gpu, kept
+
+    def run(self, frame: FrameState) -> None:
+        settings, stats, samples = frame.settings, frame.stats, frame.light_samples
+        radius = frame.radius
+        mode = VISIBILITY[settings.visibility]()
+        vpl_samples = mode.prepare(frame.vpl_samples)
+        vpl_batches = mode.batches(vpl_samples, settings, self.gpu.max_texture)
+        soft_ism = settings.soft_light_ism and samples.kind.size > 0
+        if soft_ism and self.gpu.ctx.version_code < 430:
+            stats.warnings.append("soft lights use triangle shadow maps: imperfect shadow maps "
+                                  "need OpenGL 4.3")
+            soft_ism = False
+        as_ism = samples.soft & samples.casts_shadow & np.isin(
+            samples.kind, (KIND_COSINE, KIND_DIRECTIONAL)) if soft_ism \
+            else np.zeros(len(samples), bool)
+        imperfect, triangles = ImperfectVisibility(), ShadowMapVisibility()
+        direct_ism = imperfect.batches(samples.subset(np.flatnonzero(as_ism)), settings, 0)
+        passes = [LightPass("direct light", b, radius * 1e-6, triangles)
+                  for b in shadow_map_batches(samples.subset(np.flatnonzero(~as_ism)),
+                                              self.gpu.max_texture)]
+        passes += [LightPass("direct light", b, radius * 1e-6, imperfect) for b in direct_ism]
+        clamp = max(settings.clamp_distance * radius, radius * 1e-6)
+        passes += [LightPass("indirect light", b, clamp, mode, settings.interleave)
+                   for b in vpl_batches]
+        frame.blur_radius = blur_radius(settings.interleave, settings.blur_radius) \
+            if len(vpl_samples) else 0
+        if settings.bias_compensation and len(frame.vpls) and settings.clamp_distance > 0:
+            frame.compensation = Compensation(settings.clamp_distance * radius,
+                                              settings.bias_samples, settings.seed,
+                                              settings.bounces - 1)
+        batches = [p.batch for p in passes if p.visibility.uses_ism]
+        if batches:
+            keyed = vpl_batches[0] if mode.uses_ism and len(vpl_batches) == 1 else None
+            frame.ism_maps = ImperfectShadowMapFrame(
+                self.gpu.ism, self.kept, frame.geometry, settings, batches,
+                (frame.centre, radius), stats, keyed, frame.vpl_keys)
+        stats.counts.update(
+            triangles=frame.geometry.vertex_count // 3, light_samples=len(samples),
+            vpls=len(frame.vpls), shadow_maps=int(sum(
+                p.batch.samples.tiles_per_sample.sum() for p in passes
+                if type(p.visibility) is ShadowMapVisibility)))
+        frame.light_passes = passes
+
+
+class Sanitize(Stage):
+    """No NaN or Inf leaves the renderer (each replaced by 0, with a warning)."""
+
+    name = "sanitize"
+    needs = ("output",)
+
+    def run(self, frame: FrameState) -> None:
+        sanitize(frame.output, frame.stats)

@@ -1,0 +1,80 @@
+"""What the stages of one frame hand each other, the stage interface, and a render's errors."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from ..scene.geometry import WorldGeometry
+from ..scene.model import Camera, Scene
+from ..settings import Settings
+from ..transport.lights import LightSamples
+from ..transport.vpl import VPLs
+from .planner import Bounds, FramePlan
+from .result import Stats
+
+if TYPE_CHECKING:
+    from .gather import Compensation, LightPass
+    from .ism_maps import ImperfectShadowMapFrame
+
+
+class RenderError(RuntimeError):
+    """The scene cannot be rendered; the message says why, for the user."""
+
+
+class RenderCancelled(RuntimeError):
+    """The user asked the render to stop."""
+
+
+ProgressCallback = Callable[[float, str], None]
+CancelCallback = Callable[[], bool]
+
+
+@dataclass
+class FrameState:
+    """One frame's input and every product a stage makes for the stages after it."""
+
+    scene: Scene
+    settings: Settings
+    passes: frozenset[str] | None
+    stats: Stats
+    report: ProgressCallback
+    cancelled: CancelCallback
+    camera: Camera | None = None
+    geometry: WorldGeometry | None = None
+    shapes: WorldGeometry | None = None  # light outlines seen by the camera
+    centre: np.ndarray | None = None  # bounding sphere of the geometry
+    radius: float = 0.0
+    plan: FramePlan | None = None
+    in_view: Bounds | None = None
+    light_samples: LightSamples | None = None
+    vpls: VPLs | None = None
+    vpl_keys: np.ndarray | None = None  # identities of the VPLs kept in vpl_samples
+    vpl_samples: LightSamples | None = None
+    light_passes: list[LightPass] = field(default_factory=list)
+    compensation: Compensation | None = None
+    ism_maps: ImperfectShadowMapFrame | None = None
+    blur_radius: int = 0
+    output: dict[str, np.ndarray] | None = None
+    steps: int = 0  # light passes × tiles, for the progress bar
+    steps_done: int = 0
+
+    def check_cancelled(self) -> None:
+        """Raise RenderCancelled if the user asked to stop."""
+        if self.cancelled():
+            raise RenderCancelled("render cancelled")
+
+
+class Stage:
+    """One step of a frame: reads the FrameState fields named in ``needs`` and sets those in
+    ``makes``; a Renderer runs its stages in order."""
+
+    name: ClassVar[str]
+    needs: ClassVar[tuple[str, ...]] = ()
+    makes: ClassVar[tuple[str, ...]] = ()
+
+    def run(self, frame: FrameState) -> None:
+        raise NotImplementedError
