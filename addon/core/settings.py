@@ -106,6 +106,11 @@ class Meta:
     def values(self) -> tuple[int | str, ...]:
         return tuple(c.value for c in self.choices)
 
+    @property
+    def int_choices(self) -> bool:
+        """Whether the choices are integers (sizes, factors) rather than names."""
+        return bool(self.choices) and isinstance(self.choices[0].value, int)
+
 
 _KEY = "schema"
 
