@@ -220,8 +220,8 @@ class Settings:
         low=1, high=1024, soft_high=128, applies=when("bias_compensation", True))
     interleave: int = setting(
         4, "Interleave", "interleaving",
-        "Interleaved sampling: each pixel of a K×K pattern gathers every K²-th VPL; a "
-        "geometry-aware blur then removes the pattern",
+        "Interleaved sampling: each pixel of a K×K pattern gathers every K²-th VPL (1 = off); "
+        "a geometry-aware blur then removes the pattern",
         choices=(Choice(1, "Off", "every pixel gathers every VPL"),
                  Choice(2, "2×2", "each pixel gathers every 4th VPL"),
                  Choice(4, "4×4", "each pixel gathers every 16th VPL"),
@@ -240,7 +240,9 @@ class Settings:
         "less exact)")
     ism_points: int = setting(
         8192, "Points per VPL", "visibility",
-        "Surface points splatted into each imperfect shadow map",
+        "Surface points splatted into each imperfect shadow map (512 stratified sets; VPL k "
+        "uses set k mod 512, shifted within its triangles beyond the first 512, so every VPL "
+        "has its own points)",
         low=16, high=1 << 16, soft_high=32768, applies=_ISM_USED)
     ism_resolution: int = setting(
         128, "ISM Resolution", "visibility",
@@ -326,7 +328,9 @@ _FLOAT32_TOLERANCE = 1e-6
 
 
 def _text(value: Value) -> str:
-    return ("on" if value else "off") if isinstance(value, bool) else str(value)
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def _listed(values: tuple[int | str, ...]) -> str:
