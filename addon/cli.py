@@ -9,7 +9,7 @@ import os
 import signal
 import sys
 import time
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 
 from .core.settings import SettingsError
@@ -148,30 +148,17 @@ def add_report_parser(sub: argparse._SubParsersAction) -> None:
     report.set_defaults(run=run_report)
 
 
-def _convert(kind: str, text: str) -> int | float | str | bool:
-    """A setting's text as its field type (the type's name, as dataclass annotations give)."""
-    if kind == "bool":
-        if text.lower() not in ("true", "false", "1", "0", "on", "off"):
-            raise ValueError(text)
-        return text.lower() in ("true", "1", "on")
-    return {"int": int, "float": float, "str": str}[kind](text)
-
-
 def parse_overrides(pairs: list[str]) -> dict[str, int | float | str | bool]:
-    """'name=value' pairs checked against the Settings fields and converted to their types."""
+    """'name=value' pairs read by the settings schema, checked together."""
     from .core.settings import Settings
 
-    kinds = {f.name: str(f.type) for f in fields(Settings)}
     overrides: dict[str, int | float | str | bool] = {}
-    for pair in pairs:
-        name, sep, text = pair.partition("=")
-        if not sep or name not in kinds:
-            raise CliError(f"unknown setting '{name}' (choose from {', '.join(sorted(kinds))})")
-        try:
-            overrides[name] = _convert(kinds[name], text)
-        except ValueError:
-            raise CliError(f"setting {name}: '{text}' is not a valid {kinds[name]}") from None
     try:
+        for pair in pairs:
+            name, sep, text = pair.partition("=")
+            if not sep:
+                raise CliError(f"--set {pair}: expected NAME=VALUE, e.g. light_samples=64")
+            overrides[name.strip()] = Settings.parse(name.strip(), text)
         replace(Settings(), **overrides).validate()
     except SettingsError as exc:
         raise CliError(str(exc)) from None
@@ -216,8 +203,7 @@ def run_render(args: argparse.Namespace) -> int:
             render.resolution_x, render.resolution_y = resolution
         if args.percentage is not None:
             render.resolution_percentage = args.percentage
-        for name, value in overrides.items():
-            setattr(scene.vpl_gi, name, value)
+        scene.vpl_gi.assign(overrides)
 
         def request_cancel(_signum, _frame) -> None:
             monitor.cancel_requested = True

@@ -1,10 +1,13 @@
-"""Panels: Blender's own panels that apply to this engine, and the engine's settings panel."""
+"""Panels: Blender's own panels that apply to this engine, and the engine's settings panels
+(one per section of the settings schema)."""
 
 from __future__ import annotations
 
 from typing import ClassVar
 
 import bpy
+
+from .core.settings import SCHEMA, SECTIONS, Section, applies
 
 ENGINE_ID = "VPL_GI"
 # Panels written for EEVEE that show what this engine reads (material surface, world colour,
@@ -28,10 +31,9 @@ def _compatible_panels() -> list[type]:
     return panels
 
 
-class RENDER_PT_vpl_gi(bpy.types.Panel):
-    """VPL GI's settings in Render Properties."""
+class _RenderPanel:
+    """Mixin: a panel in Render Properties shown while this engine is selected."""
 
-    bl_label = "VPL GI"
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "render"
@@ -41,68 +43,55 @@ class RENDER_PT_vpl_gi(bpy.types.Panel):
     def poll(cls, context: bpy.types.Context) -> bool:
         return context.engine in cls.COMPAT_ENGINES
 
+
+class RENDER_PT_vpl_gi(_RenderPanel, bpy.types.Panel):
+    """VPL GI in Render Properties: what the Rendered viewport shows (a display choice, not a
+    render setting), then one sub-panel per section of the settings schema."""
+
+    bl_label = "VPL GI"
+
     def draw(self, context: bpy.types.Context) -> None:
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        settings = context.scene.vpl_gi
-        col = layout.column(heading="Indirect Light")
-        col.prop(settings, "bounces")
-        col.prop(settings, "vpl_count")
-        col.prop(settings, "vpl_source")
-        sub = col.column()
-        sub.active = settings.vpl_source == "rsm"
-        sub.prop(settings, "rsm_resolution")
-        col.prop(settings, "termination")
-        col.prop(settings, "visibility")
-        sub = col.column()
-        sub.active = settings.visibility == "ism"
-        sub.prop(settings, "ism_points")
-        sub.prop(settings, "ism_resolution")
-        sub.prop(settings, "pull_push_levels")
-        sub = col.column()
-        sub.active = settings.visibility == "classic"
-        sub.prop(settings, "vpl_shadow_resolution")
-        col.prop(settings, "incremental")
-        sub = col.column()
-        sub.active = settings.incremental
-        sub.prop(settings, "incremental_budget")
-        col.prop(settings, "interleave")
-        sub = col.column()
-        sub.active = settings.interleave != "1"
-        sub.prop(settings, "blur_radius")
-        col.prop(settings, "clamp_distance")
-        col.prop(settings, "bias_compensation")
-        sub = col.column()
-        sub.active = settings.bias_compensation
-        sub.prop(settings, "bias_samples")
-        col = layout.column(heading="Direct Light")
-        col.prop(settings, "light_samples")
-        col.prop(settings, "emission_samples")
-        col.prop(settings, "world_samples")
-        col.prop(settings, "soft_light_ism")
-        col = layout.column(heading="Shadows")
-        col.prop(settings, "shadow_resolution")
-        col.prop(settings, "sample_shadow_resolution")
-        col.prop(settings, "shadow_bias")
-        col = layout.column(heading="Performance")
-        col.prop(settings, "auto_parameters")
-        sub = col.column()
-        sub.active = settings.auto_parameters == "time"
-        sub.prop(settings, "time_budget")
-        sub = col.column()
-        sub.active = settings.auto_parameters == "error"
-        sub.prop(settings, "target_error")
-        col.prop(settings, "planner")
-        col = layout.column(heading="Viewport")
-        col.prop(settings, "viewport_display")
-        col = layout.column(heading="Image")
-        col.prop(settings, "antialiasing")
-        col.prop(settings, "seed")
+        layout.prop(context.scene.vpl_gi, "viewport_display")
+
+
+class _SectionPanel(_RenderPanel):
+    """Draws the settings of one schema section; those that do not apply are greyed out."""
+
+    section: ClassVar[str]
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        props = context.scene.vpl_gi
+        values = props.values()
+        for name, meta in SCHEMA.items():
+            if meta.section == self.section:
+                col = layout.column()
+                col.active = applies(name, values)
+                col.prop(props, name)
+
+
+def _panel_id(section: str | None) -> str:
+    return f"RENDER_PT_vpl_gi_{section}" if section else RENDER_PT_vpl_gi.__name__
+
+
+def _section_panel(section: Section) -> type:
+    return type(_panel_id(section.id), (_SectionPanel, bpy.types.Panel),
+                {"bl_label": section.label, "bl_parent_id": _panel_id(section.parent),
+                 "section": section.id})
+
+
+PANELS: tuple[type, ...] = (RENDER_PT_vpl_gi, *(_section_panel(s) for s in SECTIONS))
+"""Registered in this order: every parent before its sub-panels."""
 
 
 def register() -> None:
-    bpy.utils.register_class(RENDER_PT_vpl_gi)
+    for panel in PANELS:
+        bpy.utils.register_class(panel)
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.add(ENGINE_ID)
 
@@ -110,4 +99,5 @@ def register() -> None:
 def unregister() -> None:
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.discard(ENGINE_ID)
-    bpy.utils.unregister_class(RENDER_PT_vpl_gi)
+    for panel in reversed(PANELS):
+        bpy.utils.unregister_class(panel)

@@ -1,143 +1,366 @@
-"""Render settings of the engine, validated in one place with messages a user can act on."""
+"""Render settings of the engine: one schema for every setting (default, range or choices,
+label, description, section, when it applies), from which validation, the command line's
+parser, Blender's properties and panels and the README's table are all made."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
-from typing import ClassVar
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any, NamedTuple
+
+Value = int | float | str | bool
 
 
 class SettingsError(ValueError):
     """A setting is outside the range the engine supports."""
 
 
+class Section(NamedTuple):
+    """A group of settings: one panel in Blender (a sub-panel where it has a parent)."""
+
+    id: str
+    label: str
+    parent: str | None = None
+
+
+SECTIONS = (
+    Section("sampling", "Sampling"),
+    Section("light_paths", "Light Paths"),
+    Section("clamping", "Clamping", "light_paths"),
+    Section("interleaving", "Interleaving", "light_paths"),
+    Section("visibility", "Visibility"),
+    Section("shadows", "Shadows"),
+    Section("automatic", "Automatic Parameters"),
+    Section("performance", "Performance"),
+)
+
+
+class Choice(NamedTuple):
+    """One value a setting may take, with the label and description the UI shows."""
+
+    value: int | str
+    label: str
+    description: str
+
+
+@dataclass(frozen=True)
+class When:
+    """A setting applies only while another one has (negated: has not) one of some values."""
+
+    name: str
+    values: tuple[Value, ...]
+    negate: bool = False
+
+    def holds(self, values: Mapping[str, Any]) -> bool:
+        return (values[self.name] in self.values) != self.negate
+
+    def __or__(self, other: When) -> AnyOf:
+        return AnyOf((self, other))
+
+    def __str__(self) -> str:
+        if all(isinstance(v, bool) for v in self.values):
+            return f"{self.name} {'on' if self.values[0] != self.negate else 'off'}"
+        shown = " or ".join(_text(v) for v in self.values)
+        return f"{self.name} {'≠' if self.negate else '='} {shown}"
+
+
+@dataclass(frozen=True)
+class AnyOf:
+    """A setting applies while any of some conditions holds."""
+
+    parts: tuple[When, ...]
+
+    def holds(self, values: Mapping[str, Any]) -> bool:
+        return any(part.holds(values) for part in self.parts)
+
+    def __str__(self) -> str:
+        return " or ".join(str(part) for part in self.parts)
+
+
+def when(name: str, *values: Value) -> When:
+    return When(name, values)
+
+
+def unless(name: str, *values: Value) -> When:
+    return When(name, values, negate=True)
+
+
+@dataclass(frozen=True)
+class Meta:
+    """Everything about one setting except its name and default (the dataclass field's).
+    A numeric setting has low/high (soft_high: the UI slider's end); a choice setting has
+    choices; a boolean has neither. subtype and unit are Blender property hints."""
+
+    label: str
+    section: str
+    description: str
+    low: int | float | None = None
+    high: int | float | None = None
+    soft_high: int | float | None = None
+    choices: tuple[Choice, ...] = ()
+    applies: When | AnyOf | None = None
+    subtype: str = "NONE"
+    unit: str = "NONE"
+
+    @property
+    def values(self) -> tuple[int | str, ...]:
+        return tuple(c.value for c in self.choices)
+
+    @property
+    def int_choices(self) -> bool:
+        """Whether the choices are integers (sizes, factors) rather than names."""
+        return bool(self.choices) and isinstance(self.choices[0].value, int)
+
+
+_KEY = "schema"
+
+
+def setting(default: Value, label: str, section: str, description: str, **meta: Any) -> Any:
+    """A Settings field: its default and its Meta (keyword arguments as Meta's)."""
+    return field(default=default, metadata={_KEY: Meta(label, section, description, **meta)})
+
+
+def _sizes(what: str) -> tuple[Choice, ...]:
+    return tuple(Choice(r, f"{r}²", f"{r}×{r} texels per {what}") for r in (32, 64, 128, 256, 512))
+
+
+_ISM_USED = when("visibility", "ism") | when("soft_light_ism", True)
+
+
 @dataclass(frozen=True)
 class Settings:
     """All user-facing parameters of one render. Ranges are checked by :meth:`validate`."""
 
-    light_samples: int = 16
-    """Point samples per area light, per sphere light (radius > 0) and per sun with an angle."""
-    emission_samples: int = 64
-    """Point samples spread over all emissive surfaces (by emitted power)."""
-    world_samples: int = 64
-    """Directions the world colour is sampled in, each with its own shadow map."""
-    shadow_resolution: int = 1024
-    """Edge in texels of each cube face / directional shadow map of point, spot and sun lights
-    (each of a sun's angle samples too: its map spans the whole scene)."""
-    sample_shadow_resolution: int = 256
-    """Edge in texels of shadow maps of area-light, sphere-light, emission and world samples."""
-    shadow_bias: float = 1.5
-    """Receiver offset along its normal, in shadow-map texels (scale independent)."""
-    antialiasing: int = 2
-    """Supersampling factor per axis (1 = one sample per pixel)."""
-    seed: int = 0
-    """Seed of every stochastic choice; a render is deterministic for (scene, settings)."""
-    bounces: int = 4
-    """Diffuse bounces, as Cycles counts them: 0 = direct light only."""
-    vpl_count: int = 1024
-    """Light paths started per frame; each leaves a VPL at every bounce it survives."""
-    vpl_source: str = "paths"
-    """Where VPLs come from: 'paths' (light tracing, every bounce) or 'rsm' (reflective
-    shadow maps of the lights, importance-sampled by reflected flux; one bounce only)."""
-    rsm_resolution: int = 128
-    """Texels per edge of each reflective-shadow-map face (vpl_source = 'rsm')."""
-    termination: str = "fractional"
-    """How light paths end: 'fractional' absorption by the average reflectance (the seed's
-    scheme: N paths start, ρ̄N continue, ...) or per-path 'roulette'."""
-    visibility: str = "ism"
-    """VPL visibility: 'ism' (imperfect shadow maps: point-splatted paraboloid maps, the fast
-    default), 'classic' (a triangle cube shadow map per VPL) or 'exact' (ray traced)."""
-    vpl_shadow_resolution: int = 256
-    """Texels per cube-face edge of each VPL's shadow map (classic visibility)."""
-    clamp_distance: float = 0.05
-    """VPL distances below this fraction of the scene's radius are clamped (0 = no clamp):
-    bounds the 1/d² singularity of the geometry term."""
-    bias_compensation: bool = False
-    """Restore the energy the clamp removes (Kollig & Keller 2004: ray traced)."""
-    bias_samples: int = 16
-    """Rays per pixel for bias compensation."""
-    interleave: int = 4
-    """Interleaved sampling of VPLs: each pixel of a K×K pattern gathers every K²-th VPL
-    (1 = off; 2, 4, 8)."""
-    blur_radius: int = 4
-    """Radius in (supersampled) pixels of the geometry-aware blur that removes the interleaving
-    pattern; rounded up to a multiple of K/2 so the pattern cancels exactly on flat surfaces."""
-    soft_light_ism: bool = False
-    """Shadows of the samples of area lights, sphere lights, suns with an angle and the world
-    from imperfect shadow maps instead of triangle shadow maps (the seed's extension to direct
-    light: soft shadows and natural illumination from many point lights)."""
-    ism_points: int = 8192
-    """Surface points splatted into each VPL's imperfect shadow map."""
-    ism_resolution: int = 128
-    """Texels per edge of each imperfect shadow map (paraboloid, one per VPL)."""
-    incremental: bool = False
-    """Incremental Instant Radiosity: reuse last frame's VPLs (and their shadow maps) where the
-    lights still reach them; only invalid ones and a few redistributed ones are new. For
-    animations rendered in order in one process and the viewport; off, every frame is made
-    afresh (the same image whichever machine renders the frame)."""
-    incremental_budget: int = 8
-    """VPLs per light moved per frame from the most crowded place to the emptiest one
-    (beyond replacing invalid VPLs, which always happens at once)."""
-    pull_push_levels: int = 7
-    """Pull-push levels that fill the holes between splatted points (capped at
-    log2(ism_resolution), which fills every hole)."""
-    auto_parameters: str = "off"
-    """Choose vpl_count, ism_points, ism_resolution, interleave and blur_radius automatically:
-    'off', 'time' (least predicted error within time_budget) or 'error' (least predicted
-    time within target_error), from a cost model measured once on this machine."""
-    time_budget: float = 2.0
-    """Seconds per frame the automatic mode 'time' aims at."""
-    target_error: float = 0.1
-    """Relative RMSE against a converged image that the automatic mode 'error' aims at."""
-    planner: bool = True
-    """Leave out work the frame does not need (lights that cannot reach the view, a black
-    world, pull-push levels the point density does not need, passes not asked for, work kept
-    from the last frame). Off runs every stage: for comparisons only."""
-
-    _RANGES: ClassVar[dict[str, tuple[float, float]]] = {
-        "light_samples": (1, 1024),
-        "emission_samples": (1, 4096),
-        "world_samples": (1, 1024),
-        "shadow_resolution": (16, 8192),
-        "sample_shadow_resolution": (16, 4096),
-        "shadow_bias": (0.0, 64.0),
-        "antialiasing": (1, 8),
-        "seed": (0, 2**31 - 1),
-        "bounces": (0, 64),
-        "vpl_count": (1, 1 << 16),
-        "vpl_shadow_resolution": (16, 2048),
-        "clamp_distance": (0.0, 1.0),
-        "bias_samples": (1, 1024),
-        "blur_radius": (1, 32),
-        "ism_points": (16, 1 << 16),
-        "pull_push_levels": (0, 12),
-        "incremental_budget": (0, 1024),
-        "time_budget": (0.01, 86400.0),
-        "target_error": (0.001, 10.0),
-    }
-    _CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
-        "termination": ("fractional", "roulette"),
-        "visibility": ("ism", "classic", "exact"),
-        "ism_resolution": (32, 64, 128, 256, 512),
-        "interleave": (1, 2, 4, 8),
-        "vpl_source": ("paths", "rsm"),
-        "rsm_resolution": (32, 64, 128, 256, 512),
-        "auto_parameters": ("off", "time", "error"),
-    }
+    light_samples: int = setting(
+        16, "Light Samples", "sampling",
+        "Point samples per area light, per sphere light (radius > 0) and per sun with an angle, "
+        "each with its own shadow map", low=1, high=1024, soft_high=256)
+    emission_samples: int = setting(
+        64, "Emission Samples", "sampling",
+        "Point samples spread over all emissive surfaces (by emitted power)",
+        low=1, high=4096, soft_high=512)
+    world_samples: int = setting(
+        64, "World Samples", "sampling",
+        "Directions the world colour is sampled in (by brightness for an environment map), "
+        "each with its own shadow map", low=1, high=1024, soft_high=256)
+    shadow_resolution: int = setting(
+        1024, "Shadow Resolution", "shadows",
+        "Texels per edge of each cube face / directional shadow map of point, spot and sun "
+        "lights (each of a sun's angle samples too: its map spans the whole scene)",
+        low=16, high=8192, soft_high=4096)
+    sample_shadow_resolution: int = setting(
+        256, "Sample Shadow Resolution", "shadows",
+        "Texels per edge of the shadow maps of area-light, sphere-light, emission and world "
+        "samples", low=16, high=4096, soft_high=1024)
+    shadow_bias: float = setting(
+        1.5, "Shadow Bias", "shadows",
+        "Receiver offset along its normal, in shadow-map texels (scale independent); raise it "
+        "against shadow acne, lower it against light leaking at contacts",
+        low=0.0, high=64.0, soft_high=8.0)
+    antialiasing: int = setting(
+        2, "Anti-Aliasing", "sampling",
+        "Supersampling factor per axis, box filter (1 = one sample per pixel, 2 = four)",
+        low=1, high=8)
+    seed: int = setting(
+        0, "Seed", "sampling",
+        "Seed of every stochastic choice; a render is deterministic for (scene, settings)",
+        low=0, high=2**31 - 1)
+    bounces: int = setting(
+        4, "Bounces", "light_paths",
+        "Diffuse bounces, as Cycles counts them: 0 = direct light only",
+        low=0, high=64, soft_high=16)
+    vpl_count: int = setting(
+        1024, "Light Paths", "light_paths",
+        "Light paths started per frame; each leaves a virtual point light (VPL) at every "
+        "bounce it survives", low=1, high=1 << 16, soft_high=4096)
+    vpl_source: str = setting(
+        "paths", "VPL Source", "light_paths", "Where VPLs come from",
+        choices=(Choice("paths", "Light Paths",
+                        "light tracing from every emitter, every bounce"),
+                 Choice("rsm", "Reflective Shadow Maps",
+                        "first hits importance-sampled by reflected flux from the lights' "
+                        "reflective shadow maps (lights only, not the world or emission), "
+                        "later bounces traced on from them")))
+    rsm_resolution: int = setting(
+        128, "RSM Resolution", "light_paths", "Texels per edge of each reflective-shadow-map face",
+        choices=_sizes("reflective-shadow-map face"), applies=when("vpl_source", "rsm"))
+    termination: str = setting(
+        "fractional", "Path Termination", "light_paths", "How light paths end",
+        choices=(Choice("fractional", "Fractional Absorption",
+                        "N paths start, ρ̄N continue, ρ̄²N after that (ρ̄: area-weighted mean "
+                        "albedo): VPL sets stay stratified; best when albedos are alike"),
+                 Choice("roulette", "Russian Roulette",
+                        "each path continues with its surface's albedo: better when albedos "
+                        "differ widely")))
+    visibility: str = setting(
+        "ism", "Visibility", "visibility", "How the visibility of each VPL is found",
+        choices=(Choice("ism", "Imperfect Shadow Maps",
+                        "a point-splatted paraboloid map per VPL, holes filled by pull-push "
+                        "(fast)"),
+                 Choice("classic", "Shadow Maps",
+                        "a triangle cube shadow map per VPL (Instant Radiosity)"),
+                 Choice("exact", "Ray Traced",
+                        "a ray per pixel and VPL (slow; the reference for visibility error)")))
+    vpl_shadow_resolution: int = setting(
+        256, "VPL Shadow Resolution", "visibility",
+        "Texels per cube-face edge of each VPL's shadow map",
+        low=16, high=2048, soft_high=1024, applies=when("visibility", "classic"))
+    clamp_distance: float = setting(
+        0.05, "Clamp Distance", "clamping",
+        "VPL distances below this fraction of the scene's radius are clamped: bounds the 1/d² "
+        "spikes next to VPLs at the cost of some energy (0 = no clamp)",
+        low=0.0, high=1.0, subtype="FACTOR")
+    bias_compensation: bool = setting(
+        False, "Bias Compensation", "clamping",
+        "Restore the energy the clamp removes: short rays from each pixel gather the light of "
+        "surfaces closer than the clamp distance (Kollig & Keller 2004, one level)",
+        applies=unless("clamp_distance", 0.0))
+    bias_samples: int = setting(
+        16, "Compensation Rays", "clamping", "Rays per pixel for bias compensation",
+        low=1, high=1024, soft_high=128, applies=when("bias_compensation", True))
+    interleave: int = setting(
+        4, "Interleave", "interleaving",
+        "Interleaved sampling: each pixel of a K×K pattern gathers every K²-th VPL (1 = off); "
+        "a geometry-aware blur then removes the pattern",
+        choices=(Choice(1, "Off", "every pixel gathers every VPL"),
+                 Choice(2, "2×2", "each pixel gathers every 4th VPL"),
+                 Choice(4, "4×4", "each pixel gathers every 16th VPL"),
+                 Choice(8, "8×8", "each pixel gathers every 64th VPL")))
+    blur_radius: int = setting(
+        4, "Blur Radius", "interleaving",
+        "Radius in (supersampled) pixels of the geometry-aware blur that removes the "
+        "interleaving pattern without crossing depth or normal edges; rounded up to a multiple "
+        "of K/2 so the pattern cancels exactly on flat surfaces",
+        low=1, high=32, applies=unless("interleave", 1))
+    soft_light_ism: bool = setting(
+        False, "Soft Lights with ISMs", "shadows",
+        "Shadow the samples of area lights, sphere lights, suns with an angle and the world "
+        "with imperfect shadow maps instead of triangle shadow maps (the seed's soft shadows "
+        "and natural illumination from many point lights: faster for many samples, slightly "
+        "less exact)")
+    ism_points: int = setting(
+        8192, "Points per VPL", "visibility",
+        "Surface points splatted into each imperfect shadow map (512 stratified sets; VPL k "
+        "uses set k mod 512, shifted within its triangles beyond the first 512, so every VPL "
+        "has its own points)",
+        low=16, high=1 << 16, soft_high=32768, applies=_ISM_USED)
+    ism_resolution: int = setting(
+        128, "ISM Resolution", "visibility",
+        "Texels per edge of each imperfect shadow map (paraboloid, one per VPL)",
+        choices=_sizes("imperfect shadow map"), applies=_ISM_USED)
+    incremental: bool = setting(
+        False, "Reuse VPLs Between Frames", "performance",
+        "Incremental Instant Radiosity: reuse last frame's VPLs (and their shadow maps) where "
+        "the lights still reach them; only invalid ones and a few redistributed ones are new. "
+        "For animations rendered in order in one process and the viewport; off, every frame is "
+        "made afresh (the same image whichever machine renders the frame)")
+    incremental_budget: int = setting(
+        8, "Redistributed per Frame", "performance",
+        "VPLs per light moved per frame from the most crowded place to the emptiest one "
+        "(invalid VPLs are always replaced at once)",
+        low=0, high=1024, soft_high=64, applies=when("incremental", True))
+    pull_push_levels: int = setting(
+        7, "Pull-Push Levels", "visibility",
+        "Pull-push levels that fill the holes between splatted points (capped at "
+        "log2(ism_resolution), which fills every hole; 0 keeps the raw splats)",
+        low=0, high=12, applies=_ISM_USED)
+    auto_parameters: str = setting(
+        "off", "Automatic Parameters", "automatic",
+        "Choose vpl_count, ism_points, ism_resolution, interleave and blur_radius for final "
+        "renders from a cost model measured once on this machine and an error model fitted "
+        "on reports",
+        choices=(Choice("off", "Off", "use the settings as set"),
+                 Choice("time", "Time Budget",
+                        "the least predicted error within time_budget"),
+                 Choice("error", "Target Error",
+                        "the least predicted time within target_error")))
+    time_budget: float = setting(
+        2.0, "Time Budget", "automatic", "Seconds per frame the automatic mode 'time' aims at",
+        low=0.01, high=86400.0, soft_high=600.0, unit="TIME_ABSOLUTE",
+        applies=when("auto_parameters", "time"))
+    target_error: float = setting(
+        0.1, "Target Error", "automatic",
+        "Relative RMSE against a converged image that the automatic mode 'error' aims at",
+        low=0.001, high=10.0, soft_high=1.0, subtype="FACTOR",
+        applies=when("auto_parameters", "error"))
+    planner: bool = setting(
+        True, "Leave Out Unneeded Work", "performance",
+        "Leave out work the frame does not need (lights that cannot reach the view, a black "
+        "world, pull-push levels the point density does not need, passes not asked for, work "
+        "kept from the last frame). Off runs every stage: for comparisons only")
 
     def validate(self) -> Settings:
         """Return self, or raise SettingsError naming the first setting out of range."""
         for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name in self._CHOICES:
-                if value not in self._CHOICES[f.name]:
-                    raise SettingsError(f"{f.name} = {value!r} is not one of "
-                                        f"{', '.join(self._CHOICES[f.name])}")
-            elif isinstance(value, bool) or f.name not in self._RANGES:
-                if not isinstance(value, bool):
-                    raise SettingsError(f"{f.name} = {value!r} must be true or false")
-            else:
-                low, high = self._RANGES[f.name]
-                if not isinstance(value, int | float) or not (low <= value <= high):
-                    raise SettingsError(f"{f.name} = {value!r} is outside the supported range "
-                                        f"[{low}, {high}]")
+            _check(f.name, getattr(self, f.name), f.metadata[_KEY], type(f.default))
         return self
+
+    @staticmethod
+    def parse(name: str, text: str) -> Value:
+        """A setting's value from text (as typed on a command line), checked against its range
+        or choices; booleans accept true/false, 1/0, yes/no and on/off."""
+        if name not in SCHEMA:
+            raise SettingsError(f"unknown setting '{name}' (choose from "
+                                f"{', '.join(sorted(SCHEMA))})")
+        meta, kind, text = SCHEMA[name], type(getattr(DEFAULTS, name)), text.strip()
+        if meta.choices:
+            matches = [v for v in meta.values if str(v) == text]
+            if not matches:
+                raise SettingsError(f"{name} = {text!r} is not one of {_listed(meta.values)}")
+            return matches[0]
+        if kind is bool:
+            if text.lower() not in _TRUE + _FALSE:
+                raise SettingsError(f"{name} = {text!r} must be true or false "
+                                    "(or 1/0, yes/no, on/off)")
+            return text.lower() in _TRUE
+        try:
+            value = kind(text)
+        except ValueError:
+            raise SettingsError(f"{name} = {text!r} is not a valid "
+                                f"{'integer' if kind is int else 'number'}") from None
+        _check(name, value, meta, kind)
+        return value
+
+
+_TRUE, _FALSE = ("true", "1", "yes", "on"), ("false", "0", "no", "off")
+# Blender stores float properties in single precision: 0.01 comes back as 0.0099999998.
+_FLOAT32_TOLERANCE = 1e-6
+
+
+def _text(value: Value) -> str:
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _listed(values: tuple[int | str, ...]) -> str:
+    return ", ".join(str(v) for v in values)
+
+
+def _check(name: str, value: Any, meta: Meta, kind: type) -> None:
+    """Raise SettingsError unless value is one of the setting's choices, within its range, or
+    (a setting with neither) a boolean."""
+    if meta.choices:
+        if value not in meta.values:
+            raise SettingsError(f"{name} = {value!r} is not one of {_listed(meta.values)}")
+    elif meta.low is None or meta.high is None:
+        if not isinstance(value, bool):
+            raise SettingsError(f"{name} = {value!r} must be true or false")
+    else:
+        low, high = meta.low, meta.high
+        slack = _FLOAT32_TOLERANCE if kind is float else 0.0
+        if not isinstance(value, int | float) or not (
+                low - slack * abs(low) <= value <= high + slack * abs(high)):
+            raise SettingsError(f"{name} = {value!r} is outside the supported range "
+                                f"[{low}, {high}]")
+
+
+SCHEMA: dict[str, Meta] = {f.name: f.metadata[_KEY] for f in fields(Settings)}
+"""Every setting's Meta by name, in declaration order."""
+DEFAULTS = Settings()
+
+
+def applies(name: str, values: Mapping[str, Any]) -> bool:
+    """Whether setting name has an effect given the other settings' values."""
+    condition = SCHEMA[name].applies
+    return condition is None or condition.holds(values)

@@ -53,6 +53,10 @@ def test_frame_range_writes_numbered_linear_exrs(tmp_path):
     (["render", str(CORNELL), "-o", "x.png", "--set", "seed=-1"], "seed"),
     (["render", str(CORNELL), "-o", "x.png", "--set", "visibility=fast"], "not one of"),
     (["render", str(CORNELL), "-o", "x.png", "--set", "bounces=two"], "not a valid int"),
+    (["render", str(CORNELL), "-o", "x.png", "--set", "ism_resolution=7"],
+     "ism_resolution = '7' is not one of 32, 64, 128, 256, 512"),
+    (["render", str(CORNELL), "-o", "x.png", "--set", "interleave=3"], "not one of 1, 2, 4, 8"),
+    (["render", str(CORNELL), "-o", "x.png", "--set", "bounce=2"], "unknown setting 'bounce'"),
     (["render", str(CORNELL), "-o", "/proc/forbidden/x.png"], "cannot create output folder"),
 ])
 def test_bad_input_is_one_clear_line_and_exit_code_2(args, message):
@@ -60,6 +64,19 @@ def test_bad_input_is_one_clear_line_and_exit_code_2(args, message):
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert lines[-1].startswith("error: ") and message in lines[-1]
+    assert "Traceback" not in result.stderr
+
+
+def test_integer_choices_and_float_bounds_set_from_the_command_line_render(tmp_path):
+    """Integer choices are enums in Blender, and time_budget's minimum comes back from Blender's
+    single-precision property slightly below 0.01: both render."""
+    out = tmp_path / "set.png"
+    result = run_cli("render", str(CORNELL), "-o", str(out), "-r", "16x16",
+                     "--set", "ism_resolution=64", "--set", "interleave=2",
+                     "--set", "time_budget=0.01", "--set", "vpl_source=rsm",
+                     "--set", "rsm_resolution=64", "--set", "vpl_count=32")
+    assert result.returncode == 0, result.stderr
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_never_overwrites_the_scene(tmp_path):

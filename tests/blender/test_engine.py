@@ -133,28 +133,52 @@ def test_obj_assets_become_diffuse_benchmark_scenes(blender, asset, emits):
 
 
 class _Layout:
-    """Records the properties a panel draws (Blender's UILayout is not available headless)."""
+    """Records the properties a panel draws and whether they were greyed out (Blender's
+    UILayout is not available headless)."""
 
-    def __init__(self, drawn: list[str]) -> None:
+    def __init__(self, drawn: dict[str, bool]) -> None:
         self.drawn = drawn
-        self.use_property_split = self.use_property_decorate = self.active = False
+        self.use_property_split = self.use_property_decorate = False
+        self.active = True
 
     def column(self, **_kwargs) -> _Layout:
-        return self
+        return _Layout(self.drawn)
 
     def prop(self, data, name: str) -> None:
-        assert hasattr(data, name), name
-        self.drawn.append(name)
+        assert hasattr(data, name) and name not in self.drawn, name
+        self.drawn[name] = self.active
 
 
-def test_settings_panel_draws_every_setting(blender):
+def _draw_panels(context) -> dict[str, bool]:
     from types import SimpleNamespace
 
-    from addon.core.settings import Settings
-    from addon.ui import RENDER_PT_vpl_gi
+    from addon.ui import PANELS
 
-    drawn: list[str] = []
-    panel = SimpleNamespace(layout=_Layout(drawn))
-    RENDER_PT_vpl_gi.draw(panel, blender.context)
+    drawn: dict[str, bool] = {}
+    for panel in PANELS:
+        if hasattr(panel, "draw"):
+            fake = SimpleNamespace(layout=_Layout(drawn), section=getattr(panel, "section", ""))
+            panel.draw(fake, context)
+    return drawn
+
+
+def test_settings_panels_draw_every_setting_once(blender):
+    from addon.core.settings import Settings
+
+    drawn = _draw_panels(blender.context)
     viewport_only = ["viewport_display"]  # what the Rendered viewport shows; not a setting
     assert sorted(drawn) == sorted([f.name for f in fields(Settings)] + viewport_only)
+
+
+def test_settings_that_do_not_apply_are_greyed_out(blender):
+    settings = blender.context.scene.vpl_gi
+    settings.visibility, settings.interleave, settings.auto_parameters = "classic", "1", "time"
+    try:
+        drawn = _draw_panels(blender.context)
+    finally:
+        settings.property_unset("visibility")
+        settings.property_unset("interleave")
+        settings.property_unset("auto_parameters")
+    assert drawn["vpl_shadow_resolution"] and drawn["time_budget"] and drawn["bounces"]
+    assert not drawn["ism_points"] and not drawn["blur_radius"]
+    assert not drawn["rsm_resolution"] and not drawn["target_error"]
