@@ -394,7 +394,8 @@ def check_zip(zip_path: Path, expected_wheels: list[str], source_dir: Path) -> N
         raise BuildError(f"{zip_path.name}: missing {', '.join(absent)}")
     leaked = sorted(
         n for n in names
-        if n.split("/", 1)[0] in {"tests", "tools", "sample_scenes", "dist", ".venv", ".git"}
+        if n.split("/", 1)[0] in {"tests", "tools", "devtools", "sample_scenes", "dist", ".venv",
+                                   ".git"}
         or n.endswith((".blend", ".blend1", ".pyc"))
     )
     if leaked:

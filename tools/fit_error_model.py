@@ -1,6 +1,6 @@
 """Fit the automatic mode's error model (addon/core/error_model.json) on measurements.
 
-- Noise and floor: from error-against-time reports (``python -m addon report``), the VPL GI
+- Noise and floor: from error-against-time reports (``python -m devtools report``), the VPL GI
   imperfect-shadow-map lines: relative RMSE² = floor² + noise² / paths, least squares per
   scene with a shared noise constant; the stored floor is that of the first report's scene.
   The interleave factor compares the first report's lines with and without interleaving.

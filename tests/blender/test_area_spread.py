@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from addon.core import metrics
+from devtools import metrics
 from tests.blender.rendering import configure_cycles, open_scene, render_linear
 
 SIZE = 64

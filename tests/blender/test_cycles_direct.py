@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scipy.ndimage import maximum_filter, minimum_filter
 
-from addon.core import metrics
+from devtools import metrics
 from tests.blender.rendering import configure_cycles, open_scene, render_linear
 
 SIZE = 64

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core import metrics
+from devtools import metrics
 from tests.blender.rendering import configure_cycles, open_scene, render_linear
 
 SIZE = 48

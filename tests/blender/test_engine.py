@@ -119,7 +119,7 @@ ASSETS = Path(__file__).resolve().parents[3] / "shared" / "assets"
 @pytest.mark.parametrize("asset, emits", [("cornell-box/CornellBox-Original.obj", True),
                                           ("sponza/sponza.obj", False)])
 def test_obj_assets_become_diffuse_benchmark_scenes(blender, asset, emits):
-    from addon.obj_scene import scene_from_obj
+    from devtools.obj_scene import scene_from_obj
 
     scene = scene_from_obj(ASSETS / asset)
     assert scene.camera is not None

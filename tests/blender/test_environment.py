@@ -10,8 +10,8 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.core import metrics
 from addon.export import export_world
+from devtools import metrics
 from tests.blender.rendering import configure_cycles, render_linear
 
 SIZE = 64

@@ -16,6 +16,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import re
 import subprocess
 import sys
 import zipfile
@@ -77,6 +78,18 @@ def test_zip_is_valid_and_holds_linux_wheels(extension_zip: Path) -> None:
     assert not any(n.startswith("wheels/numpy") for n in names)
     assert "__init__.py" in names
     assert any(n.startswith("gpu_shaders/") and n.endswith(".glsl") for n in names)
+
+
+def test_zip_holds_no_developer_tools(extension_zip: Path) -> None:
+    """devtools/ (the report, OBJ scenes, metrics) stays out, and nothing imports matplotlib."""
+    with zipfile.ZipFile(extension_zip) as archive:
+        names = archive.namelist()
+        sources = {n: archive.read(n).decode() for n in names if n.endswith(".py")}
+    assert not any(n.startswith("devtools/") for n in names), names
+    dev_files = {"report.py", "obj_scene.py", "metrics.py"}
+    assert not [n for n in names if n.rsplit("/", 1)[-1] in dev_files]
+    matplotlib = re.compile(r"^\s*(import|from)\s+matplotlib\b", re.MULTILINE)
+    assert not [n for n, text in sources.items() if matplotlib.search(text)]
 
 
 # Runs in a fresh interpreter: argv = [zip, work folder]; prints RESULT_PREFIX + JSON.

@@ -1,4 +1,4 @@
-"""The error-against-time report, run as a user would: ``python -m addon report`` in a
+"""The error-against-time report, run as a developer would: ``python -m devtools report`` in a
 subprocess, twice on the Cornell box at 16×16 pixels with the tiny 'test' ladder."""
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ METRICS = {"relative_rmse_unbiased", "relative_rmse", "rmse", "relative_mse",
 def run_report(out: Path, cache: Path) -> tuple[subprocess.CompletedProcess, float]:
     start = time.perf_counter()
     result = subprocess.run(
-        [sys.executable, "-m", "addon", "report", str(CORNELL), "-o", str(out), "--size", "16",
+        [sys.executable, "-m", "devtools", "report", str(CORNELL), "-o", str(out), "--size", "16",
          "--ladder", "test", "--reference-samples", "4096", "--cache", str(cache)],
         cwd=REPO, capture_output=True, text=True, timeout=180,
         env={**os.environ, "XDG_CACHE_HOME": str(cache / "user")})  # the cost model's cache
@@ -100,7 +100,7 @@ def test_second_run_uses_cached_references_and_is_faster(two_runs):
     ([str(CORNELL), "--size", "0"], "size 0"),
 ])
 def test_bad_input_is_one_clear_line_and_exit_code_2(args, message):
-    result = subprocess.run([sys.executable, "-m", "addon", "report", *args], cwd=REPO,
+    result = subprocess.run([sys.executable, "-m", "devtools", "report", *args], cwd=REPO,
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core import metrics
 from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import Settings
+from devtools import metrics
 from tests.core.builders import floor_scene, light, quad, rotation_x, translation
 
 

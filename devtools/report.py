@@ -1,4 +1,4 @@
-"""Error against render time, VPL GI compared with Cycles (``python -m addon report``).
+"""Error against render time, VPL GI compared with Cycles (``python -m devtools report``).
 
 One scene, one process, one resolution: Cycles (CPU, diffuse bounces only) at a ladder of sample
 counts, VPL GI at a ladder of light-path counts per mode (visibility, clamping), and two
@@ -27,9 +27,10 @@ import bpy
 import numpy as np
 from matplotlib.figure import Figure
 
-from .core import metrics
-from .core.gpu.gl import GLUnavailableError, shared_context
-from .engine import monitor
+from addon.core.gpu.gl import GLUnavailableError, shared_context
+from addon.engine import monitor
+
+from . import metrics
 from .obj_scene import scene_from_obj
 
 DEFAULT_CACHE = Path(__file__).resolve().parents[1] / ".cache" / "references"
