@@ -121,8 +121,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-
-
 def parse_overrides(pairs: list[str]) -> dict[str, int | float | str | bool]:
     """'name=value' pairs read by the settings schema, checked together."""
     from .core.settings import Settings

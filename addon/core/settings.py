@@ -4,7 +4,7 @@ parser, Blender's properties and panels and the README's table are all made."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
@@ -41,6 +41,30 @@ class Choice(NamedTuple):
     value: int | str
     label: str
     description: str
+
+
+class ChoiceRegistry(Sequence[Choice]):
+    """Choices that modules offer by registering them (the visibility modes: each strategy
+    class in frame/visibility.py registers itself)."""
+
+    def __init__(self) -> None:
+        self._choices: dict[int | str, Choice] = {}
+
+    def register(self, choice: Choice) -> None:
+        self._choices[choice.value] = choice
+
+    def __getitem__(self, index: int) -> Choice:  # type: ignore[override] (no slices)
+        return list(self._choices.values())[index]
+
+    def __len__(self) -> int:
+        return len(self._choices)
+
+    def __iter__(self) -> Iterator[Choice]:
+        return iter(list(self._choices.values()))
+
+
+VISIBILITY_MODES = ChoiceRegistry()
+"""The visibility modes, registered by their strategy classes (frame/visibility.py)."""
 
 
 @dataclass(frozen=True)
@@ -97,7 +121,7 @@ class Meta:
     low: int | float | None = None
     high: int | float | None = None
     soft_high: int | float | None = None
-    choices: tuple[Choice, ...] = ()
+    choices: Sequence[Choice] = ()
     applies: When | AnyOf | None = None
     subtype: str = "NONE"
     unit: str = "NONE"
@@ -194,13 +218,7 @@ class Settings:
                         "differ widely")))
     visibility: str = setting(
         "ism", "Visibility", "visibility", "How the visibility of each VPL is found",
-        choices=(Choice("ism", "Imperfect Shadow Maps",
-                        "a point-splatted paraboloid map per VPL, holes filled by pull-push "
-                        "(fast)"),
-                 Choice("classic", "Shadow Maps",
-                        "a triangle cube shadow map per VPL (Instant Radiosity)"),
-                 Choice("exact", "Ray Traced",
-                        "a ray per pixel and VPL (slow; the reference for visibility error)")))
+        choices=VISIBILITY_MODES)
     vpl_shadow_resolution: int = setting(
         256, "VPL Shadow Resolution", "visibility",
         "Texels per cube-face edge of each VPL's shadow map",

@@ -66,14 +66,15 @@ def needed_pull_push_levels(settings: Settings) -> int:
     return min(settings.pull_push_levels, needed)
 
 
-def plan_gather(plan: FramePlan, settings: Settings) -> tuple[int, dict[str, str]]:
+def plan_gather(plan: FramePlan, settings: Settings, uses_ism: bool
+                ) -> tuple[int, dict[str, str]]:
     """For the frame's final VPL settings (after any automatic choice): the pull-push levels
-    its imperfect shadow maps need, and the skipped entries for the other levels and the
-    blur."""
+    its imperfect shadow maps need (``uses_ism``: the visibility mode renders them), and the
+    skipped entries for the other levels and the blur."""
     if not settings.planner or not plan.indirect:
         return settings.pull_push_levels, {}
     skipped = {"blur": "interleaving off"} if settings.interleave == 1 else {}
-    if settings.visibility != "ism" and not settings.soft_light_ism:
+    if not uses_ism and not settings.soft_light_ism:
         return settings.pull_push_levels, skipped
     levels = needed_pull_push_levels(settings)
     if levels < settings.pull_push_levels:

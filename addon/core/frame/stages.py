@@ -111,7 +111,8 @@ class PlanGather(Stage):
     needs = ("plan",)
 
     def run(self, frame: FrameState) -> None:
-        levels, skipped = plan_gather(frame.plan, frame.settings)
+        uses_ism = VISIBILITY[frame.settings.visibility].uses_ism
+        levels, skipped = plan_gather(frame.plan, frame.settings, uses_ism)
         frame.stats.skipped.update(skipped)
         frame.settings = replace(frame.settings, pull_push_levels=levels)
 

@@ -10,7 +10,7 @@ from typing import ClassVar
 import moderngl
 import numpy as np
 
-from ..settings import Settings
+from ..settings import VISIBILITY_MODES, Choice, Settings
 from ..transport.lights import LightSamples
 from .batches import Batch, ism_batches, shadow_map_batches
 from .ism_maps import ImperfectShadowMapFrame
@@ -58,8 +58,10 @@ VISIBILITY: dict[str, type[Visibility]] = {}
 
 
 def register(cls: type[Visibility]) -> type[Visibility]:
-    """Offer a visibility mode (class decorator)."""
+    """Offer a visibility mode (class decorator): the renderer, the setting's choices, the
+    Blender property, the UI, the command line and the README table take it from here."""
     VISIBILITY[cls.name] = cls
+    VISIBILITY_MODES.register(Choice(cls.name, cls.label, cls.description))
     return cls
 
 
@@ -67,7 +69,7 @@ def register(cls: type[Visibility]) -> type[Visibility]:
 class ImperfectVisibility(Visibility):
     name = "ism"
     label = "Imperfect Shadow Maps"
-    description = ("Point-splatted low-resolution maps for many VPLs, holes filled by pull-push "
+    description = ("a point-splatted paraboloid map per VPL, holes filled by pull-push "
                    "(fast)")
     defines: ClassVar[dict[str, object]] = {"ISM_VISIBILITY": 1}
     uses_ism = True
@@ -84,14 +86,14 @@ class ImperfectVisibility(Visibility):
 class ShadowMapVisibility(Visibility):
     name = "classic"
     label = "Shadow Maps"
-    description = "One triangle shadow map per VPL (Instant Radiosity)"
+    description = "a triangle cube shadow map per VPL (Instant Radiosity)"
 
 
 @register
 class RayTracedVisibility(Visibility):
     name = "exact"
     label = "Ray Traced"
-    description = "Exact visibility of every pixel/VPL pair (slow; a reference)"
+    description = "a ray per pixel and VPL (slow; the reference for visibility error)"
     defines: ClassVar[dict[str, object]] = {"EXACT_VISIBILITY": 1}
     rays_per_sample = 1
 

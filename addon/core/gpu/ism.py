@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
+from ..scene.vectors import triangle_areas
 from .gl import ProgramCache, require_compute
 
 BINDING_POINTS = 20  # ISM_BINDING_POINTS in ism_splat_comp.glsl
@@ -74,15 +75,6 @@ class SurfacePoints:
 
     def __len__(self) -> int:
         return len(self.triangle)
-
-
-def triangle_areas(triangles: np.ndarray) -> np.ndarray:
-    """Areas (float64) of (T, 3, 3) triangles; 0 where a coordinate is not finite."""
-    tris = np.asarray(triangles, np.float64).reshape(-1, 3, 3)
-    with np.errstate(invalid="ignore", over="ignore"):
-        area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]),
-                                    axis=1)
-    return np.where(np.isfinite(area), area, 0.0)
 
 
 def spread_order(count: int) -> np.ndarray:

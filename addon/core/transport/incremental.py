@@ -41,8 +41,9 @@ from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
 
 from ..scene.geometry import WorldGeometry
 from ..scene.model import Light, LightKind, Scene
+from ..scene.vectors import unit
 from ..settings import Settings
-from .lights import concentric_disk, spot_mask, spot_parameters
+from .lights import area_light_points, spot_mask, spot_parameters
 from .ray_caster import RayCaster
 from .sequences import scrambled_halton
 from .vpl import (
@@ -61,11 +62,6 @@ MAX_QUADRATURE = 1 << 18
 CANDIDATES_PER_ANCHOR = 8  # uniform candidate points per anchor for the best spot
 GENERATION_STRIDE = 128  # VPL key = path id * stride + generation (bounces <= 64)
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
 
 
 @dataclass
@@ -127,20 +123,17 @@ class LightDomain:
         n = len(offsets)
         if self.kind != "disc":
             return np.repeat(self.origin[None], n, 0)
-        light = self.light
-        unit = 0.5 * concentric_disk(offsets) if light.is_round else offsets - 0.5
-        local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
-        return local @ light.matrix[:3, :3].T + light.matrix[:3, 3]
+        return area_light_points(self.light, offsets)
 
     def rays(self, coords: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World origins and unit directions of paths leaving domain points."""
         n = len(coords)
         if self.kind == "sphere":
-            return self.shape_points(offsets), _unit(coords @ self.frame.T)
+            return self.shape_points(offsets), unit(coords @ self.frame.T)
         if self.kind == "disc":
             z = -np.sqrt(np.maximum(0.0, 1 - (coords**2).sum(axis=1)))
             local = np.hstack([coords, z[:, None]])
-            return self.shape_points(offsets), _unit(local @ self.frame.T)
+            return self.shape_points(offsets), unit(local @ self.frame.T)
         travel = -self.frame[:, 2]
         origin = self.origin - 1.01 * self.radius * travel + self.radius * (
             coords[:, :1] * self.frame[:, 0] + coords[:, 1:] * self.frame[:, 1])
@@ -156,7 +149,7 @@ class LightDomain:
             origin, _ = self.rays(coords, offsets)
             return coords, origin, self.contains(coords)
         origin = self.shape_points(offsets)
-        local = _unit(points - origin) @ self.frame
+        local = unit(points - origin) @ self.frame
         if self.kind == "sphere":
             return local, origin, self.contains(local)
         return local[:, :2], origin, local[:, 2] < 0
@@ -167,9 +160,9 @@ def light_domain(light: Light, centre: np.ndarray, radius: float) -> LightDomain
     if light.power == 0 or not np.isfinite(light.matrix).all():
         return None
     m = light.matrix[:3, :3]
-    x = _unit(m[:, 0][None])[0]
-    z = _unit(m[:, 2][None])[0]
-    y = _unit(np.cross(z, x)[None])[0]
+    x = unit(m[:, 0][None])[0]
+    z = unit(m[:, 2][None])[0]
+    y = unit(np.cross(z, x)[None])[0]
     frame = np.stack([x, y, z], axis=1)
     color = np.asarray(light.color, np.float64) * light.power
     position = light.matrix[:3, 3].astype(np.float64)
@@ -248,7 +241,7 @@ def voronoi_vertices(coords: np.ndarray) -> np.ndarray:
     try:
         if dims == 3:
             hull = ConvexHull(coords)
-            return _unit(hull.equations[:, :3])
+            return unit(hull.equations[:, :3])
         tri = Delaunay(coords)
     except (QhullError, ValueError):
         return np.zeros((0, dims))
@@ -411,7 +404,7 @@ class IncrementalVPLs:
         visible = np.zeros(len(anchors), bool)
         if check.any():
             rows = np.flatnonzero(check)
-            found = tracer.intersect(origin[rows], _unit(towards[rows]), epsilon, np.inf)
+            found = tracer.intersect(origin[rows], unit(towards[rows]), epsilon, np.inf)
             visible[rows] = found.distance >= distance[rows] * (1 - 1e-4) - 2 * epsilon
         valid = check & visible
         retrace = ~anchors.hit | retrace_all

@@ -18,6 +18,7 @@ import numpy as np
 from ..scene.environment import EnvironmentSampler
 from ..scene.geometry import WorldGeometry
 from ..scene.model import Light, LightKind, Scene
+from ..scene.vectors import unit
 from ..settings import Settings
 
 KIND_OMNI, KIND_COSINE, KIND_COSINE2, KIND_DIRECTIONAL = 0, 1, 2, 3
@@ -65,11 +66,6 @@ class LightSamples:
 
     def subset(self, index: np.ndarray) -> LightSamples:
         return LightSamples(*(getattr(self, f)[index] for f in self.__dataclass_fields__))
-
-
-def _normalized(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
 
 
 def fibonacci_sphere(n: int, rng: np.random.Generator) -> np.ndarray:
@@ -142,6 +138,15 @@ class _Builder:
         return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
 
 
+def area_light_points(light: Light, u: np.ndarray) -> np.ndarray:
+    """World points of an area light's shape (disc/ellipse or square/rectangle) at the
+    offsets ``u`` (n, 2) in [0, 1)²."""
+    on_shape = 0.5 * concentric_disk(u) if light.is_round else u - 0.5
+    local = np.hstack([on_shape * light.area_size, np.zeros((len(u), 1))])
+    m = light.matrix
+    return local @ m[:3, :3].T + m[:3, 3]
+
+
 def spot_mask(cos_to_axis: np.ndarray, spot_cos: float, spot_smooth: float) -> np.ndarray:
     """Cycles' spot mask (as spot_mask in lights_lib.glsl): a smoothstep of the cosine past the
     cone edge scaled by spot_smooth, a hard edge when it is 0; 1 without a cone (NO_SPOT)."""
@@ -188,7 +193,7 @@ def spot_parameters(light: Light) -> tuple[float, float]:
 def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator) -> None:
     color = np.asarray(light.color, dtype=np.float64) * light.power
     m = light.matrix
-    position, travel = m[:3, 3], _normalized(-m[:3, 2])
+    position, travel = m[:3, 3], unit(-m[:3, 2])
     if light.kind in (LightKind.POINT, LightKind.SPOT):
         spot_cos, spot_smooth = spot_parameters(light)
         if light.radius <= 0:
@@ -214,15 +219,13 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         cos_t = 1.0 - u[:, 0] * (1.0 - np.cos(half))
         sin_t, phi = np.sqrt(np.maximum(0.0, 1 - cos_t**2)), 2 * np.pi * u[:, 1]
         local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), -cos_t], axis=1)
-        b.add(position=np.repeat(position[None], n, 0), axis=_normalized(local @ m[:3, :3].T),
+        b.add(position=np.repeat(position[None], n, 0), axis=unit(local @ m[:3, :3].T),
               kind=KIND_DIRECTIONAL, intensity=color / n, shadow=light.cast_shadow,
               resolution=s.shadow_resolution, soft=True)  # each map spans the whole scene
     elif light.kind is LightKind.AREA:
         n = s.light_samples
         u = stratified_square(n, rng)
-        unit = 0.5 * concentric_disk(u) if light.is_round else u - 0.5
-        local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
-        b.add(position=local @ m[:3, :3].T + position, axis=travel, kind=KIND_COSINE,
+        b.add(position=area_light_points(light, u), axis=travel, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
               resolution=s.sample_shadow_resolution, soft=True, spread=spread_parameters(light))
 
@@ -265,7 +268,7 @@ def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
     points = t[:, 0] + u[:, :1] * (t[:, 1] - t[:, 0]) + u[:, 1:] * (t[:, 2] - t[:, 0])
     probability = power[pick] / power.sum()
     intensity = emission[emitting][pick] * (area[pick] / (n * probability))[:, None]
-    b.add(position=points, axis=_normalized(cross[pick]), kind=KIND_COSINE2,
+    b.add(position=points, axis=unit(cross[pick]), kind=KIND_COSINE2,
           intensity=intensity, shadow=True, resolution=s.sample_shadow_resolution, soft=True)
 
 

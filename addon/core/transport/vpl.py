@@ -23,11 +23,13 @@ import numpy as np
 from ..scene.environment import EnvironmentSampler
 from ..scene.geometry import WorldGeometry
 from ..scene.model import Light, LightKind, Scene
+from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
 from .lights import (
     KIND_COSINE,
     NO_SPOT,
     LightSamples,
+    area_light_points,
     concentric_disk,
     spot_mask,
     spot_parameters,
@@ -78,11 +80,6 @@ class _Paths:
     flux: np.ndarray
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
-
-
 def _frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal tangents (n, 3) around unit normals (Duff et al. 2017)."""
     sign = np.where(normal[:, 2] >= 0, 1.0, -1.0)
@@ -99,7 +96,7 @@ def cosine_directions(normal: np.ndarray, u: np.ndarray, sin_max: float = 1.0) -
     disk = concentric_disk(u) * sin_max
     z = np.sqrt(np.maximum(0.0, 1.0 - (disk**2).sum(axis=1)))
     t, s = _frame(normal)
-    return _unit(disk[:, :1] * t + disk[:, 1:] * s + z[:, None] * normal)
+    return unit(disk[:, :1] * t + disk[:, 1:] * s + z[:, None] * normal)
 
 
 def uniform_sphere(u: np.ndarray) -> np.ndarray:
@@ -111,10 +108,9 @@ def uniform_sphere(u: np.ndarray) -> np.ndarray:
 
 def average_reflectance(geometry: WorldGeometry) -> float:
     """Area-weighted mean albedo luminance of all surfaces (ρ̄ of fractional absorption)."""
-    tri = geometry.positions.reshape(-1, 3, 3).astype(np.float64)
-    if len(tri) == 0:
+    if geometry.vertex_count == 0:
         return 0.0
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = triangle_areas(geometry.positions)
     albedo = geometry.albedo @ LUMINANCE
     return float((area * albedo).sum() / max(area.sum(), 1e-300))
 
@@ -131,7 +127,7 @@ class _Emitter:
 def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
     color = np.asarray(light.color, dtype=np.float64) * light.power
     m = light.matrix
-    position, travel = m[:3, 3], _unit(-m[:3, 2][None])[0]
+    position, travel = m[:3, 3], unit(-m[:3, 2][None])[0]
     if light.kind in (LightKind.POINT, LightKind.SPOT):
         intensity = color / (4 * np.pi)
         if light.kind is LightKind.POINT:
@@ -152,7 +148,7 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
             d = (sin_t * np.cos(phi))[:, None] * t + (sin_t * np.sin(phi))[:, None] * s \
                 + cos_t[:, None] * travel
             mask = spot_mask(cos_t, cos_half, smooth) if smooth > 0 else np.ones(n)
-            return _Paths(np.repeat(position[None], n, 0), _unit(d),
+            return _Paths(np.repeat(position[None], n, 0), unit(d),
                           intensity * solid_angle * mask[:, None])
         return _Emitter(intensity * solid_angle, sample_spot)
     if light.kind is LightKind.SUN:
@@ -167,9 +163,7 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
 
     def sample_area(u: np.ndarray) -> _Paths:
         n = len(u)
-        unit = 0.5 * concentric_disk(u[:, 1:3]) if light.is_round else u[:, 1:3] - 0.5
-        local = np.hstack([unit * light.area_size, np.zeros((n, 1))])
-        origin = local @ m[:3, :3].T + position
+        origin = area_light_points(light, u[:, 1:3])
         direction = cosine_directions(np.repeat(travel[None], n, 0), u[:, 3:5], sin_max)
         weight = sin_max**2 * spread_attenuation(direction @ travel, tan_half, norm)
         return _Paths(origin, direction, color * weight[:, None])
@@ -223,7 +217,7 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
     if power.sum() <= 0:
         return None
     cdf = np.cumsum(power) / power.sum()
-    normal = _unit(cross)
+    normal = unit(cross)
 
     def sample(u: np.ndarray) -> _Paths:
         pick = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), len(cdf) - 1)
@@ -297,7 +291,7 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
     tri = hits.triangle[hit]
     position = origin[hit] + direction[hit] * hits.distance[hit, None].astype(np.float64)
     t = geometry.positions.reshape(-1, 3, 3)[tri].astype(np.float64)
-    normal = _unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
+    normal = unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
     normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
     return SurfaceHits(position, normal, geometry.albedo_at(tri, position), flux[hit], rank[hit],
                        tri)
