@@ -5,6 +5,9 @@ Importing this package does not import Blender; ``register()`` does.
 
 from __future__ import annotations
 
+ENGINE_ID = "VPL_GI"
+"""The render engine's identifier (``scene.render.engine``)."""
+
 
 def register() -> None:
     """Register the engine, its properties and its panels with Blender."""

@@ -11,6 +11,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from . import ENGINE_ID
 from .core.settings import SettingsError
 
 FORMATS = {".png": "PNG", ".exr": "OPEN_EXR"}
@@ -171,7 +172,7 @@ def run_render(args: argparse.Namespace) -> int:
         for path in paths:
             check_output(path, scene_file)
         render = scene.render
-        render.engine = "VPL_GI"
+        render.engine = ENGINE_ID
         if resolution:
             render.resolution_x, render.resolution_y = resolution
         if args.percentage is not None:

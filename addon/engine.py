@@ -9,12 +9,12 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from . import ENGINE_ID
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats
 from .core.gpu.gl import GLUnavailableError
 from .core.settings import SettingsError
 from .export import export_scene
-from .ui import ENGINE_ID
 from .viewport import ViewportState
 
 # Pass name -> (channels, channel ids, type, view-layer toggle that enables it).

@@ -16,6 +16,7 @@ import numpy as np
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
     DEFAULT_MATERIAL,
+    RENDERED_OBJECT_TYPES,
     AreaShape,
     Camera,
     EnvironmentMap,
@@ -30,7 +31,6 @@ from .core.scene.model import (
 from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, read_pixels
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 RAY_FLAGS = {"visible_camera": "camera", "visible_diffuse": "diffuse",
              "visible_shadow": "shadow"}
 
@@ -650,7 +650,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                 result.warnings.append(f"light '{obj.name}' has a non-finite transform and was "
                                        f"skipped")
             continue
-        if kind not in GEOMETRY_TYPES or not inst.show_self:
+        if kind not in RENDERED_OBJECT_TYPES or not inst.show_self:
             continue
         memo = (obj.original, obj.data)
         known = placements.get(memo)

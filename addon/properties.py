@@ -9,6 +9,7 @@ from typing import Any
 import bpy
 
 from .core.settings import DEFAULTS, SCHEMA, Meta, Settings, Value
+from .core.viewport_session import DISPLAY_MODES
 
 
 def _sentence(text: str) -> str:
@@ -36,12 +37,7 @@ def _property(name: str, meta: Meta) -> Any:
 
 _VIEWPORT_DISPLAY = bpy.props.EnumProperty(
     name="Viewport Display", default="combined",
-    items=[("combined", "Combined", "The full image"),
-           ("direct", "Direct Light", "Direct light and emission only"),
-           ("indirect", "Indirect Light", "Only the light the VPLs bring"),
-           ("vpls", "VPL Positions", "The image with each VPL as a dot coloured by its bounce "
-                                     "(yellow first, then orange, pink, blue)"),
-           ("ism", "ISM Atlas", "The imperfect shadow maps, near as white")],
+    items=[(mode.value, mode.label, mode.description) for mode in DISPLAY_MODES],
     description="What the Rendered viewport shows (final renders are unaffected)")
 
 

@@ -7,9 +7,9 @@ from typing import ClassVar
 
 import bpy
 
+from . import ENGINE_ID
 from .core.settings import SCHEMA, SECTIONS, Section, applies
 
-ENGINE_ID = "VPL_GI"
 # Panels written for EEVEE that show what this engine reads (material surface, world colour,
 # light settings); generic panels (format, output, colour management, ...) are found by their
 # "BLENDER_RENDER" compatibility, Blender's marker for panels any engine can use.

@@ -10,9 +10,9 @@ import weakref
 import bpy
 import numpy as np
 
-from .core.frame.viewport_session import Changes, Update, ViewportSession, classify, view_camera
 from .core.scene.model import Camera
 from .core.settings import SettingsError
+from .core.viewport_session import Changes, Update, ViewportSession, classify, view_camera
 from .export import ExportCache, export_scene
 
 _sessions: weakref.WeakSet[ViewportSession] = weakref.WeakSet()

@@ -27,6 +27,7 @@ import bpy
 import numpy as np
 from matplotlib.figure import Figure
 
+from addon import ENGINE_ID
 from addon.core.gpu.gl import GLUnavailableError, shared_context
 from addon.engine import monitor
 
@@ -159,7 +160,7 @@ def render_timed(scene: bpy.types.Scene, exr: Path) -> tuple[np.ndarray, float]:
     seconds = time.perf_counter() - start
     if monitor.last_error:
         raise RenderFailed(monitor.last_error)
-    if monitor.cancel_requested and scene.render.engine == "VPL_GI":
+    if monitor.cancel_requested and scene.render.engine == ENGINE_ID:
         raise ReportCancelled  # stopped part-way; Cycles cannot be, so its image is whole
     bpy.data.images["Render Result"].save_render(filepath=str(exr), scene=scene)
     return read_exr(exr), seconds
@@ -181,7 +182,7 @@ def render_cycles(scene: bpy.types.Scene, settings: dict[str, object], exr: Path
 
 def render_vpl(scene: bpy.types.Scene, mode: VPLMode, vpl_count: int, exr: Path
                ) -> tuple[np.ndarray, float]:
-    scene.render.engine = "VPL_GI"
+    scene.render.engine = ENGINE_ID
     for name, value in {**asdict(mode), "vpl_count": vpl_count, "auto_parameters": "off"
                         }.items():
         setattr(scene.vpl_gi, name, value)
@@ -190,7 +191,7 @@ def render_vpl(scene: bpy.types.Scene, mode: VPLMode, vpl_count: int, exr: Path
 
 def render_auto(scene: bpy.types.Scene, budget: float, exr: Path) -> tuple[np.ndarray, float]:
     """VPL GI in the automatic mode 'time' with ``budget`` seconds per frame."""
-    scene.render.engine = "VPL_GI"
+    scene.render.engine = ENGINE_ID
     scene.vpl_gi.auto_parameters, scene.vpl_gi.time_budget = "time", budget
     try:
         return render_timed(scene, exr)
@@ -295,11 +296,11 @@ def ladder_renders(scene: bpy.types.Scene, ladder: Ladder, bounces: int, exr: Pa
         yield entry, partial(render_cycles, scene, settings, exr)
     for mode in ladder.vpl_modes:
         for count in ladder.vpl_counts:
-            entry = {"engine": "VPL_GI", "line": mode.label, "parameter": "light paths",
+            entry = {"engine": ENGINE_ID, "line": mode.label, "parameter": "light paths",
                      "value": count}
             yield entry, partial(render_vpl, scene, mode, count, exr)
     for budget in ladder.auto_budgets:
-        entry = {"engine": "VPL_GI", "line": AUTO_LINE, "parameter": "s budget",
+        entry = {"engine": ENGINE_ID, "line": AUTO_LINE, "parameter": "s budget",
                  "value": budget}
         yield entry, partial(render_auto, scene, budget, exr)
 
@@ -348,12 +349,12 @@ def render_ladder(scene: bpy.types.Scene, ladder: Ladder, bounces: int, r1: np.n
     for index, (entry, render) in enumerate(ladder_renders(scene, ladder, bounces, exr), 1):
         entry.update(measure(render, r1, r2))
         stop_if_cancelled()
-        stats = monitor.last_stats if entry["engine"] == "VPL_GI" else None
+        stats = monitor.last_stats if entry["engine"] == ENGINE_ID else None
         if stats is not None:
             entry["stages"] = {"ran": stats.timings, "skipped": stats.skipped}
         if entry["line"] == AUTO_LINE and stats is not None:
             entry["chosen"] = [n for n in stats.notes if n.startswith("automatic parameters")]
-        elif entry["engine"] == "VPL_GI":
+        elif entry["engine"] == ENGINE_ID:
             entry["settings"] = asdict(scene.vpl_gi.to_settings())
         entries.append(entry)
         print(progress_line(index, total, entry), flush=True)
@@ -403,7 +404,7 @@ def pareto_gaps(renders: list[dict]) -> list[dict[str, float]]:
     """Each automatic render against the measured front of VPL GI's ladder lines: the least
     error any ladder render reached in no more time, and the least time any ladder render
     needed for no more error (None where no ladder render qualifies)."""
-    ladder = [e for e in renders if "metrics" in e and e["engine"] == "VPL_GI"
+    ladder = [e for e in renders if "metrics" in e and e["engine"] == ENGINE_ID
               and e["line"] != AUTO_LINE]
     gaps = []
     for auto in (e for e in renders if "metrics" in e and e["line"] == AUTO_LINE):

@@ -45,8 +45,8 @@ def rotate_about(view: np.ndarray, centre: np.ndarray, degrees: float) -> np.nda
 def replay(scene_file: Path, size: int) -> None:
     import bpy
 
-    from addon.core.frame.viewport_session import Changes, Update, ViewportSession, classify
     from addon.core.scene.geometry import bounding_sphere, flatten_instances
+    from addon.core.viewport_session import Changes, Update, ViewportSession, classify
     from addon.export import ExportCache, export_camera, export_scene
     from addon.viewport import depsgraph_updates
 

@@ -10,7 +10,7 @@ SAMPLE = Path(__file__).resolve().parents[2] / "sample_scenes" / "light_point.bl
 
 def test_opening_a_file_and_disabling_the_add_on_stop_viewport_sessions(blender):
     from addon import viewport
-    from addon.core.frame.viewport_session import ViewportSession
+    from addon.core.viewport_session import ViewportSession
 
     opened = ViewportSession()
     viewport._sessions.add(opened)

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from addon.core.frame.renderer import Renderer
-from addon.core.frame.viewport_session import (
+from addon.core.scene.model import Instance, LightKind, Material
+from addon.core.settings import Settings
+from addon.core.viewport_session import (
     Changes,
     Update,
     ViewportSession,
@@ -15,8 +17,6 @@ from addon.core.frame.viewport_session import (
     display_image,
     refinement_levels,
 )
-from addon.core.scene.model import Instance, LightKind, Material
-from addon.core.settings import Settings
 from tests.core.builders import floor_scene, icosphere, light, top_down_camera, translation
 
 SETTINGS = Settings(vpl_count=128, bounces=2, ism_points=1024, interleave=1)

@@ -10,6 +10,7 @@ import moderngl
 import numpy as np
 
 from ..gpu.gl import ProgramCache, set_uniforms
+from ..gpu.ism import ISM_BIAS_TEXELS
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.shadow_atlas import near_far
 from .batches import Batch
@@ -20,7 +21,6 @@ if TYPE_CHECKING:
     from .visibility import Visibility
 
 SURFACE_VERTICES_BINDING = 4  # the position stream as gather_frag.glsl's storage buffer
-ISM_BIAS_TEXELS = 1.0  # measured best against exact visibility (see gpu/ism.py)
 
 
 @dataclass

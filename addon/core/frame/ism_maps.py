@@ -52,7 +52,7 @@ class ImperfectShadowMapFrame:
         self.atlas_key = (kept.versions.shape, *settings_key(settings, ATLAS_FIELDS))
         self._rendered: dict[int, moderngl.Texture] = {}
 
-    def render(self, batch: Batch) -> moderngl.Texture:
+    def atlas(self, batch: Batch) -> moderngl.Texture:
         """The batch's atlas of maps (tile k for sample k, or as the kept atlas assigns)."""
         ism, settings, stats = self.ism, self.settings, self.stats
         if self.empty:

@@ -54,7 +54,7 @@ class ShadowAtlases:
         self._current = GpuScope()
         self._last: tuple[moderngl.Texture, Batch] | None = None
 
-    def render(self, batch: Batch, centre: np.ndarray, radius: float, again: bool
+    def atlas(self, batch: Batch, centre: np.ndarray, radius: float, again: bool
                ) -> moderngl.Texture:
         """The batch's atlas of tiles (cube faces or directional); with ``again``, the atlas
         of the last call if it was for this batch."""

@@ -49,7 +49,7 @@ class Visibility:
 
     def maps(self, batch: Batch, frame_maps: FrameMaps) -> moderngl.Texture:
         """The texture the gather reads this batch's occlusion from."""
-        return frame_maps.shadow_atlases.render(batch, frame_maps.centre, frame_maps.radius,
+        return frame_maps.shadow_atlases.atlas(batch, frame_maps.centre, frame_maps.radius,
                                                 again=frame_maps.reuse_atlas)
 
 
@@ -79,7 +79,7 @@ class ImperfectVisibility(Visibility):
         return ism_batches(samples, settings.ism_resolution)
 
     def maps(self, batch: Batch, frame_maps: FrameMaps) -> moderngl.Texture:
-        return frame_maps.ism.render(batch)
+        return frame_maps.ism.atlas(batch)
 
 
 @register

@@ -59,7 +59,7 @@ FAR = float(np.float32(3.0e38))  # ISM_FAR in ism_lib.glsl: the depth of texels 
 EMPTY_BITS = 0xFFFFFFFF  # ISM_EMPTY_BITS: an empty splat texel, above every float's bits
 FOOTPRINT_SCALE = 1.25  # footprint side / the side of a point's projected area; 0: one texel
 MAX_FOOTPRINT = 1 / 8  # largest footprint side, as a fraction of the tile edge
-DEFAULT_BIAS = 1.0  # texels
+ISM_BIAS_TEXELS = 1.0  # receiver offset in texels: measured best against exact visibility
 
 QUERY_DTYPE = np.dtype([("world", "<f4", 3), ("vpl", "<i4"), ("normal", "<f4", 3),
                         ("pad", "<f4")])
@@ -304,7 +304,7 @@ class ImperfectShadowMaps:
         return self.read_atlas()
 
     def visibility(self, vpl: np.ndarray, world: np.ndarray, normal: np.ndarray,
-                   bias: float = DEFAULT_BIAS) -> np.ndarray:
+                   bias: float = ISM_BIAS_TEXELS) -> np.ndarray:
         """``ism_visibility`` of the last atlas for points ``world`` (Q, 3) with geometric
         normals (Q, 3), each towards VPL ``vpl[q]`` of the last render: (Q,) float32."""
         queries = np.zeros(max(1, len(world)), QUERY_DTYPE)

@@ -46,6 +46,8 @@ class Material:
     emission_texture: Texture | None = None
 
 
+RENDERED_OBJECT_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "FONT", "META"})
+"""Blender object types whose evaluated mesh is rendered (as Blender names them)."""
 DEFAULT_MATERIAL = Material("(no material)")  # an empty slot, or an object without slots
 
 

@@ -25,13 +25,20 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..gpu.gl import GLUnavailableError, create_context
-from ..scene.model import Camera, Scene
-from ..settings import Settings, SettingsError
-from .renderer import RenderCancelled, Renderer, RenderError
-from .result import Frame, Stats
+from .frame.renderer import RenderCancelled, Renderer, RenderError
+from .frame.result import Frame, Stats
+from .gpu.gl import GLUnavailableError, create_context
+from .scene.model import RENDERED_OBJECT_TYPES, Camera, Scene
+from .settings import Choice, Settings, SettingsError
 
-DISPLAY_MODES = ("combined", "direct", "indirect", "vpls", "ism")
+DISPLAY_MODES = (
+    Choice("combined", "Combined", "The full image"),
+    Choice("direct", "Direct Light", "Direct light and emission only"),
+    Choice("indirect", "Indirect Light", "Only the light the VPLs bring"),
+    Choice("vpls", "VPL Positions", "The image with each VPL as a dot coloured by its bounce "
+                                    "(yellow first, then orange, pink, blue)"),
+    Choice("ism", "ISM Atlas", "The imperfect shadow maps, near as white"))
+"""What the Rendered viewport can show (final renders are unaffected)."""
 DISPLAY_PASSES = {"direct": frozenset({"DiffDir", "DiffCol", "Emit"}),
                   "indirect": frozenset({"DiffInd", "DiffCol"})}
 """Passes a display mode reads besides Combined."""
@@ -39,8 +46,8 @@ LEVEL_DIVISORS = (4, 2, 1)  # resolution divisors of the refinement levels
 MIN_LEVEL_PIXELS = 96  # a level is skipped when its shorter edge would be smaller
 GENERATION_COLOURS = np.array([[1.0, 0.9, 0.2], [1.0, 0.4, 0.1], [0.9, 0.1, 0.5],
                                [0.4, 0.2, 1.0], [0.1, 0.7, 1.0]], np.float32)
-GEOMETRY_OBJECTS = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES", "POINTCLOUD",
-                    "VOLUME"}
+GEOMETRY_OBJECTS = RENDERED_OBJECT_TYPES | {"CURVES", "POINTCLOUD", "VOLUME"}
+"""Object types whose edits can change what is rendered (some not rendered yet)."""
 GEOMETRY_DATA = {"MESH", "CURVE", "METABALL", "CURVES", "POINTCLOUD", "VOLUME", "TEXT"}
 
 
@@ -260,8 +267,9 @@ class ViewportSession:
     def edit(self, changes: Changes, scene: Scene | None = None, camera: Camera | None = None,
              settings: Settings | None = None, display: str | None = None) -> None:
         """Hand over what changed; the worker starts over with it."""
-        if display is not None and display not in DISPLAY_MODES:
-            raise ValueError(f"display mode {display!r} is not one of {DISPLAY_MODES}")
+        modes = tuple(mode.value for mode in DISPLAY_MODES)
+        if display is not None and display not in modes:
+            raise ValueError(f"display mode {display!r} is not one of {modes}")
         with self._cond:
             if scene is not None:
                 self._scene = scene
