@@ -23,6 +23,7 @@ import argparse
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -47,6 +48,7 @@ class CompareError(Exception):
 
 
 def git(repo: Path, *args: str) -> str:
+    """git's output, or CompareError with its message."""
     result = subprocess.run(["git", "-C", str(repo), *args], capture_output=True, text=True)
     if result.returncode:
         raise CompareError(f"git {' '.join(args)}: {result.stderr.strip()}")
@@ -54,6 +56,7 @@ def git(repo: Path, *args: str) -> str:
 
 
 def resolve_commit(repo: Path, ref: str) -> str:
+    """The full hash of the commit ``ref`` names."""
     return git(repo, "rev-parse", "--verify", f"{ref}^{{commit}}")
 
 
@@ -79,6 +82,7 @@ class Side:
         return self.path
 
     def scene_names(self) -> list[str]:
+        """``scene:STEM`` of every sample_scenes/*.blend (a commit's: read without checkout)."""
         if self.commit is not None:
             listed = git(self.repo, "ls-tree", "--name-only", self.commit, "sample_scenes/")
             files = [Path(line) for line in listed.splitlines()]
@@ -117,6 +121,7 @@ class Side:
             self.rendered.append(name)
 
     def scene_file(self, name: str, size: int | None) -> Path:
+        """Where the renders of the scene case ``name`` at ``size`` are kept."""
         return self.out / ("scenes" if size is None else f"scenes-{size}") / case_file(name)
 
     def stability_names(self, only: list[str] | None) -> list[str]:
@@ -148,6 +153,7 @@ class Side:
         return wanted
 
     def close(self) -> None:
+        """Remove the temporary worktree, if one was made."""
         if self.commit is not None and self.path is not None:
             git(self.repo, "worktree", "remove", "--force", str(self.path))
 
@@ -305,6 +311,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--allow", action="append", help="a case (glob or substring) allowed "
                         "to differ: a fixed bug (repeatable)")
     args = parser.parse_args(argv)
+    # on SIGTERM, still remove the temporary worktree (the cache keeps every finished case)
+    signal.signal(signal.SIGTERM, lambda signum, _frame: sys.exit(128 + signum))
     try:
         return compare(args)
     except CompareError as exc:
