@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import fields
 
+import numpy as np
 import pytest
 
 from addon.core.frame.gpu_scope import GpuScope
@@ -12,11 +13,18 @@ from addon.core.frame.renderer import Renderer
 from addon.core.frame.state import FrameState
 from addon.core.frame.visibility import VISIBILITY
 from addon.core.gpu.gl import SHADER_DIR
-from addon.core.scene.model import LightKind
+from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import SCHEMA, Settings
-from tests.core.builders import floor_scene, light, translation
+from tests.core.builders import floor_scene, light, quad, rotation_x, translation
 
 INPUTS = {"scene", "settings", "passes", "stats", "report", "cancelled"}
+
+
+def lit_corner():
+    """A floor and a wall beside a point light: indirect light reaches the floor."""
+    wall = Instance(quad(5, 2), translation(0, 2, 2) @ rotation_x(np.pi / 2),
+                    [Material("wall", (0.8, 0.2, 0.2))])
+    return floor_scene([light(LightKind.POINT, translation(0, 1, 1), power=50)], extra=[wall])
 
 
 def test_every_stage_reads_only_what_an_earlier_stage_made(renderer: Renderer) -> None:
@@ -42,8 +50,7 @@ def test_each_stage_makes_what_it_declares(renderer: Renderer, monkeypatch) -> N
             seen.append(stage.name)
 
         monkeypatch.setattr(stage, "run", checked)
-    scene = floor_scene([light(LightKind.POINT, translation(0, 0, 1), power=50)])
-    renderer.render(scene, Settings(antialiasing=1, vpl_count=16, bounces=1))
+    renderer.render(lit_corner(), Settings(antialiasing=1, vpl_count=16, bounces=1))
     assert seen == [stage.name for stage in renderer.stages]
 
 
@@ -58,8 +65,8 @@ def test_visibility_modes_are_the_settings_choices_and_have_a_shader_branch() ->
 
 @pytest.mark.parametrize("mode", list(VISIBILITY))
 def test_every_visibility_mode_renders(renderer: Renderer, mode: str) -> None:
-    scene = floor_scene([light(LightKind.POINT, translation(0, 0, 1), power=50)])
-    frame, stats = renderer.render(scene, Settings(antialiasing=1, vpl_count=16, bounces=1,
+    renderer.forget_frames()
+    frame, stats = renderer.render(lit_corner(), Settings(antialiasing=1, vpl_count=16, bounces=1,
                                                    visibility=mode))
     assert frame.passes["DiffInd"].max() > 0, stats.summary()
 

@@ -62,7 +62,7 @@ class MakeVPLs(Stage):
 
     name = "vpl generation"
     needs = ("geometry", "centre", "plan")
-    makes = ("vpls", "vpl_keys", "vpl_samples")
+    makes = ("vpls", "vpl_samples")  # and vpl_keys where the VPLs have identities
 
     def __init__(self, gpu: GpuSession, kept: KeptProducts) -> None:
         self.gpu, self.kept = gpu, kept
