@@ -221,10 +221,15 @@ def run_render(args: argparse.Namespace) -> int:
         unregister()
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+def run_command(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
+    """Parse ``argv`` and run the chosen command; a CliError is one ``error:`` line, exit 2."""
+    args = parser.parse_args(argv)
     try:
         return args.run(args)
     except CliError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_command(build_parser(), argv)

@@ -8,7 +8,7 @@ import signal
 import sys
 from pathlib import Path
 
-from addon.cli import CliError, check_output
+from addon.cli import CliError, check_output, run_command
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -44,12 +44,7 @@ def add_report_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return args.run(args)
-    except CliError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    return run_command(build_parser(), argv)
 
 
 def check_report_args(args: argparse.Namespace) -> Path:
