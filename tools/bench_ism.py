@@ -19,12 +19,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from addon.core.gpu.gl import ProgramCache, shared_context
-from addon.core.gpu.ism import (
-    FOOTPRINT_SCALE,
-    MAX_FOOTPRINT,
-    ImperfectShadowMaps,
-    sample_surface_points,
-)
+from addon.core.gpu.ism import FOOTPRINT_SCALE, MAX_FOOTPRINT, ImperfectShadowMaps
+from addon.core.scene.surface_points import sample_surface_points
 
 
 def box(lo: np.ndarray, hi: np.ndarray, n: int, inward: bool) -> np.ndarray:

@@ -11,8 +11,8 @@ from addon.core.frame.vpl_stage import INCREMENTAL_FIELDS
 from addon.core.scene.geometry import bounding_sphere, flatten_instances
 from addon.core.scene.model import Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
-from addon.core.transport.incremental import (
-    IncrementalVPLs,
+from addon.core.transport.incremental import IncrementalVPLs
+from addon.core.transport.light_domains import (
     cell_integrals,
     light_domain,
     shortest_edge,

@@ -8,7 +8,8 @@ import pytest
 
 from addon.core.gpu import ism
 from addon.core.gpu.gl import SHADER_DIR
-from addon.core.gpu.ism import ImperfectShadowMaps, sample_surface_points, spread_order
+from addon.core.gpu.ism import ImperfectShadowMaps
+from addon.core.scene.surface_points import sample_surface_points, spread_order
 
 RESOLUTION = 128
 POINTS = 8192
