@@ -10,6 +10,7 @@ import bpy
 import numpy as np
 
 from . import ENGINE_ID
+from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats
 from .core.gpu.gl import GLUnavailableError
@@ -126,8 +127,15 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         layer = depsgraph.view_layer
         passes = frozenset(name for name, (*_, toggle) in OPTIONAL_PASSES.items()
                            if getattr(layer, toggle, False))
-        frame, stats = shared_renderer().render(exported, settings, progress, cancelled, passes)
-        self._write_result(frame)
+        def show(report: PassReport) -> None:
+            """Each pass's average in the render window (Esc keeps the passes shown)."""
+            self._write_result(report.frame)
+            if settings.passes > 1:
+                noise = "" if report.noise is None else f", noise {report.noise * 100:.1f} %"
+                self.update_stats("", f"VPL GI | Pass {report.index}/{settings.passes}{noise}")
+
+        _, stats = shared_renderer().render_progressive(exported, settings, progress, cancelled,
+                                                        passes, on_pass=show)
         monitor.last_stats, monitor.last_warnings = stats, list(stats.warnings)
         for note in [*exported.notes, *stats.notes]:
             self.report({"INFO"}, f"VPL GI: {note}")

@@ -89,6 +89,7 @@ uniform float u_ray_offset;  // ray-origin offset along the normal, scene-relati
 
 // Ray-traced visibility: 1 if nothing blocks the segment to the sample (or its direction).
 float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+    if (s.tile < 0) return 1.0;  // the light casts no shadow
     vec3 origin = world + geometric_normal * u_ray_offset;
     if (s.kind == KIND_DIRECTIONAL) {
         return rt_occluded(origin, -s.axis, 0.0, 3.0e38) ? 0.0 : 1.0;

@@ -149,6 +149,7 @@ def _sizes(what: str) -> tuple[Choice, ...]:
 
 
 _ISM_USED = when("visibility", "ism") | when("soft_light_ism", True)
+_SHADOW_MAPS = when("direct_shadows", "shadow_maps", "hybrid")
 
 
 @dataclass(frozen=True)
@@ -167,20 +168,33 @@ class Settings:
         64, "World Samples", "sampling",
         "Directions the world colour is sampled in (by brightness for an environment map), "
         "each with its own shadow map", low=1, high=1024, soft_high=256)
+    direct_shadows: str = setting(
+        "hybrid", "Direct Shadows", "shadows",
+        "How the shadows of direct light (lights, emissive surfaces, the world) are found",
+        choices=(Choice("hybrid", "Hybrid",
+                        "ray traced for lights with hard shadows (point, spot and sun lights "
+                        "of no size): exact edges; shadow maps for the samples of soft lights"),
+                 Choice("ray_traced", "Ray Traced",
+                        "a ray per pixel and light sample on the GPU ray tracer (exact; slow "
+                        "for many samples without a hardware GPU)"),
+                 Choice("shadow_maps", "Shadow Maps",
+                        "a shadow map per light sample (faster for many samples on slow "
+                        "ray tracing; edges as sharp as the map's texels)")))
     shadow_resolution: int = setting(
         1024, "Shadow Resolution", "shadows",
         "Texels per edge of each cube face / directional shadow map of point, spot and sun "
         "lights (each of a sun's angle samples too: its map spans the whole scene)",
-        low=16, high=8192, soft_high=4096)
+        low=16, high=8192, soft_high=4096, applies=_SHADOW_MAPS)
     sample_shadow_resolution: int = setting(
         256, "Sample Shadow Resolution", "shadows",
         "Texels per edge of the shadow maps of area-light, sphere-light, emission and world "
-        "samples", low=16, high=4096, soft_high=1024)
+        "samples", low=16, high=4096, soft_high=1024, applies=_SHADOW_MAPS)
     shadow_bias: float = setting(
         1.5, "Shadow Bias", "shadows",
         "Receiver offset along its normal, in shadow-map texels (scale independent); raise it "
         "against shadow acne, lower it against light leaking at contacts",
-        low=0.0, high=64.0, soft_high=8.0)
+        low=0.0, high=64.0, soft_high=8.0,
+        applies=_SHADOW_MAPS | when("visibility", "classic"))
     antialiasing: int = setting(
         2, "Anti-Aliasing", "sampling",
         "Supersampling factor per axis, box filter (1 = one sample per pixel, 2 = four)",
@@ -189,6 +203,21 @@ class Settings:
         0, "Seed", "sampling",
         "Seed of every stochastic choice; a render is deterministic for (scene, settings)",
         low=0, high=2**31 - 1)
+    passes: int = setting(
+        1, "Passes", "sampling",
+        "Passes of a final render, each with its own light samples and VPLs, averaged and "
+        "shown after each pass; the VPL clamp distance shrinks as 1/√pass, so the image keeps "
+        "converging (the viewport renders one pass per edit)",
+        low=1, high=1 << 16, soft_high=64)
+    time_limit: float = setting(
+        0.0, "Time Limit", "sampling",
+        "Seconds after which a final render starts no further pass (0 = no limit)",
+        low=0.0, high=7 * 86400.0, soft_high=600.0, applies=unless("passes", 1))
+    noise_threshold: float = setting(
+        0.0, "Noise Threshold", "sampling",
+        "A final render stops once its estimated noise, relative to the image's mean (from "
+        "the difference of the averages of even and odd passes), is below this (0 = off)",
+        low=0.0, high=1.0, applies=unless("passes", 1))
     bounces: int = setting(
         4, "Bounces", "light_paths",
         "Diffuse bounces, as Cycles counts them: 0 = direct light only",
@@ -255,7 +284,7 @@ class Settings:
         "Shadow the samples of area lights, sphere lights, suns with an angle and the world "
         "with imperfect shadow maps instead of triangle shadow maps (the seed's soft shadows "
         "and natural illumination from many point lights: faster for many samples, slightly "
-        "less exact)")
+        "less exact)", applies=_SHADOW_MAPS)
     ism_points: int = setting(
         8192, "Points per VPL", "visibility",
         "Surface points splatted into each imperfect shadow map (512 stratified sets; VPL k "

@@ -53,6 +53,14 @@ def shadow_map_batches(samples: LightSamples, max_texture: int) -> list[Batch]:
     return batches
 
 
+def unmapped_batches(samples: LightSamples) -> list[Batch]:
+    """Samples in batches that need no maps (ray-traced visibility): tile 0 marks a sample
+    that casts shadows, as the light table's tile -1 marks one that does not."""
+    return [Batch(samples.subset(np.arange(start, min(start + MAX_BATCH, len(samples)))), 1,
+                  np.zeros(min(MAX_BATCH, len(samples) - start), int), 1, 1)
+            for start in range(0, len(samples), MAX_BATCH)]
+
+
 def ism_tiles_per_atlas(resolution: int) -> int:
     """Imperfect shadow maps of ``resolution``² that one atlas holds."""
     return max(1, min(MAX_BATCH, ATLAS_TEXELS // (resolution * resolution)))

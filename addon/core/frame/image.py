@@ -21,7 +21,7 @@ from .result import PASS_CHANNELS
 from .reuse import KeptProducts
 from .shadow_maps import KeptAtlases, ShadowAtlases
 from .state import FrameState, RenderError, Stage
-from .visibility import VISIBILITY, FrameMaps
+from .visibility import FrameMaps
 
 MAX_TILE = 1024  # supersampled pixels per image tile edge
 
@@ -177,7 +177,7 @@ class RenderImage(Stage):
             maps = FrameMaps(atlases, frame.ism_maps, frame.centre, frame.radius,
                              reuse_atlas=len(frame.light_passes) == 1)
             data = FrameGpu(scene, shapes, textures, maps)
-            if VISIBILITY[settings.visibility].rays_per_sample or frame.compensation is not None:
+            if frame.traces_rays:
                 self.gpu.tracer.bind()
             try:
                 for tile in tiles:

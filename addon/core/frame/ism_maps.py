@@ -26,11 +26,13 @@ ATLAS_FIELDS = ("ism_points", "ism_resolution", "pull_push_levels", "seed")
 class ImperfectShadowMapFrame:
     """Renders the imperfect shadow maps of a frame's batches. With a single batch its atlas
     is kept between frames: ``keys`` identify the VPLs of ``keyed_batch``, and only maps of
-    VPLs with new keys are rendered."""
+    VPLs with new keys are rendered. The points come from ``point_seed`` (the same in every
+    pass of a progressive render)."""
 
     def __init__(self, ism: ImperfectShadowMaps, kept: KeptProducts, geometry: WorldGeometry,
                  settings: Settings, batches: list[Batch], sphere: tuple[np.ndarray, float],
-                 stats: Stats, keyed_batch: Batch | None, keys: np.ndarray | None) -> None:
+                 stats: Stats, keyed_batch: Batch | None, keys: np.ndarray | None,
+                 point_seed: int) -> None:
         self.ism, self.kept, self.settings, self.batches = ism, kept, settings, batches
         self.sphere, self.stats, self.keyed_batch, self.keys = sphere, stats, keyed_batch, keys
         self.triangles = geometry.positions.reshape(-1, 3, 3)
@@ -40,7 +42,7 @@ class ImperfectShadowMapFrame:
         # vary a little from frame to frame (Incremental Instant Radiosity) keep the pool
         start = time.perf_counter()
         try:
-            sampled = ism.prepare(self.triangles, subsets, settings.ism_points, settings.seed)
+            sampled = ism.prepare(self.triangles, subsets, settings.ism_points, point_seed)
         except ValueError as exc:  # the point pool exceeds the GPU's storage-buffer limit
             raise RenderError(f"imperfect shadow maps: {exc} (lower ism_points)") from None
         if sampled:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import moderngl
@@ -17,6 +18,7 @@ from ..transport.vpl import VPLs
 from .automatic import ChooseParameters
 from .gpu_session import GpuSession
 from .image import RenderImage
+from .progressive import PassReport, render_passes
 from .result import Frame, Stats
 from .reuse import KeptProducts
 from .stages import (
@@ -56,15 +58,34 @@ class Renderer:
         ]
 
     def render(self, scene: Scene, settings: Settings, progress: ProgressCallback | None = None,
-               cancelled: CancelCallback | None = None, passes: frozenset[str] | None = None
-               ) -> tuple[Frame, Stats]:
-        """Render ``scene``: the Combined pass and ``passes`` (all by default; the others come
-        back zero when the planner is on). Raises RenderError or RenderCancelled."""
+               cancelled: CancelCallback | None = None, passes: frozenset[str] | None = None,
+               pass_index: int = 0) -> tuple[Frame, Stats]:
+        """Render one pass of ``scene`` (``pass_index`` of a progressive render): the Combined
+        pass and ``passes`` (all by default; the others come back zero when the planner is
+        on). Raises RenderError or RenderCancelled."""
         frame = FrameState(scene, settings, passes, Stats(warnings=list(scene.warnings)),
-                           progress or (lambda _f, _m: None), cancelled or (lambda: False))
+                           progress or (lambda _f, _m: None), cancelled or (lambda: False),
+                           pass_index=pass_index)
         for stage in self.stages:
             stage.run(frame)
         return Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats
+
+    def render_progressive(self, scene: Scene, settings: Settings,
+                           progress: ProgressCallback | None = None,
+                           cancelled: CancelCallback | None = None,
+                           passes: frozenset[str] | None = None,
+                           on_pass: Callable[[PassReport], None] | None = None
+                           ) -> tuple[Frame, Stats]:
+        """A final render: ``settings.passes`` passes averaged (see progressive.py), with
+        ``on_pass`` called after each."""
+        settings.validate()
+
+        def one_pass(scene: Scene, settings: Settings, index: int,
+                     progress: ProgressCallback, cancelled: CancelCallback
+                     ) -> tuple[Frame, Stats]:
+            return self.render(scene, settings, progress, cancelled, passes, index)
+
+        return render_passes(one_pass, scene, settings, progress, cancelled, on_pass)
 
     def release(self) -> None:
         """Release every GPU object (the context stays the caller's)."""

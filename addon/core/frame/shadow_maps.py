@@ -53,6 +53,7 @@ class ShadowAtlases:
         self.kept = kept
         self._current = GpuScope()
         self._last: tuple[moderngl.Texture, Batch] | None = None
+        self._placeholder: moderngl.Texture | None = None
 
     def atlas(self, batch: Batch, centre: np.ndarray, radius: float, again: bool
                ) -> moderngl.Texture:
@@ -98,6 +99,15 @@ class ShadowAtlases:
         draw_tiles(self.ctx, vao, self.scene.vertex_count, len(table.rows))
         return texture
 
+    def placeholder(self) -> moderngl.Texture:
+        """A 1×1 atlas for passes that read no maps (the gather binds an atlas regardless)."""
+        if self._placeholder is None:
+            self._placeholder = self.ctx.texture((1, 1), 1, dtype="f4")
+        return self._placeholder
+
     def release(self) -> None:
         self._current.release()
         self._last = None
+        if self._placeholder is not None:
+            self._placeholder.release()
+            self._placeholder = None

@@ -15,10 +15,16 @@ from .gather import Compensation, LightPass
 from .gpu_session import GpuSession
 from .ism_maps import ImperfectShadowMapFrame
 from .planner import plan_frame, plan_gather, visible_bounds
+from .progressive import pass_settings
 from .reuse import KeptProducts
 from .state import FrameState, RenderError, Stage
-from .visibility import VISIBILITY, ImperfectVisibility, ShadowMapVisibility
-from .vpl_stage import cull
+from .visibility import (
+    VISIBILITY,
+    ImperfectVisibility,
+    RayTracedVisibility,
+    ShadowMapVisibility,
+)
+from .vpl_stage import cull, upload_triangles
 
 MAX_FRAME_SAMPLES = 1 << 27  # supersampled pixels per frame: the passes alone take 80 B each
 
@@ -31,6 +37,8 @@ class CheckInput(Stage):
 
     def run(self, frame: FrameState) -> None:
         frame.settings.validate()
+        frame.point_seed = frame.settings.seed
+        frame.settings = pass_settings(frame.settings, frame.pass_index)
         camera = frame.scene.camera
         if camera is None:
             raise RenderError("the scene has no camera")
@@ -137,25 +145,11 @@ class PlanLightPasses(Stage):
         self.gpu, self.kept = gpu, kept
 
     def run(self, frame: FrameState) -> None:
-        settings, stats, samples = frame.settings, frame.stats, frame.light_samples
-        radius = frame.radius
+        settings, stats, radius = frame.settings, frame.stats, frame.radius
         mode = VISIBILITY[settings.visibility]()
         vpl_samples = mode.prepare(frame.vpl_samples)
         vpl_batches = mode.batches(vpl_samples, settings, self.gpu.max_texture)
-        soft_ism = settings.soft_light_ism and samples.kind.size > 0
-        if soft_ism and self.gpu.ctx.version_code < 430:
-            stats.warnings.append("soft lights use triangle shadow maps: imperfect shadow maps "
-                                  "need OpenGL 4.3")
-            soft_ism = False
-        as_ism = samples.soft & samples.casts_shadow & np.isin(
-            samples.kind, (KIND_COSINE, KIND_DIRECTIONAL)) if soft_ism \
-            else np.zeros(len(samples), bool)
-        imperfect, triangles = ImperfectVisibility(), ShadowMapVisibility()
-        direct_ism = imperfect.batches(samples.subset(np.flatnonzero(as_ism)), settings, 0)
-        passes = [LightPass("direct light", b, radius * 1e-6, triangles)
-                  for b in shadow_map_batches(samples.subset(np.flatnonzero(~as_ism)),
-                                              self.gpu.max_texture)]
-        passes += [LightPass("direct light", b, radius * 1e-6, imperfect) for b in direct_ism]
+        passes = self._direct_passes(frame)
         clamp = max(settings.clamp_distance * radius, radius * 1e-6)
         passes += [LightPass("indirect light", b, clamp, mode, settings.interleave)
                    for b in vpl_batches]
@@ -165,18 +159,53 @@ class PlanLightPasses(Stage):
             frame.compensation = Compensation(settings.clamp_distance * radius,
                                               settings.bias_samples, settings.seed,
                                               settings.bounces - 1)
+        frame.traces_rays = frame.compensation is not None or any(
+            p.visibility.rays_per_sample for p in passes)
+        if frame.traces_rays:
+            upload_triangles(self.gpu, self.kept, frame.geometry, stats)
         batches = [p.batch for p in passes if p.visibility.uses_ism]
         if batches:
             keyed = vpl_batches[0] if mode.uses_ism and len(vpl_batches) == 1 else None
             frame.ism_maps = ImperfectShadowMapFrame(
                 self.gpu.ism, self.kept, frame.geometry, settings, batches,
-                (frame.centre, radius), stats, keyed, frame.vpl_keys)
+                (frame.centre, radius), stats, keyed, frame.vpl_keys, frame.point_seed)
         stats.counts.update(
-            triangles=frame.geometry.vertex_count // 3, light_samples=len(samples),
+            triangles=frame.geometry.vertex_count // 3, light_samples=len(frame.light_samples),
             vpls=len(frame.vpls), shadow_maps=int(sum(
                 p.batch.samples.tiles_per_sample.sum() for p in passes
                 if type(p.visibility) is ShadowMapVisibility)))
         frame.light_passes = passes
+
+
+    def _direct_passes(self, frame: FrameState) -> list[LightPass]:
+        """The light samples' passes: ray traced (all samples, or with ``hybrid`` those of
+        lights with hard shadows), the others with shadow maps (imperfect ones for soft lights
+        with soft_light_ism)."""
+        settings, stats, samples = frame.settings, frame.stats, frame.light_samples
+        near = frame.radius * 1e-6
+        traced = {"ray_traced": np.ones(len(samples), bool), "hybrid": ~samples.soft,
+                  "shadow_maps": np.zeros(len(samples), bool)}[settings.direct_shadows]
+        if traced.any() and self.gpu.ctx.version_code < 430:
+            stats.warnings.append("direct shadows use shadow maps: ray tracing needs OpenGL 4.3")
+            traced[:] = False
+        ray_traced = RayTracedVisibility()
+        passes = [LightPass("direct light", b, near, ray_traced)
+                  for b in ray_traced.batches(samples.subset(np.flatnonzero(traced)), settings, 0)]
+        mapped = samples.subset(np.flatnonzero(~traced))
+        soft_ism = settings.soft_light_ism and mapped.kind.size > 0
+        if soft_ism and self.gpu.ctx.version_code < 430:
+            stats.warnings.append("soft lights use triangle shadow maps: imperfect shadow maps "
+                                  "need OpenGL 4.3")
+            soft_ism = False
+        as_ism = mapped.soft & mapped.casts_shadow & np.isin(
+            mapped.kind, (KIND_COSINE, KIND_DIRECTIONAL)) if soft_ism \
+            else np.zeros(len(mapped), bool)
+        imperfect, triangles = ImperfectVisibility(), ShadowMapVisibility()
+        passes += [LightPass("direct light", b, near, triangles)
+                   for b in shadow_map_batches(mapped.subset(np.flatnonzero(~as_ism)),
+                                               self.gpu.max_texture)]
+        return passes + [LightPass("direct light", b, near, imperfect) for b in
+                         imperfect.batches(mapped.subset(np.flatnonzero(as_ism)), settings, 0)]
 
 
 class Sanitize(Stage):

@@ -43,6 +43,8 @@ class FrameState:
     stats: Stats
     report: ProgressCallback
     cancelled: CancelCallback
+    pass_index: int = 0  # the pass of a progressive render (see progressive.py)
+    point_seed: int = 0  # the user's seed: ISM points stay the same in every pass
     camera: Camera | None = None
     geometry: WorldGeometry | None = None
     shapes: WorldGeometry | None = None  # light outlines seen by the camera
@@ -59,6 +61,7 @@ class FrameState:
     ism_maps: ImperfectShadowMapFrame | None = None
     blur_radius: int = 0
     output: dict[str, np.ndarray] | None = None
+    traces_rays: bool = False  # a light pass or the bias compensation uses the ray tracer
     steps: int = 0  # light passes × tiles, for the progress bar
     steps_done: int = 0
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..settings import VISIBILITY_MODES, Choice, Settings
 from ..transport.lights import LightSamples
-from .batches import Batch, ism_batches, shadow_map_batches
+from .batches import Batch, ism_batches, shadow_map_batches, unmapped_batches
 from .ism_maps import ImperfectShadowMapFrame
 from .shadow_maps import ShadowAtlases
 
@@ -97,6 +97,9 @@ class RayTracedVisibility(Visibility):
     defines: ClassVar[dict[str, object]] = {"EXACT_VISIBILITY": 1}
     rays_per_sample = 1
 
-    def prepare(self, samples: LightSamples) -> LightSamples:
-        samples.casts_shadow[:] = False  # no maps: the gather traces rays
-        return samples
+    def batches(self, samples: LightSamples, settings: Settings, max_texture: int
+                ) -> list[Batch]:
+        return unmapped_batches(samples)
+
+    def maps(self, batch: Batch, frame_maps: FrameMaps) -> moderngl.Texture:
+        return frame_maps.shadow_atlases.placeholder()

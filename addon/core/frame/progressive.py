@@ -1,0 +1,139 @@
+"""Progressive final renders: passes with independent light samples and VPLs, averaged.
+
+Pass k (from 0) renders with its own seed and the VPL clamp distance shrunk to
+clamp / √(k + 1). Averaged over K passes a VPL's clamped peak contributes at most
+1 / (K (clamp / √K)²) = 1 / clamp², the first pass's bound, so hot spots stay bounded while
+the clamp, and with it the bias, goes to zero: the average converges to the unclamped
+solution (a consistent estimator). The noise of the average is estimated from the difference
+of the averages of the even and of the odd passes (independent halves)."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..scene.model import Scene
+from ..settings import Settings
+from .result import Frame, Stats
+from .state import CancelCallback, ProgressCallback
+
+LIGHT_PASSES = ("Combined", "DiffDir", "DiffInd")
+"""Passes that differ from pass to pass (the others are the same in every pass)."""
+SEED_STRIDE = 0x9E3779B1  # pass k's seed: seed + k × stride (mod 2³¹)
+MIN_PASSES_FOR_NOISE = 4  # passes before the noise estimate may stop a render
+
+
+def pass_settings(settings: Settings, index: int) -> Settings:
+    """The settings of pass ``index``: its own seed and the shrunk clamp (pass 0 is
+    ``settings`` itself)."""
+    if index == 0:
+        return settings
+    return replace(settings, seed=(settings.seed + index * SEED_STRIDE) % 2**31,
+                   clamp_distance=settings.clamp_distance / math.sqrt(index + 1))
+
+
+@dataclass
+class PassReport:
+    """What a progressive render says after each pass."""
+
+    index: int  # passes finished so far
+    frame: Frame  # their average
+    stats: Stats  # of the whole render so far
+    noise: float | None  # estimated relative noise of the average (None: too few passes)
+
+
+class Accumulator:
+    """Running sums of the passes' images, in float64, in two halves (even, odd passes)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._halves: list[dict[str, np.ndarray]] = [{}, {}]
+        self._last: Frame | None = None
+
+    def add(self, frame: Frame) -> None:
+        half = self._halves[self.count % 2]
+        for name in LIGHT_PASSES:
+            if name in frame.passes:
+                image = frame.passes[name].astype(np.float64)
+                half[name] = half[name] + image if name in half else image
+        self.count += 1
+        self._last = frame
+
+    def average(self) -> Frame:
+        passes = dict(self._last.passes)
+        for name in LIGHT_PASSES:
+            if name in passes:
+                total = sum(h[name] for h in self._halves if name in h)
+                passes[name] = (total / self.count).astype(np.float32)
+        return Frame(self._last.width, self._last.height, passes)
+
+    def noise(self) -> float | None:
+        """RMS of (even average − odd average) / 2, relative to the mean of Combined's RGB:
+        about the noise of the average of all passes (None before two even halves)."""
+        if self.count < 2 or self.count % 2:
+            return None
+        half = self.count // 2
+        even, odd = (h["Combined"][..., :3] / half for h in self._halves)
+        mean = float(np.mean((even + odd) / 2))
+        if mean <= 0:
+            return 0.0
+        return float(np.sqrt(np.mean((even - odd) ** 2))) / 2 / mean
+
+
+def merge_stats(total: Stats, one: Stats) -> None:
+    """Add one pass's stats to the render's: times summed, counts and skipped stages of the
+    last pass, each warning and note once."""
+    for stage, seconds in one.timings.items():
+        total.timings[stage] = total.timings.get(stage, 0.0) + seconds
+    total.counts.update(one.counts)
+    total.skipped.update(one.skipped)
+    total.warnings.extend(w for w in one.warnings if w not in total.warnings)
+    total.notes.extend(n for n in one.notes if n not in total.notes)
+
+
+RenderPass = Callable[[Scene, Settings, int, ProgressCallback, CancelCallback],
+                      tuple[Frame, Stats]]
+
+
+def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
+                  progress: ProgressCallback | None = None,
+                  cancelled: CancelCallback | None = None,
+                  on_pass: Callable[[PassReport], None] | None = None) -> tuple[Frame, Stats]:
+    """Render ``settings.passes`` passes (fewer when the time limit or the noise threshold is
+    reached first) and return their average; ``on_pass`` sees the average after each pass.
+    Cancelling raises RenderCancelled from inside the current pass."""
+    report = progress or (lambda _f, _m: None)
+    check = cancelled or (lambda: False)
+    total, accumulator = Stats(), Accumulator()
+    start = time.perf_counter()
+    planned = settings.passes
+    for index in range(planned):
+
+        def pass_progress(fraction: float, message: str, index: int = index) -> None:
+            prefix = f"Pass {index + 1}/{planned} | " if planned > 1 else ""
+            report((index + fraction) / planned, prefix + message)
+
+        frame, stats = render_pass(scene, settings, index, pass_progress, check)
+        accumulator.add(frame)
+        merge_stats(total, stats)
+        noise = accumulator.noise()
+        if on_pass is not None:
+            on_pass(PassReport(accumulator.count, accumulator.average(), total, noise))
+        elapsed = time.perf_counter() - start
+        if settings.time_limit > 0 and elapsed >= settings.time_limit:
+            break
+        if settings.noise_threshold > 0 and noise is not None \
+                and accumulator.count >= MIN_PASSES_FOR_NOISE and noise <= settings.noise_threshold:
+            break
+    total.counts["passes"] = accumulator.count
+    if planned > 1:
+        estimate = accumulator.noise()
+        total.notes.append(f"{accumulator.count} of {planned} passes in "
+                           f"{time.perf_counter() - start:.1f} s" +
+                           (f", estimated noise {estimate * 100:.1f} %" if estimate is not None
+                            else ""))
+    return accumulator.average(), total

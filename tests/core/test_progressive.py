@@ -1,0 +1,110 @@
+"""Progressive final renders: passes with their own VPLs, averaged, converging to the
+unclamped answer; stopped by a time limit, a noise threshold or the user."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from addon.core.frame.progressive import Accumulator, pass_settings
+from addon.core.frame.renderer import RenderCancelled
+from addon.core.frame.result import Frame
+from addon.core.settings import Settings, SettingsError
+from tests.core.builders import inside_sphere_camera
+from tests.core.test_instant_radiosity import sphere_scene
+
+ALBEDO = 0.5
+# a large clamp (a third of the sphere's radius) makes the first pass's bias plain to see
+BASE = Settings(antialiasing=1, bounces=1, vpl_count=16, visibility="exact", interleave=1,
+                clamp_distance=0.3)
+
+
+def closed_sphere():
+    scene = sphere_scene(ALBEDO)
+    scene.camera = inside_sphere_camera(12)
+    return scene
+
+
+def ratio_error(frame: Frame) -> float:
+    """Relative RMS error of DiffInd / DiffDir against ρ (the closed sphere's exact ratio for
+    one bounce: indirect irradiance is uniform)."""
+    ratio = frame.passes["DiffInd"][..., 0] / frame.passes["DiffDir"][..., 0]
+    return float(np.sqrt(np.mean((ratio / ALBEDO - 1) ** 2)))
+
+
+def test_one_pass_is_the_plain_render(renderer) -> None:
+    renderer.forget_frames()
+    plain, _ = renderer.render(closed_sphere(), BASE)
+    renderer.forget_frames()
+    progressive, stats = renderer.render_progressive(closed_sphere(), BASE)
+    for name, image in plain.passes.items():
+        np.testing.assert_array_equal(progressive.passes[name], image, err_msg=name)
+    assert stats.counts["passes"] == 1
+
+
+def test_passes_converge_to_the_unclamped_answer(renderer) -> None:
+    errors = {}
+    for passes in (1, 4, 16):
+        frame, stats = renderer.render_progressive(closed_sphere(), replace(BASE, passes=passes))
+        errors[passes] = ratio_error(frame)
+        assert stats.counts["passes"] == passes
+    assert errors[16] < errors[4] < errors[1]
+    assert errors[16] < 0.5 * errors[1], errors
+
+
+def test_each_pass_has_its_own_seed_and_a_shrinking_clamp() -> None:
+    seeds = {pass_settings(BASE, k).seed for k in range(64)}
+    assert len(seeds) == 64
+    assert pass_settings(BASE, 3).clamp_distance == pytest.approx(BASE.clamp_distance / 2)
+    assert pass_settings(BASE, 0) is BASE
+
+
+def test_the_average_is_shown_after_every_pass(renderer) -> None:
+    shown = []
+    renderer.render_progressive(closed_sphere(), replace(BASE, passes=3),
+                                on_pass=lambda r: shown.append((r.index, r.frame)))
+    assert [index for index, _ in shown] == [1, 2, 3]
+    assert all(np.isfinite(f.passes["Combined"]).all() for _, f in shown)
+
+
+def test_time_limit_and_noise_threshold_stop_early(renderer) -> None:
+    _, stats = renderer.render_progressive(closed_sphere(),
+                                           replace(BASE, passes=50, time_limit=1e-3))
+    assert stats.counts["passes"] == 1
+    _, stats = renderer.render_progressive(closed_sphere(),
+                                           replace(BASE, passes=50, noise_threshold=0.5))
+    assert stats.counts["passes"] == 4  # the first estimate (4 passes) is already below 50 %
+
+
+def test_cancelling_during_a_pass_raises(renderer) -> None:
+    calls = []
+
+    def cancelled() -> bool:
+        calls.append(1)
+        return len(calls) > 3
+
+    with pytest.raises(RenderCancelled):
+        renderer.render_progressive(closed_sphere(), replace(BASE, passes=50),
+                                    cancelled=cancelled)
+
+
+def test_noise_estimate_matches_the_noise_of_the_average() -> None:
+    rng = np.random.default_rng(1)
+    truth = np.full((64, 64, 4), 2.0, np.float32)
+    accumulator = Accumulator()
+    for _ in range(16):
+        noisy = truth + rng.normal(0, 0.4, truth.shape).astype(np.float32)
+        accumulator.add(Frame(64, 64, {"Combined": noisy}))
+    average = accumulator.average().passes["Combined"][..., :3]
+    actual = float(np.sqrt(np.mean((average - 2.0) ** 2))) / 2.0
+    assert accumulator.noise() == pytest.approx(actual, rel=0.1)
+
+
+@pytest.mark.parametrize(("name", "value"), [("passes", 0), ("passes", -1),
+                                             ("time_limit", float("nan")),
+                                             ("time_limit", -1.0), ("noise_threshold", 2.0)])
+def test_bad_pass_settings_are_refused_before_work_starts(renderer, name, value) -> None:
+    with pytest.raises(SettingsError, match=name):
+        renderer.render_progressive(closed_sphere(), replace(BASE, **{name: value}))
