@@ -226,6 +226,20 @@ class Settings:
         1024, "Light Paths", "light_paths",
         "Light paths started per frame; each leaves a virtual point light (VPL) at every "
         "bounce it survives", low=1, high=1 << 16, soft_high=4096)
+    vpl_guidance: str = setting(
+        "camera", "VPL Guidance", "light_paths",
+        "Which light paths' VPLs are kept",
+        choices=(Choice("camera", "Camera",
+                        "trace more paths and keep VPLs by their estimated contribution to what "
+                        "the camera sees, reweighted (Georgiev & Slusallek 2010): the same VPL "
+                        "count where it matters (final renders; not with incremental reuse)"),
+                 Choice("off", "Off", "keep every VPL the light paths leave")),
+        applies=when("vpl_source", "paths"))
+    guidance_candidates: int = setting(
+        16, "Most Candidates", "light_paths",
+        "With camera guidance, at most this many light paths are traced per path's worth of "
+        "VPLs kept (4 first, more when few of them light the view)",
+        low=2, high=64, soft_high=32, applies=when("vpl_guidance", "camera"))
     vpl_source: str = setting(
         "paths", "VPL Source", "light_paths", "Where VPLs come from",
         choices=(Choice("paths", "Light Paths",

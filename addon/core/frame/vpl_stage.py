@@ -3,6 +3,8 @@ first bounces from reflective shadow maps; kept while nothing they depend on cha
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..gpu.gl import GLUnavailableError
@@ -10,6 +12,14 @@ from ..gpu.raytrace import RayTracer
 from ..gpu.rsm import render_rsm, rsm_hits, rsm_light_samples
 from ..gpu.scene_buffers import SceneBuffers
 from ..scene.geometry import WorldGeometry
+from ..transport.guidance import (
+    camera_points,
+    candidate_paths,
+    contributions,
+    guide,
+    kept_per_candidate,
+    merge,
+)
 from ..transport.lights import LightSamples
 from ..transport.sequences import scrambled_halton
 from ..transport.vpl import VPLs, generate_vpls, propagate
@@ -20,8 +30,11 @@ from .reuse import KeptProducts, lights_key, settings_key
 from .state import FrameState, RenderError, Stage
 
 VPL_FIELDS = ("vpl_count", "bounces", "seed", "termination", "vpl_source", "rsm_resolution",
-              "incremental", "incremental_budget")
-"""Settings VPL generation reads (with the lights, the world and the geometry version)."""
+              "incremental", "incremental_budget", "vpl_guidance", "guidance_candidates")
+"""Settings VPL generation reads (with the lights, the world, the geometry version and, with
+camera guidance, the camera)."""
+GUIDE_POINTS = 64  # camera points a candidate VPL's contribution is estimated at
+FIRST_ROUND = 4  # candidate paths per kept path's worth of VPLs in the first round
 INCREMENTAL_FIELDS = ("vpl_count", "bounces", "seed", "termination")
 """Settings whose change makes Incremental Instant Radiosity start afresh."""
 
@@ -61,7 +74,7 @@ class MakeVPLs(Stage):
     the view."""
 
     name = "vpl generation"
-    needs = ("geometry", "centre", "plan")
+    needs = ("camera", "geometry", "centre", "plan")
     makes = ("vpls", "vpl_samples")  # and vpl_keys where the VPLs have identities
 
     def __init__(self, gpu: GpuSession, kept: KeptProducts) -> None:
@@ -79,8 +92,11 @@ class MakeVPLs(Stage):
 
     def _vpls(self, frame: FrameState) -> VPLs:
         scene, settings, stats, kept = frame.scene, frame.settings, frame.stats, self.kept
+        guided = settings.vpl_guidance == "camera" and settings.vpl_source == "paths" \
+            and not settings.incremental
         key = (kept.versions.geometry, lights_key(scene.lights, scene.world),
-               *settings_key(settings, VPL_FIELDS))
+               *settings_key(settings, VPL_FIELDS),
+               lights_key(frame.camera, None) if guided else None)
         reused = kept.get("vpls", key)
         if reused is not None:
             stats.skipped["vpl generation"] = "lights, world, geometry and settings unchanged"
@@ -104,11 +120,51 @@ class MakeVPLs(Stage):
             stats.counts.update(vpls_new=s.new_vpls, vpls_reused=s.reused_vpls,
                                 anchors_invalid=s.invalid, anchors_created=s.created,
                                 anchors_redistributed=s.redistributed)
+        elif guided:
+            with stats.timed("vpl generation (camera-driven)"):
+                vpls = self._guided_vpls(frame, tracer)
         else:
             with stats.timed("vpl generation"):
                 vpls = generate_vpls(scene, geometry, settings, tracer, centre, radius)
         kept.keep("vpls", key, vpls)
         return vpls
+
+    def _guided_vpls(self, frame: FrameState, tracer: RayTracer) -> VPLs:
+        """Candidates from more light paths, kept by their contribution to camera points: a
+        first round of FIRST_ROUND × vpl_count paths, and a second one when too few of its
+        candidates light the view to keep as many VPLs as vpl_count paths leave (up to
+        guidance_candidates × vpl_count paths in all)."""
+        settings, stats, epsilon = frame.settings, frame.stats, 1e-5 * frame.radius
+
+        def candidates(paths: int, round_index: int) -> VPLs:
+            round_settings = replace(settings, vpl_count=paths,
+                                     seed=(settings.seed + round_index * 7919) % 2**31)
+            return generate_vpls(frame.scene, frame.geometry, round_settings, tracer,
+                                 frame.centre, frame.radius)
+
+        points = camera_points(frame.camera, frame.geometry, tracer, GUIDE_POINTS, settings.seed)
+        first_paths = candidate_paths(settings.vpl_count,
+                                      min(FIRST_ROUND, settings.guidance_candidates))
+        first = candidates(first_paths, 0)
+        first_contribution = contributions(first, points, tracer, epsilon)
+        wanted = len(first) * settings.vpl_count / first_paths  # VPLs of vpl_count paths
+        rounds, contribution = [(first, first_paths)], [first_contribution]
+        needed = wanted / kept_per_candidate(first_contribution) * first_paths / max(len(first), 1)
+        extra = candidate_paths(settings.vpl_count, settings.guidance_candidates) - first_paths
+        extra = int(min(extra, max(0.0, needed - first_paths)))
+        if extra > 0:
+            second = candidates(extra, 1)
+            rounds.append((second, extra))
+            contribution.append(contributions(second, points, tracer, epsilon))
+        total = first_paths + max(extra, 0)
+        merged = merge(rounds)
+        weights = np.concatenate([c * (p / total) for c, (_, p) in
+                                  zip(contribution, rounds, strict=True)])
+        guidance = guide(merged, weights, wanted, settings.seed + 3)
+        stats.counts.update(vpl_candidates=guidance.candidates,
+                            candidates_in_view_pct=round(100 * guidance.candidate_share),
+                            vpls_in_view_pct=round(100 * guidance.kept_share))
+        return guidance.vpls
 
     def _rsm_vpls(self, frame: FrameState, tracer: RayTracer) -> VPLs:
         """VPLs whose first bounce comes from the lights' reflective shadow maps."""

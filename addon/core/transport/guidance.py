@@ -1,0 +1,145 @@
+"""Camera-driven VPLs (Georgiev & Slusallek 2010, "Simple and robust iterative importance
+sampling of virtual point lights"): light paths are traced for several times the VPLs wanted,
+each candidate VPL's contribution to a few points the camera sees is estimated (unclamped
+geometry term, visibility by ray), and each is kept with probability p = min(1, Φ / τ) (at
+least MIN_ACCEPTANCE), its intensity divided by p. τ is chosen so that about as many VPLs are
+kept as the candidates' share would give: the same VPL count, spent where the camera looks.
+The estimator stays unbiased: every VPL keeps p > 0 and its expected weight is one."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene.geometry import WorldGeometry
+from ..scene.model import Camera
+from ..scene.vectors import unit
+from .ray_caster import RayCaster
+from .vpl import LUMINANCE, VPLs
+
+MIN_ACCEPTANCE = 0.05
+"""The least chance a candidate is kept: VPLs that light no sampled camera point may still
+light the image between the points."""
+
+
+@dataclass
+class CameraPoints:
+    """Surface points the camera sees, each with its normal (towards the camera) and albedo."""
+
+    position: np.ndarray  # (s, 3)
+    normal: np.ndarray  # (s, 3)
+    albedo: np.ndarray  # (s, 3)
+
+    def __len__(self) -> int:
+        return len(self.position)
+
+
+@dataclass
+class Guidance:
+    """The kept VPLs, and the shares of candidates and of kept VPLs that light camera points."""
+
+    vpls: VPLs
+    candidates: int
+    candidate_share: float
+    kept_share: float
+
+
+def camera_points(camera: Camera, geometry: WorldGeometry, tracer: RayCaster, count: int,
+                  seed: int) -> CameraPoints:
+    """The first surfaces hit by ``count`` camera rays through jittered cells of a grid over
+    the image."""
+    side = max(1, int(np.ceil(np.sqrt(count))))
+    rng = np.random.default_rng(seed)
+    cells = (np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)
+             + rng.random((side * side, 2))) / side
+    ndc = cells * 2.0 - 1.0
+    clip_to_world = np.linalg.inv(camera.projection_matrix @ camera.view_matrix)
+    ends = []
+    for depth in (-1.0, 1.0):
+        clip = np.hstack([ndc, np.full((len(ndc), 1), depth), np.ones((len(ndc), 1))])
+        world = clip @ clip_to_world.T
+        ends.append(world[:, :3] / world[:, 3:4])
+    origin, direction = ends[0], unit(ends[1] - ends[0])
+    hits = tracer.intersect(origin, direction, 0.0, np.inf)
+    hit = np.flatnonzero(hits.triangle >= 0)
+    triangle = hits.triangle[hit]
+    position = origin[hit] + direction[hit] * hits.distance[hit, None].astype(np.float64)
+    t = geometry.positions.reshape(-1, 3, 3)[triangle].astype(np.float64)
+    normal = unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
+    normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
+    return CameraPoints(position, normal, geometry.albedo_at(triangle, position))
+
+
+def contributions(vpls: VPLs, points: CameraPoints, tracer: RayCaster, epsilon: float
+                  ) -> np.ndarray:
+    """Each VPL's estimated radiance (luminance) summed over the camera points: intensity ×
+    both cosines / distance² × albedo / π, where a ray finds the pair mutually visible."""
+    if len(vpls) == 0 or len(points) == 0:
+        return np.zeros(len(vpls))
+    offset = points.position[None] - vpls.position[:, None]  # (c, s, 3)
+    distance = np.maximum(np.linalg.norm(offset, axis=2), epsilon)
+    towards = offset / distance[..., None]
+    cos_vpl = np.maximum(0.0, (towards * vpls.normal[:, None]).sum(axis=2))
+    cos_point = np.maximum(0.0, -(towards * points.normal[None]).sum(axis=2))
+    value = (vpls.intensity @ LUMINANCE)[:, None] * cos_vpl * cos_point / distance**2 \
+        * (points.albedo @ LUMINANCE)[None] / np.pi
+    vpl, point = np.nonzero(value > 0)
+    if len(vpl):
+        origin = vpls.position[vpl] + vpls.normal[vpl] * epsilon
+        hits = tracer.intersect(origin, towards[vpl, point], 0.0,
+                                distance[vpl, point] * (1 - 1e-4) - epsilon)
+        value[vpl[hits.triangle >= 0], point[hits.triangle >= 0]] = 0.0
+    return value.sum(axis=1)
+
+
+def acceptance(contribution: np.ndarray, kept: float) -> np.ndarray:
+    """Chances min(1, Φ / τ), at least MIN_ACCEPTANCE, with τ set so that they add up to about
+    ``kept`` (all ones when there are no more candidates than that)."""
+    n = len(contribution)
+    if n <= kept or not np.any(contribution > 0):
+        return np.ones(n)
+    low, high = 1e-30, float(contribution.max()) * n
+    for _ in range(100):  # bisection on log τ: the expected count falls as τ grows
+        tau = np.sqrt(low * high)
+        expected = np.clip(contribution / tau, MIN_ACCEPTANCE, 1.0).sum()
+        low, high = (tau, high) if expected > kept else (low, tau)
+        if high / low < 1 + 1e-6:
+            break
+    return np.clip(contribution / np.sqrt(low * high), MIN_ACCEPTANCE, 1.0)
+
+
+def merge(rounds: list[tuple[VPLs, int]]) -> VPLs:
+    """Candidates of several rounds of light paths (VPLs, paths traced) as one estimate: each
+    round's intensities weighted by its share of all paths."""
+    total = sum(paths for _, paths in rounds)
+    parts = [(v.position, v.normal, v.intensity * (paths / total), v.generation, v.rank)
+             for v, paths in rounds]
+    return VPLs(*(np.concatenate(column) for column in zip(*parts, strict=True)))
+
+
+def kept_per_candidate(contribution: np.ndarray) -> float:
+    """The most VPLs a candidate can yield on average: one for each that lights a camera
+    point, MIN_ACCEPTANCE for the others."""
+    if len(contribution) == 0:
+        return 1.0
+    lights = float(np.mean(contribution > 0))
+    return lights + MIN_ACCEPTANCE * (1.0 - lights)
+
+
+def guide(candidates: VPLs, contribution: np.ndarray, wanted: float, seed: int) -> Guidance:
+    """Keep about ``wanted`` of the candidate VPLs by their contribution to the camera points,
+    reweighted so that the estimate stays unbiased."""
+    chance = acceptance(contribution, wanted)
+    keep = np.random.default_rng(seed).random(len(candidates)) < chance
+    chosen = VPLs(candidates.position[keep], candidates.normal[keep],
+                candidates.intensity[keep] / chance[keep, None], candidates.generation[keep],
+                candidates.rank[keep])
+    lights = contribution > 0
+    return Guidance(chosen, len(candidates), float(lights.mean()) if len(lights) else 0.0,
+                    float(lights[keep].mean()) if keep.any() else 0.0)
+
+
+def candidate_paths(vpl_count: int, oversampling: float) -> int:
+    """Light paths to trace for candidates (at most 2¹⁶, the setting's own limit)."""
+    return int(min(vpl_count * oversampling, 1 << 16))

@@ -1,0 +1,48 @@
+"""Camera-driven VPLs: the same VPL count spent on what the camera sees, unbiased."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from addon.core.scene.model import Instance, LightKind, Material
+from addon.core.settings import Settings
+from addon.core.transport.guidance import MIN_ACCEPTANCE, acceptance
+from tests.core.builders import floor_scene, light, quad, rotation_x, translation
+
+BASE = Settings(antialiasing=1, bounces=1, vpl_count=256, visibility="exact", interleave=1,
+                clamp_distance=0.02)
+
+
+def half_wasted_scene():
+    """A lit wall beside the floor the camera sees, and a second light that only lights the
+    back of a far wall turned away from everything: about half the VPLs light nothing in
+    view."""
+    near_wall = Instance(quad(5, 2), translation(0, 4, 2) @ rotation_x(np.pi / 2),
+                         [Material("near", (0.8, 0.3, 0.3))])
+    far_wall = Instance(quad(5, 5), translation(0, -30, 5) @ rotation_x(np.pi / 2),
+                        [Material("far", (0.8, 0.8, 0.8))])
+    lights = [light(LightKind.POINT, translation(0, 2, 1), power=100),
+              light(LightKind.POINT, translation(0, -33, 5), power=100)]
+    return floor_scene(lights, extra=[near_wall, far_wall], size=24)
+
+
+def test_guided_vpls_light_the_view_and_keep_its_energy(renderer) -> None:
+    energy, stats = {}, {}
+    for guidance in ("off", "camera"):
+        settings = replace(BASE, vpl_guidance=guidance, passes=8)
+        frame, stats[guidance] = renderer.render_progressive(half_wasted_scene(), settings)
+        energy[guidance] = float(frame.passes["DiffInd"].mean())
+    guided = stats["camera"].counts
+    assert guided["vpls_in_view_pct"] >= 75 > guided["candidates_in_view_pct"] + 40, guided
+    assert abs(energy["camera"] / energy["off"] - 1) < 0.05, energy
+
+
+def test_acceptance_spends_the_budget_on_contribution() -> None:
+    contribution = np.r_[np.zeros(900), np.linspace(1, 2, 100)]
+    chance = acceptance(contribution, 120.0)  # at most 100 + 0.05 × 900 = 145 are possible
+    assert abs(chance.sum() - 120) < 0.01
+    assert np.all(chance[:900] == MIN_ACCEPTANCE) and np.all(chance[900:] > MIN_ACCEPTANCE)
+    assert np.all(np.diff(chance[900:]) >= 0)  # more contribution, more chance
+    assert np.all(acceptance(contribution, 2000.0) == 1.0)  # fewer candidates than wanted
