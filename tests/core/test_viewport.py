@@ -3,6 +3,8 @@ of edit re-runs, display modes, cancellation and release."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -150,12 +152,13 @@ def test_display_image_rejects_nothing_and_keeps_alpha():
 
 
 def test_kept_shadow_maps_give_the_same_image(renderer):
+    mapped = replace(SETTINGS, direct_shadows="shadow_maps")
     renderer.forget_frames()
-    first, _ = renderer.render(scene(), SETTINGS)
-    again, stats = renderer.render(scene(), SETTINGS)
+    first, _ = renderer.render(scene(), mapped)
+    again, stats = renderer.render(scene(), mapped)
     assert "shadow maps" in stats.skipped
     np.testing.assert_array_equal(first.passes["Combined"], again.passes["Combined"])
-    _, moved = renderer.render(scene(light_x=0.3), SETTINGS)
+    _, moved = renderer.render(scene(light_x=0.3), mapped)
     assert "shadow maps" not in moved.skipped
     renderer.forget_frames()
 

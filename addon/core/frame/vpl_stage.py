@@ -13,6 +13,7 @@ from ..gpu.rsm import render_rsm, rsm_hits, rsm_light_samples
 from ..gpu.scene_buffers import SceneBuffers
 from ..scene.geometry import WorldGeometry
 from ..transport.guidance import (
+    USEFUL_SHARE,
     camera_points,
     candidate_paths,
     contributions,
@@ -147,6 +148,12 @@ class MakeVPLs(Stage):
                                       min(FIRST_ROUND, settings.guidance_candidates))
         first = candidates(first_paths, 0)
         first_contribution = contributions(first, points, tracer, epsilon)
+        share = float(np.mean(first_contribution > 0)) if len(first) else 1.0
+        if share >= USEFUL_SHARE:
+            stats.skipped["vpl guidance"] = (f"{share:.0%} of the light paths' VPLs light the "
+                                             "view already")
+            return generate_vpls(frame.scene, frame.geometry, settings, tracer, frame.centre,
+                                 frame.radius)
         wanted = len(first) * settings.vpl_count / first_paths  # VPLs of vpl_count paths
         rounds, contribution = [(first, first_paths)], [first_contribution]
         needed = wanted / kept_per_candidate(first_contribution) * first_paths / max(len(first), 1)
