@@ -86,7 +86,6 @@ def test_edits_rerun_only_what_they_change(session):
     camera_only, frame = run(session, Changes(camera=True), camera=moved_view)
     assert not any(k.startswith(("vpl", "ism", "ray tracing")) for k in camera_only.ran)
     assert {"vpl generation", "ism", "ray tracing setup"} <= set(camera_only.skipped)
-    assert "direct light maps" not in camera_only.ran  # a ray-traced point light: no maps
     assert camera_only.latency < first.latency
 
     light_move, frame = run(session, Changes(lights=True), scene=scene(light_x=0.05))
