@@ -230,9 +230,10 @@ class Settings:
         "camera", "VPL Guidance", "light_paths",
         "Which light paths' VPLs are kept",
         choices=(Choice("camera", "Camera",
-                        "trace more paths and keep VPLs by their estimated contribution to what "
-                        "the camera sees, reweighted (Georgiev & Slusallek 2010): the same VPL "
-                        "count where it matters (final renders; not with incremental reuse)"),
+                        "when under a quarter of the light paths' VPLs light the view (a room lit "
+                        "through a window): trace more paths and keep VPLs by their estimated "
+                        "contribution to what the camera sees, reweighted (Georgiev & "
+                        "Slusallek 2010); not with incremental reuse"),
                  Choice("off", "Off", "keep every VPL the light paths leave")),
         applies=when("vpl_source", "paths"))
     guidance_candidates: int = setting(

@@ -151,7 +151,7 @@ class MakeVPLs(Stage):
         share = float(np.mean(first_contribution > 0)) if len(first) else 1.0
         if share >= USEFUL_SHARE:
             stats.skipped["vpl guidance"] = (f"{share:.0%} of the light paths' VPLs light the "
-                                             "view already")
+                                             "view: selecting among them would add noise")
             return generate_vpls(frame.scene, frame.geometry, settings, tracer, frame.centre,
                                  frame.radius)
         wanted = len(first) * settings.vpl_count / first_paths  # VPLs of vpl_count paths

@@ -19,11 +19,13 @@ from .ray_caster import RayCaster
 from .vpl import LUMINANCE, VPLs
 
 MIN_ACCEPTANCE = 0.05
-USEFUL_SHARE = 0.9
-"""When this share of the first candidates lights the view, guidance cannot gain: the plain
-light paths are used (stratified, with less variance than any selection)."""
 """The least chance a candidate is kept: VPLs that light no sampled camera point may still
 light the image between the points."""
+USEFUL_SHARE = 0.25
+"""Guidance is used only when fewer than this share of the first candidates light the view: the
+plain light paths are stratified, and selecting among them adds variance that only a large
+gain repays (measured on a wall bleeding onto a floor, 56 % useful: guided 1-4 % noise across
+seeds against 0.2-0.9 % plain; on the interior sample scene 7 % are useful)."""
 
 
 @dataclass
