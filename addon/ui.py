@@ -115,13 +115,12 @@ def _section_panel(section: Section) -> type:
                  "section": section.id})
 
 
-PANELS: tuple[type, ...] = (RENDER_PT_vpl_gi, *(_section_panel(s) for s in SECTIONS),
-                           VIEWLAYER_PT_vpl_gi_passes)
+PANELS: tuple[type, ...] = (RENDER_PT_vpl_gi, *(_section_panel(s) for s in SECTIONS))
 """Registered in this order: every parent before its sub-panels."""
 
 
 def register() -> None:
-    for panel in PANELS:
+    for panel in (*PANELS, VIEWLAYER_PT_vpl_gi_passes):
         bpy.utils.register_class(panel)
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.add(ENGINE_ID)
@@ -130,5 +129,5 @@ def register() -> None:
 def unregister() -> None:
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.discard(ENGINE_ID)
-    for panel in reversed(PANELS):
+    for panel in reversed((*PANELS, VIEWLAYER_PT_vpl_gi_passes)):
         bpy.utils.unregister_class(panel)
