@@ -259,7 +259,9 @@ class Settings:
                  Choice("oidn", "OIDN", "Open Image Denoise on the final image, with the "
                         "Denoising Albedo and Normal passes as guides, instead of the blur"),
                  Choice("blur_oidn", "Blur + OIDN", "the blur, then Open Image Denoise on the "
-                        "final image")))
+                        "final image"),
+                 Choice("oidn_indirect", "OIDN Indirect", "Open Image Denoise on the indirect "
+                        "light only (DiffInd × DiffCol), instead of the blur")))
     soft_light_ism: bool = setting(
         False, "Soft Lights with ISMs", "shadows",
         "Shadow the samples of area lights, sphere lights, suns with an angle and the world "

@@ -134,3 +134,19 @@ def test_denoising_data_is_left_out_unless_asked_for_or_needed(renderer: Rendere
                                    passes=frozenset())
     assert "denoising data" not in stats.timings
     assert not frame.passes["Denoising Albedo"].any()
+
+
+def test_oidn_on_indirect_light_keeps_the_pass_algebra(renderer: Renderer) -> None:
+    """Combined = (DiffDir + DiffInd) × DiffCol + Emit after denoising the indirect light, and
+    direct light is left as it is."""
+    pytest.importorskip("pyoidn")
+    renderer.forget_frames()
+    blurred, _ = renderer.render(lit_corner(), replace(NOISY, denoiser="blur"))
+    renderer.forget_frames()
+    frame, stats = renderer.render(lit_corner(), replace(NOISY, denoiser="oidn_indirect"))
+    p = frame.passes
+    assert "denoise" in stats.timings and not stats.warnings
+    rebuilt = (p["DiffDir"] + p["DiffInd"]) * p["DiffCol"] + p["Emit"]
+    np.testing.assert_allclose(p["Combined"][..., :3], rebuilt, rtol=1e-4, atol=1e-5)
+    np.testing.assert_array_equal(p["DiffDir"], blurred.passes["DiffDir"])
+    assert not np.array_equal(p["DiffInd"], blurred.passes["DiffInd"])

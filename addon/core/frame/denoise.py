@@ -11,17 +11,24 @@ Three pieces, run at three points of the frame:
   reads on VPL GI renders as on Cycles' (Cycles' conventions: albedo = diffuse colour plus the
   emission and background radiance the camera sees, normal in camera space with +Z forward,
   depth = distance along the camera ray; 0 where nothing is hit).
-- ``Denoise`` (a frame stage after the image) runs OIDN on the composed Combined pass. It works
-  on the final image rather than on the indirect accumulator: OIDN's networks are trained on
-  whole rendered images with albedo and normal guides, and the composed image is at output
-  resolution (OIDN on supersampled tiles would cost antialiasing² times more and see tile
-  borders). Its time is the stage ``denoise`` in the stats.
+- ``Denoise`` (a frame stage after the image) runs OIDN on the composed Combined pass
+  (``oidn``, ``blur_oidn``), or on the indirect light DiffInd × DiffCol alone, adding the change
+  to Combined and DiffInd (``oidn_indirect``: direct light and emission stay as rendered). It
+  works after compose rather than as a tile stage on the indirect accumulator: OIDN's networks
+  are trained on whole rendered images at output resolution with albedo and normal guides
+  (per supersampled tile it would cost antialiasing² times more and see tile seams). Its time is
+  the stage ``denoise`` in the stats.
+
+Measured (tools/bench_denoise.py, README): at the sample scenes' settings OIDN leaves the
+error against Cycles and the seed-to-seed noise where the blur leaves them. What remains is
+bias and VPL-set noise spread over whole surfaces, which OIDN keeps as image content, so the
+blur stays the default.
 """
 
 from __future__ import annotations
 
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -35,7 +42,20 @@ if TYPE_CHECKING:  # image.py runs DenoisingData among its tile stages
 DENOISING_PASSES = ("Denoising Normal", "Denoising Albedo", "Denoising Depth")
 """Cycles' Denoising Data passes, in the order Cycles registers them."""
 
-OIDN_DENOISERS = ("oidn", "blur_oidn")
+
+class Mode(NamedTuple):
+    """What a denoiser choice runs: the blur, and OIDN on the image or the indirect light."""
+
+    blur: bool
+    oidn: str | None  # "image", "indirect" or None
+
+
+MODES = {
+    "blur": Mode(True, None), "oidn": Mode(False, "image"), "blur_oidn": Mode(True, "image"),
+    "oidn_indirect": Mode(False, "indirect"),
+}
+OIDN_DENOISERS = tuple(name for name, mode in MODES.items() if mode.oidn)
+INDIRECT_PASSES = frozenset({"DiffInd", "DiffCol"})
 
 
 def load_oidn() -> tuple[ModuleType | None, str]:
@@ -73,9 +93,12 @@ class PlanDenoise(Stage):
                     f"denoiser '{denoiser}': Open Image Denoise is unavailable, {reason}; "
                     f"the blur denoised the image instead")
                 return
-        if denoiser == "oidn" and frame.blur_radius:
+        mode = MODES[denoiser]
+        if not mode.blur and frame.blur_radius:
             frame.blur_radius = 0
-            frame.stats.skipped["blur"] = "denoiser = oidn"
+            frame.stats.skipped["blur"] = f"denoiser = {denoiser}"
+        if mode.oidn == "indirect":
+            frame.plan.passes = frame.plan.passes | INDIRECT_PASSES
 
 
 class DenoisingData:
@@ -134,15 +157,29 @@ class Denoise(Stage):
             return
         module, _ = load_oidn()
         output = frame.output
+        guides = output["Denoising Albedo"], output["Denoising Normal"]
+        indirect = MODES[frame_denoiser(frame)].oidn == "indirect"
         with frame.stats.timed(self.name):
             try:
-                denoised = denoise_image(module, output["Combined"][..., :3],
-                                         output["Denoising Albedo"], output["Denoising Normal"])
+                if indirect:
+                    # Indirect light leaving the surfaces, DiffInd × DiffCol (exact where the
+                    # albedo is uniform within a pixel); direct light and emission stay as they are.
+                    before = output["DiffInd"] * output["DiffCol"]
+                    after = denoise_image(module, before, *guides)
+                else:
+                    before = output["Combined"][..., :3]
+                    after = denoise_image(module, before, *guides)
             except (RuntimeError, ValueError, TypeError, OSError) as exc:
                 frame.stats.warnings.append(f"Open Image Denoise failed ({exc}); the image is "
                                             f"not denoised")
                 return
-        output["Combined"][..., :3] = denoised
+        if indirect:
+            output["Combined"][..., :3] += after - before
+            albedo = output["DiffCol"]
+            lit = albedo > 0
+            output["DiffInd"][lit] = after[lit] / albedo[lit]
+        else:
+            output["Combined"][..., :3] = after
 
 
 def denoise_image(oidn: ModuleType, color: np.ndarray, albedo: np.ndarray,
