@@ -18,7 +18,11 @@ from .core.settings import SettingsError
 from .export import export_scene
 from .viewport import ViewportState
 
-# Pass name -> (channels, channel ids, type, view-layer toggle that enables it).
+DENOISING_DATA = "cycles.denoising_store_passes"
+"""Cycles' "Denoising Data" checkbox (View Layer > Passes > Data), which VPL GI honours too."""
+
+# Pass name -> (channels, channel ids, type, view-layer toggle that enables it; a dotted path
+# for a toggle in a property group, such as Cycles' view-layer settings).
 OPTIONAL_PASSES = {
     "Depth": (1, "Z", "VALUE", "use_pass_z"),
     "Normal": (3, "XYZ", "VECTOR", "use_pass_normal"),
@@ -26,7 +30,19 @@ OPTIONAL_PASSES = {
     "DiffInd": (3, "RGB", "COLOR", "use_pass_diffuse_indirect"),
     "DiffCol": (3, "RGB", "COLOR", "use_pass_diffuse_color"),
     "Emit": (3, "RGB", "COLOR", "use_pass_emit"),
+    "Denoising Normal": (3, "XYZ", "VECTOR", DENOISING_DATA),
+    "Denoising Albedo": (3, "RGB", "COLOR", DENOISING_DATA),
+    "Denoising Depth": (1, "Z", "VALUE", DENOISING_DATA),
 }
+
+
+def toggled(layer: object, toggle: str) -> bool:
+    """Whether the view layer's ``toggle`` (an attribute, or a dotted path) is on; False where
+    it does not exist (Cycles' settings need the Cycles add-on enabled)."""
+    value = layer
+    for name in toggle.split("."):
+        value = getattr(value, name, None)
+    return bool(value)
 
 
 @dataclass
@@ -126,7 +142,8 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
 
         layer = depsgraph.view_layer
         passes = frozenset(name for name, (*_, toggle) in OPTIONAL_PASSES.items()
-                           if getattr(layer, toggle, False))
+                           if toggled(layer, toggle))
+
         def show(report: PassReport) -> None:
             """Each pass's average in the render window (Esc keeps the passes shown)."""
             self._write_result(report.frame)
@@ -157,7 +174,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         """Declare the passes this engine fills, under Blender's own names."""
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         for name, (channels, ids, kind, toggle) in OPTIONAL_PASSES.items():
-            if getattr(renderlayer, toggle, False):
+            if toggled(renderlayer, toggle):
                 self.register_pass(scene, renderlayer, name, channels, ids, kind)
 
 

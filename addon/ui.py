@@ -75,6 +75,36 @@ class _SectionPanel(_RenderPanel):
                 col.prop(props, name)
 
 
+class VIEWLAYER_PT_vpl_gi_passes(bpy.types.Panel):
+    """View Layer Properties > Passes while this engine is selected: the view-layer toggles of
+    the passes it fills (Blender's own Passes panel is EEVEE's and Workbench's), Cycles'
+    Denoising Data checkbox among them."""
+
+    bl_label = "Passes"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "view_layer"
+    COMPAT_ENGINES: ClassVar[set[str]] = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context: bpy.types.Context) -> None:
+        from .engine import OPTIONAL_PASSES
+
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        column = layout.column(heading="Include", align=True)
+        for toggle in dict.fromkeys(toggle for *_, toggle in OPTIONAL_PASSES.values()):
+            owner, _, name = toggle.rpartition(".")
+            group = getattr(context.view_layer, owner, None) if owner else context.view_layer
+            if group is not None and hasattr(group, name):
+                text = "Denoising Data" if name == "denoising_store_passes" else None
+                column.prop(group, name, text=text)
+
+
 def _panel_id(section: str | None) -> str:
     return f"RENDER_PT_vpl_gi_{section}" if section else RENDER_PT_vpl_gi.__name__
 
@@ -90,7 +120,7 @@ PANELS: tuple[type, ...] = (RENDER_PT_vpl_gi, *(_section_panel(s) for s in SECTI
 
 
 def register() -> None:
-    for panel in PANELS:
+    for panel in (*PANELS, VIEWLAYER_PT_vpl_gi_passes):
         bpy.utils.register_class(panel)
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.add(ENGINE_ID)
@@ -99,5 +129,5 @@ def register() -> None:
 def unregister() -> None:
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.discard(ENGINE_ID)
-    for panel in reversed(PANELS):
+    for panel in reversed((*PANELS, VIEWLAYER_PT_vpl_gi_passes)):
         bpy.utils.unregister_class(panel)

@@ -294,6 +294,18 @@ class Settings:
         "interleaving pattern without crossing depth or normal edges; rounded up to a multiple "
         "of K/2 so the pattern cancels exactly on flat surfaces",
         low=1, high=32, applies=unless("interleave", 1))
+    denoiser: str = setting(
+        "blur", "Denoiser", "sampling",
+        "What removes the noise of the light gathered from VPLs (Intel Open Image Denoise: "
+        "the pyoidn wheel bundled for this platform, else the blur with a warning)",
+        choices=(Choice("blur", "Blur", "the geometry-aware blur of the interleaved indirect "
+                        "light only"),
+                 Choice("oidn", "OIDN", "Open Image Denoise on the final image, with the "
+                        "Denoising Albedo and Normal passes as guides, instead of the blur"),
+                 Choice("blur_oidn", "Blur + OIDN", "the blur, then Open Image Denoise on the "
+                        "final image"),
+                 Choice("oidn_indirect", "OIDN Indirect", "Open Image Denoise on the indirect "
+                        "light only (DiffInd × DiffCol), instead of the blur")))
     soft_light_ism: bool = setting(
         False, "Soft Lights with ISMs", "shadows",
         "Shadow the samples of area lights, sphere lights, suns with an angle and the world "

@@ -182,3 +182,53 @@ def test_settings_that_do_not_apply_are_greyed_out(blender):
     assert drawn["vpl_shadow_resolution"] and drawn["time_budget"] and drawn["bounces"]
     assert not drawn["ism_points"] and not drawn["blur_radius"]
     assert not drawn["rsm_resolution"] and not drawn["target_error"]
+
+
+DENOISING_PASSES = ("Denoising Normal", "Denoising Albedo", "Denoising Depth")
+
+
+def _composite(scene, make_output) -> None:
+    """Compositor: Render Layers → make_output(nodes, links, render_layers) → Composite."""
+    scene.use_nodes = True
+    scene.render.use_compositing = True
+    tree = scene.node_tree
+    tree.nodes.clear()
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    composite = tree.nodes.new("CompositorNodeComposite")
+    tree.links.new(make_output(tree.nodes, tree.links, layers), composite.inputs["Image"])
+
+
+def test_denoising_data_passes_are_registered_and_filled(blender, tmp_path):
+    """Cycles' Denoising Data checkbox gives VPL GI renders the passes under Cycles' names, and
+    the compositor's Denoise node works on them as on Cycles' renders."""
+    scene = open_scene("cornell_box", 24)
+    layer = scene.view_layers[0]
+    scene.use_nodes = True
+    node = scene.node_tree.nodes.new("CompositorNodeRLayers")
+    assert not {s.name for s in node.outputs if s.enabled} & set(DENOISING_PASSES)
+    layer.cycles.denoising_store_passes = True
+    scene.render.engine = "VPL_GI"
+    assert set(DENOISING_PASSES) <= {s.name for s in node.outputs if s.enabled}
+
+    _composite(scene, lambda nodes, links, layers: layers.outputs["Denoising Albedo"])
+    albedo = render_linear(scene, "VPL_GI", tmp_path / "albedo.exr")[..., :3]
+    assert np.isfinite(albedo).all() and albedo.max() > 0.1  # the box's walls
+    _composite(scene, lambda nodes, links, layers: layers.outputs["Denoising Normal"])
+    normal = render_linear(scene, "VPL_GI", tmp_path / "normal.exr")[..., :3]
+    lengths = np.linalg.norm(normal, axis=-1)
+    assert np.mean(np.abs(lengths - 1.0) < 0.05) > 0.5  # unit normals where the box is
+
+    _composite(scene, lambda nodes, links, layers: layers.outputs["Image"])
+    noisy = render_linear(scene, "VPL_GI", tmp_path / "noisy.exr")[..., :3]
+
+    def denoised(nodes, links, layers):
+        denoise = nodes.new("CompositorNodeDenoise")
+        for name in ("Image", "Normal", "Albedo"):
+            source = "Image" if name == "Image" else f"Denoising {name}"
+            links.new(layers.outputs[source], denoise.inputs[name])
+        return denoise.outputs["Image"]
+
+    _composite(scene, denoised)
+    clean = render_linear(scene, "VPL_GI", tmp_path / "denoised.exr")[..., :3]
+    assert np.isfinite(clean).all()
+    assert abs(clean.mean() / noisy.mean() - 1.0) < 0.1

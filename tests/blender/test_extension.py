@@ -74,7 +74,8 @@ def test_zip_is_valid_and_holds_linux_wheels(extension_zip: Path) -> None:
             assert any(
                 n.startswith(f"wheels/{package}-") and f"-{python}-{python}-" in n for n in wheels
             ), f"no {package} {python} wheel in {extension_zip.name}"
-    assert all("x86_64" in n for n in wheels), wheels
+    assert any(n.startswith("wheels/pyoidn-") and "-py3-none-" in n for n in wheels), wheels
+    assert all("x86_64" in n or n.endswith("-any.whl") for n in wheels), wheels
     assert not any(n.startswith("wheels/numpy") for n in names)
     assert "__init__.py" in names
     assert any(n.startswith("gpu_shaders/") and n.endswith(".glsl") for n in names)
@@ -161,7 +162,7 @@ except TypeError as exc:
     result["engine_enum_error"] = str(exc)
 
 modules = {}
-for name in ("moderngl", "glcontext", "xatlas", "scipy"):
+for name in ("moderngl", "glcontext", "xatlas", "scipy", "pyoidn", "cffi", "pycparser"):
     try:
         module = __import__(name)
         modules[name] = module.__file__
@@ -194,7 +195,11 @@ try:
     render.image_settings.file_format = "OPEN_EXR"
     render.image_settings.color_depth = "32"
     render.filepath = os.path.join(WORK, "render.exr")
+    scene.vpl_gi.denoiser = "blur_oidn"  # the bundled pyoidn, inside Blender
     result["render"] = sorted(bpy.ops.render.render(write_still=True))
+    monitor = sys.modules[MODULE + ".addon.engine"].monitor
+    result["warnings"] = list(monitor.last_warnings)
+    result["stages"] = sorted(monitor.last_stats.timings) if monitor.last_stats else []
 
     exrs = sorted(f for f in os.listdir(WORK) if f.endswith(".exr"))
     result["exr_files"] = exrs
@@ -256,6 +261,7 @@ def test_install_enable_and_render(extension_zip: Path, tmp_path: Path) -> None:
         assert Path(file).resolve().is_relative_to(resources.resolve()), f"{name}: {file}{context}"
     assert not result["errors"], context
     assert result["engine_set"] == "VPL_GI", context
+    assert "denoise" in result["stages"] and not result["warnings"], context
     assert result["render"] == ["FINISHED"], context
     assert result["exr_files"], context
     assert result["image_size"] == [32, 32], context

@@ -13,6 +13,7 @@ from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.texture_array import upload as upload_textures
 from ..scene.geometry import WorldGeometry
 from .compose import compose
+from .denoise import DenoisingData
 from .gather import gather, new_accumulator, read_accumulator
 from .gbuffer import GBuffer, Tile, render_gbuffer
 from .gpu_scope import GpuScope
@@ -156,7 +157,7 @@ class RenderImage(Stage):
     def __init__(self, gpu: GpuSession, kept: KeptProducts) -> None:
         self.gpu, self.kept = gpu, kept
         self.tile_stages = [GBufferStage(gpu), GatherStage(gpu), BlurStage(gpu),
-                            ComposeStage(gpu)]
+                            ComposeStage(gpu), DenoisingData()]
 
     def run(self, frame: FrameState) -> None:
         camera, settings, ctx = frame.camera, frame.settings, self.gpu.ctx

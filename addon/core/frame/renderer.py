@@ -16,6 +16,7 @@ from ..settings import Settings
 from ..transport.incremental import IncrementalVPLs
 from ..transport.vpl import VPLs
 from .automatic import ChooseParameters
+from .denoise import Denoise, PlanDenoise
 from .gpu_session import GpuSession
 from .image import RenderImage
 from .progressive import PassReport, render_passes
@@ -54,7 +55,8 @@ class Renderer:
         self.stages: list[Stage] = [
             CheckInput(), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
-            PlanLightPasses(self.gpu, self.kept), RenderImage(self.gpu, self.kept), Sanitize(),
+            PlanLightPasses(self.gpu, self.kept), PlanDenoise(), RenderImage(self.gpu, self.kept),
+            Denoise(), Sanitize(),
         ]
 
     def render(self, scene: Scene, settings: Settings, progress: ProgressCallback | None = None,
