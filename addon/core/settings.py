@@ -211,7 +211,8 @@ class Settings:
         low=1, high=1 << 16, soft_high=64)
     time_limit: float = setting(
         0.0, "Time Limit", "sampling",
-        "Seconds after which a final render starts no further pass (0 = no limit)",
+        "Seconds a final render may take: no pass starts that would end past it, by the mean "
+        "time of the passes so far (at least one pass; 0 = no limit)",
         low=0.0, high=7 * 86400.0, soft_high=600.0, applies=unless("passes", 1))
     noise_threshold: float = setting(
         0.0, "Noise Threshold", "sampling",

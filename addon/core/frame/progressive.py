@@ -124,8 +124,8 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
         if on_pass is not None:
             on_pass(PassReport(accumulator.count, accumulator.average(), total, noise))
         elapsed = time.perf_counter() - start
-        if settings.time_limit > 0 and elapsed >= settings.time_limit:
-            break
+        if settings.time_limit > 0 and elapsed * (1 + 1 / accumulator.count) > settings.time_limit:
+            break  # another pass (of the mean time so far) would end past the limit
         if settings.noise_threshold > 0 and noise is not None \
                 and accumulator.count >= MIN_PASSES_FOR_NOISE and noise <= settings.noise_threshold:
             break
