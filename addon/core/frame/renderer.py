@@ -63,6 +63,7 @@ class Renderer:
         frame = FrameState(scene, settings, passes, Stats(warnings=list(scene.warnings)),
                            progress or (lambda _f, _m: None), cancelled or (lambda: False))
         for stage in self.stages:
+            frame.check_cancelled()  # Esc in Blender: also between the long stages
             stage.run(frame)
         return Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats
 
