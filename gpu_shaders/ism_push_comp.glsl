@@ -2,7 +2,10 @@
 // finest. A valid texel keeps its depth bit for bit; an empty one gets the bilinear
 // interpolation of the (already pushed) coarser level of its tile, over the valid coarse taps
 // only (weights renormalised), or u_unfilled where none is valid (ISM_EMPTY on coarse levels,
-// ISM_FAR on the finest: lit). All tiles in one dispatch: one invocation per texel.
+// ISM_FAR on the finest: lit). On the finest level a texel more than ISM_BEHIND times as far as
+// that interpolation (of the nearest surface of each block, ism_pull_comp.glsl) counts as a
+// hole too: it is a farther surface seen through a gap between a nearer surface's splats, which
+// would let light through a closed wall. All tiles in one dispatch: one invocation per texel.
 // ISM_FINE_SPLAT: the finest level, read from the r32ui splat image (which is reset to empty for
 // the next frame as it is read) and written to the r32f atlas; else an r32f level in place.
 // ISM_TILE_LIST: only the listed tiles (a partial update); the others keep the depths of an
@@ -11,6 +14,7 @@
 
 #define ISM_EMPTY -1.0
 #define ISM_EMPTY_BITS 0xFFFFFFFFu
+#define ISM_BEHIND 1.25
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -70,13 +74,12 @@ void main() {
     ivec2 p = ism_pass_texel(u_resolution, u_size);
     if (p.x < 0) return;
     float depth = take_depth(p);
-    if (depth >= 0.0) {
-        put_depth(p, depth);
-        return;
-    }
     ivec2 tile = p / u_resolution;
     vec2 local = vec2(p - tile * u_resolution);
     float filled = u_unfilled;
     if (u_coarse_resolution > 0) filled = coarse_depth(tile, (local + 0.5) * 0.5 - 0.5);
-    put_depth(p, filled);
+#ifdef ISM_FINE_SPLAT
+    if (depth > ISM_BEHIND * filled && filled >= 0.0 && filled < u_unfilled) depth = ISM_EMPTY;
+#endif
+    put_depth(p, depth >= 0.0 ? depth : filled);
 }
