@@ -1,15 +1,12 @@
 // Imperfect shadow maps, step 3a (addon/core/ism.py): pull. Each texel of a coarser level is the
 // average of the valid texels among its 2x2 finer texels of the same tile (each valid texel
-// weighs the same), or empty (ISM_EMPTY) when none is valid. From the splat image, texels more
-// than ISM_BEHIND times as far as the block's nearest are left out: they are a farther surface
-// seen through a gap between a nearer surface's splats (ism_push_comp.glsl). All tiles in one dispatch: one
+// weighs the same), or empty (ISM_EMPTY) when none is valid. All tiles in one dispatch: one
 // invocation per coarse texel of the whole atlas. ISM_FINE_SPLAT: the finer level is the r32ui
 // splat image (empty = ISM_EMPTY_BITS), else an r32f level. ISM_TILE_LIST: listed tiles only.
 #include "ism_tile_list_lib.glsl"
 
 #define ISM_EMPTY -1.0
 #define ISM_EMPTY_BITS 0xFFFFFFFFu
-#define ISM_BEHIND 1.25
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -38,25 +35,17 @@ void main() {
     if (p.x < 0) return;
     ivec2 tile = p / u_coarse_resolution;
     ivec2 local = p - tile * u_coarse_resolution;
-    float depths[4];
-    float nearest = 3.0e38;
-    for (int k = 0; k < 4; ++k) {
-        ivec2 child = 2 * local + ivec2(k % 2, k / 2);
-        bool inside = all(lessThan(child, ivec2(u_fine_resolution)));
-        depths[k] = inside ? fine_depth(tile * u_fine_resolution + child) : ISM_EMPTY;
-        if (depths[k] >= 0.0) nearest = min(nearest, depths[k]);
-    }
-#ifdef ISM_FINE_SPLAT
-    float limit = ISM_BEHIND * nearest;
-#else
-    float limit = 3.0e38;
-#endif
     float sum = 0.0;
     float count = 0.0;
-    for (int k = 0; k < 4; ++k) {
-        if (depths[k] >= 0.0 && depths[k] <= limit) {
-            sum += depths[k];
-            count += 1.0;
+    for (int j = 0; j < 2; ++j) {
+        for (int i = 0; i < 2; ++i) {
+            ivec2 child = 2 * local + ivec2(i, j);
+            if (any(greaterThanEqual(child, ivec2(u_fine_resolution)))) continue;
+            float depth = fine_depth(tile * u_fine_resolution + child);
+            if (depth >= 0.0) {
+                sum += depth;
+                count += 1.0;
+            }
         }
     }
     imageStore(u_coarse, p, vec4(count > 0.0 ? sum / count : ISM_EMPTY));
