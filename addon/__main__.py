@@ -1,7 +1,12 @@
-"""``python -m addon ...``: the command-line entry (see cli.py)."""
+"""``python -m addon ...``: the command-line entry (see cli.py). Ctrl-C is taken over before
+anything slow is imported (interrupts.py)."""
 
 import sys
 
-from .cli import main
+from .interrupts import interrupts
+
+interrupts.start()
+
+from .cli import main  # noqa: E402  (after the interrupts: it imports numpy)
 
 sys.exit(main())

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 import time
 from dataclasses import replace
@@ -13,8 +12,13 @@ from pathlib import Path
 
 from . import ENGINE_ID
 from .core.settings import SettingsError
+from .interrupts import interrupts
 
-FORMATS = {".png": "PNG", ".exr": "OPEN_EXR"}
+FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
+           ".tif": "TIFF", ".tiff": "TIFF", ".bmp": "BMP", ".tga": "TARGA", ".hdr": "HDR",
+           ".webp": "WEBP"}
+"""Image formats by file extension: what Blender writes for each."""
+MIN_RESOLUTION = 4  # Blender's smallest resolution_x/y: it silently raises smaller values
 
 
 class CliError(Exception):
@@ -49,14 +53,27 @@ def parse_resolution(text: str) -> tuple[int, int]:
     except ValueError:
         raise CliError(f"cannot read resolution '{text}' (use WIDTHxHEIGHT, e.g. 640x480)") \
             from None
-    if not (1 <= width <= 65536 and 1 <= height <= 65536):
-        raise CliError(f"resolution {width}x{height} is outside 1..65536")
+    if not (MIN_RESOLUTION <= width <= 65536 and MIN_RESOLUTION <= height <= 65536):
+        raise CliError(f"resolution {width}x{height} is outside {MIN_RESOLUTION}..65536 "
+                       f"(Blender's limits)")
     return width, height
+
+
+def check_output_pattern(pattern: str) -> None:
+    """Refuse an output that names a folder or an image format Blender cannot write."""
+    path = Path(pattern).expanduser()
+    if pattern.endswith(("/", os.sep)) or path.is_dir():
+        raise CliError(f"-o names a folder: {pattern} (give an image path, e.g. "
+                       f"{path / 'frame_####.png'})")
+    suffix = path.suffix.lower()
+    if suffix and not suffix[1:].isdigit() and suffix not in FORMATS:
+        raise CliError(f"cannot write '{path.suffix}' images (use one of "
+                       f"{', '.join(sorted(FORMATS))}, or no extension for .png)")
 
 
 def output_path(pattern: str, frame: int, many: bool) -> Path:
     """Blender's rule: '#'s become the zero-padded frame; otherwise several frames get
-    _NNNN before the extension. A path without extension gets .png."""
+    _NNNN before the extension. A path without an image extension gets .png."""
     path = Path(pattern).expanduser()
     if path.suffix.lower() not in FORMATS:
         path = path.with_name(path.name + ".png")
@@ -78,8 +95,28 @@ def check_output(path: Path, scene_file: Path) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise CliError(f"cannot create output folder {path.parent}: {exc.strerror}") from None
+    if path.is_dir():
+        raise CliError(f"output is a folder: {path}")
     if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise CliError(f"output is not writable: {path}")
+
+
+def check_image_size(render) -> None:
+    """Refuse a render whose image (resolution × percentage, cut by the render border) has
+    no pixels, as Blender computes it, before anything renders."""
+    width = render.resolution_x * render.resolution_percentage // 100
+    height = render.resolution_y * render.resolution_percentage // 100
+    size = f"{render.resolution_x}x{render.resolution_y} at {render.resolution_percentage} %"
+    if width < 1 or height < 1:
+        raise CliError(f"the image has no pixels: {size} is {width}x{height}")
+    if render.use_border:
+        width = int(render.border_max_x * width) - int(render.border_min_x * width)
+        height = int(render.border_max_y * height) - int(render.border_min_y * height)
+        if width < 1 or height < 1:
+            raise CliError(f"the render border leaves no pixels of the {size} image "
+                           f"(turn the border off or widen it)")
+
+
 
 
 class ProgressBar:
@@ -151,14 +188,15 @@ def run_render(args: argparse.Namespace) -> int:
     overrides = parse_overrides(args.set)
     if Path(args.output).suffix.lower() == ".blend":
         raise CliError(f"refusing to write an image to a .blend path: {args.output}")
+    check_output_pattern(args.output)
 
     import bpy  # imported late: argument errors are reported without starting Blender
 
     from . import register, unregister
     from .engine import monitor
+    from .export import TransformError, check_camera
 
     register()
-    previous_handler = signal.getsignal(signal.SIGINT)
     try:
         try:
             bpy.ops.wm.open_mainfile(filepath=str(scene_file.resolve()), load_ui=False)
@@ -177,16 +215,16 @@ def run_render(args: argparse.Namespace) -> int:
             render.resolution_x, render.resolution_y = resolution
         if args.percentage is not None:
             render.resolution_percentage = args.percentage
+        check_image_size(render)
         scene.vpl_gi.assign(overrides)
-
-        def request_cancel(_signum, _frame) -> None:
-            monitor.cancel_requested = True
-
-        signal.signal(signal.SIGINT, request_cancel)
         bar = ProgressBar(len(frames))
         monitor.progress_listeners.append(bar.update)
         for frame, path in zip(frames, paths, strict=True):
             scene.frame_set(frame)
+            try:
+                check_camera(scene.camera)
+            except TransformError as exc:
+                raise CliError(f"frame {frame}: {exc}") from None
             settings = render.image_settings
             settings.file_format = FORMATS[path.suffix.lower()]
             if settings.file_format == "OPEN_EXR":
@@ -197,9 +235,6 @@ def run_render(args: argparse.Namespace) -> int:
             except RuntimeError as exc:  # Blender's own refusal, or the engine's reported error
                 monitor.last_error = monitor.last_error or str(exc).strip()
             bar.finish_frame()
-            if monitor.cancel_requested:
-                print("cancelled: no image written for this frame", file=sys.stderr)
-                return 130
             if monitor.last_error:
                 print(f"error: frame {frame}: {monitor.last_error}", file=sys.stderr)
                 return 1
@@ -211,12 +246,12 @@ def run_render(args: argparse.Namespace) -> int:
                 print(f"stages: {monitor.last_stats.summary()}")
             # Written only after a finished render, with the scene's colour management for
             # PNG (as Blender's -o does) and linear float for EXR.
-            bpy.data.images["Render Result"].save_render(filepath=str(path.resolve()),
-                                                         scene=scene)
-            print(f"Saved {path} ({time.perf_counter() - start:.2f} s)")
+            with interrupts.saving:
+                bpy.data.images["Render Result"].save_render(filepath=str(path.resolve()),
+                                                             scene=scene)
+                print(f"Saved {path} ({time.perf_counter() - start:.2f} s)", flush=True)
         return 0
     finally:
-        signal.signal(signal.SIGINT, previous_handler)
         monitor.progress_listeners.clear()
         unregister()
 

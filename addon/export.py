@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
     DEFAULT_MATERIAL,
@@ -37,6 +38,39 @@ RAY_FLAGS = {"visible_camera": "camera", "visible_diffuse": "diffuse",
 
 def _matrix(m) -> np.ndarray:
     return np.array(m, dtype=np.float64)
+
+
+# -- placements: every object's world matrix is checked here --------------------------------
+
+class TransformError(RenderError):
+    """The scene camera cannot be rendered from; the message names it and says why."""
+
+
+def transform_problems(matrices: np.ndarray, invertible: bool = False) -> list[str | None]:
+    """Per world matrix (k, 4, 4), why it cannot place an object, or None: NaN/Inf entries,
+    or, where the matrix must be inverted (the camera's), a linear part without an inverse
+    (a scale of 0). One call for all instances: scenes may hold many thousands."""
+    finite = np.isfinite(matrices).all(axis=(1, 2))
+    problems: list[str | None] = [None if ok else "has a non-finite transform"
+                                  for ok in finite.tolist()]
+    if invertible and finite.any():
+        scales = np.linalg.svd(matrices[finite, :3, :3], compute_uv=False)
+        singular = ~(scales[:, -1] > 1e-9 * scales[:, 0])
+        for row in np.flatnonzero(finite)[singular]:
+            problems[row] = "has a transform without an inverse (a scale of 0 on some axis)"
+    return problems
+
+
+def check_camera(camera_object: bpy.types.Object) -> None:
+    """Raise TransformError unless the object can be the scene camera: a camera object with
+    a finite, invertible world matrix."""
+    if camera_object.type != "CAMERA":
+        raise TransformError(f"the scene camera '{camera_object.name}' is not a camera but "
+                             f"an object of type {camera_object.type.title()} (choose a "
+                             f"camera in the scene's properties)")
+    problem, = transform_problems(_matrix(camera_object.matrix_world)[None], invertible=True)
+    if problem:
+        raise TransformError(f"camera '{camera_object.name}' {problem}")
 
 
 def _rgb(value) -> tuple[float, float, float]:
@@ -421,17 +455,18 @@ def export_light(obj: bpy.types.Object, matrix) -> Light:
     return light
 
 
-def _image_pixels(image: bpy.types.Image) -> np.ndarray | None:
+def _image_pixels(image: bpy.types.Image, warnings: list[str]) -> np.ndarray | None:
     """Linear RGB (h, w, 3) float32 of an image, rows bottom-up, or None if it cannot be read.
 
-    Float images (.hdr, .exr) are linear; 8-bit images in sRGB are decoded."""
-    pixels = read_pixels(image)
+    Float images (.hdr, .exr) are linear; 8-bit images in sRGB are decoded; NaN/Inf values
+    are read as 0 and negative ones capped at 0."""
+    pixels = read_pixels(image, warnings)
     if pixels is None:
         return None
     rgb = pixels[..., :3]
     if not image.is_float and image.colorspace_settings.name == "sRGB":
         rgb = decode_srgb(rgb)
-    return np.maximum(np.nan_to_num(rgb, posinf=0.0), 0.0).astype(np.float32)
+    return np.maximum(rgb, 0.0).astype(np.float32)
 
 
 def _map_rotation(texture) -> float:
@@ -461,7 +496,7 @@ def _environment_world(texture, strength: float, warnings: list[str]) -> World:
     """A world lit by an equirectangular Environment Texture (magenta if its image is
     missing, as in Cycles; its mean colour for mappings other than a Z rotation)."""
     image = texture.image
-    pixels = _image_pixels(image) if image is not None else None
+    pixels = _image_pixels(image, warnings) if image is not None else None
     if pixels is None:
         name = f"'{image.name}'" if image is not None else "(none)"
         warnings.append(f"world: the Environment Texture's image {name} could not be loaded: "
@@ -498,12 +533,18 @@ def export_world(world: bpy.types.World | None, warnings: list[str]) -> World:
 
 
 def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Object | None,
-                  width: int, height: int) -> Camera | None:
-    """Blender's own projection (sensor fit, shift, clipping) for the given resolution."""
+                  width: int, height: int, warnings: list[str]) -> Camera | None:
+    """Blender's own projection (sensor fit, shift, clipping) for the given resolution;
+    TransformError for an object that cannot be the camera (``check_camera``). A panoramic
+    camera is rendered as a perspective one, with a warning."""
     if camera_object is None:
         return None
     render = depsgraph.scene_eval.render
     cam = camera_object.evaluated_get(depsgraph)
+    check_camera(cam)
+    if cam.data.type == "PANO":
+        warnings.append(f"camera '{cam.name}' is panoramic, which VPL GI does not render: "
+                        f"rendered as a perspective camera of the same lens")
     projection = cam.calc_matrix_camera(depsgraph, x=width, y=height,
                                         scale_x=render.pixel_aspect_x,
                                         scale_y=render.pixel_aspect_y)
@@ -644,11 +685,11 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         kind = obj.type
         if kind == "LIGHT":
             matrix = _matrix(inst.matrix_world)
-            if np.isfinite(matrix).all():
-                result.lights.append(export_light(obj, matrix))
+            problem, = transform_problems(matrix[None])
+            if problem:
+                result.warnings.append(f"light '{obj.name}' {problem} and was skipped")
             else:
-                result.warnings.append(f"light '{obj.name}' has a non-finite transform and was "
-                                       f"skipped")
+                result.lights.append(export_light(obj, matrix))
             continue
         if kind not in RENDERED_OBJECT_TYPES or not inst.show_self:
             continue
@@ -667,12 +708,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     columns = np.empty(count * 16, dtype=np.float32)
     depsgraph.object_instances.foreach_get("matrix_world", columns)
     matrices = columns.reshape(-1, 4, 4)[ordinals].transpose(0, 2, 1).astype(np.float64)
-    finite = np.isfinite(matrices).all(axis=(1, 2)).tolist()
-    for (mesh, materials, name), matrix, ok in zip(placed, matrices, finite, strict=True):
-        if ok:
-            result.instances.append(Instance(mesh, matrix, materials))
+    problems = transform_problems(matrices)
+    for (mesh, materials, name), matrix, problem in zip(placed, matrices, problems, strict=True):
+        if problem:
+            result.warnings.append(f"object '{name}' {problem} and was skipped")
         else:
-            result.warnings.append(f"object '{name}' has a non-finite transform and was skipped")
+            result.instances.append(Instance(mesh, matrix, materials))
     cache._entries = state.used
     if state.glossy:
         result.notes.append(f"specular and metallic reflection is not rendered yet: "
@@ -680,5 +721,6 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                             f"'{min(state.glossy)}') are lit as diffuse in their base colour")
     result.world = export_world(scene_eval.world, result.warnings)
     result.film_transparent = bool(scene_eval.render.film_transparent)
-    result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval))
+    result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),
+                                  result.warnings)
     return result

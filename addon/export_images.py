@@ -42,10 +42,10 @@ def _check_vector(node) -> None:
                           f"'{source.bl_label}'")
 
 
-def read_pixels(image: bpy.types.Image) -> np.ndarray | None:
+def read_pixels(image: bpy.types.Image, warnings: list[str]) -> np.ndarray | None:
     """The image's pixels as (h, w, 4) float32, rows bottom-up, in its stored values (byte
     images: sRGB-encoded when their colour space is sRGB), or None when Blender cannot read
-    it."""
+    it. NaN/Inf values (float images) are read as 0, with one warning per image."""
     width, height = image.size
     channels = image.channels
     try:
@@ -56,6 +56,13 @@ def read_pixels(image: bpy.types.Image) -> np.ndarray | None:
         return None
     flat = np.empty(count, dtype=np.float32)
     image.pixels.foreach_get(flat)
+    bad = ~np.isfinite(flat)
+    if bad.any():
+        flat[bad] = 0.0
+        message = (f"image '{image.name}': {int(bad.sum())} NaN/Inf values read as 0 (as if "
+                   f"black there)")
+        if message not in warnings:
+            warnings.append(message)
     pixels = flat.reshape(height, width, channels)
     if channels == 4:
         return pixels
@@ -105,7 +112,7 @@ class ImageReader:
             return missing_texture("(none)")
         key = image.name_full
         if key not in self._textures:
-            pixels = read_pixels(image)
+            pixels = read_pixels(image, self.warnings)
             if pixels is None:
                 self._missing.add(key)
                 self._textures[key] = missing_texture(image.name)

@@ -2,7 +2,10 @@
 // finest. A valid texel keeps its depth bit for bit; an empty one gets the bilinear
 // interpolation of the (already pushed) coarser level of its tile, over the valid coarse taps
 // only (weights renormalised), or u_unfilled where none is valid (ISM_EMPTY on coarse levels,
-// ISM_FAR on the finest: lit). All tiles in one dispatch: one invocation per texel.
+// ISM_FAR on the finest: lit). On the finest level a splat that the coarser level shows over
+// ISM_BEHIND times nearer on both sides counts as a hole too (hole_in_nearer): it is a farther
+// surface seen through a gap between a nearer surface's splats, which would let light through a
+// closed wall. All tiles in one dispatch: one invocation per texel.
 // ISM_FINE_SPLAT: the finest level, read from the r32ui splat image (which is reset to empty for
 // the next frame as it is read) and written to the r32f atlas; else an r32f level in place.
 // ISM_TILE_LIST: only the listed tiles (a partial update); the others keep the depths of an
@@ -11,6 +14,7 @@
 
 #define ISM_EMPTY -1.0
 #define ISM_EMPTY_BITS 0xFFFFFFFFu
+#define ISM_BEHIND 1.25
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -66,17 +70,32 @@ float coarse_depth(ivec2 tile, vec2 c) {
     return weight > 0.0 ? sum / weight : u_unfilled;
 }
 
+// Whether a splat at `depth` in texel `local` of `tile` is a farther surface seen through a gap
+// of a nearer one: the coarser level one coarse texel away on both sides, left and right or
+// below and above, is over ISM_BEHIND times nearer. Beside the edge of a nearer surface only
+// one side is: silhouettes stay where they are.
+bool hole_in_nearer(ivec2 tile, vec2 local, float depth) {
+    vec2 c = (local + 0.5) * 0.5 - 0.5;
+    float limit = depth / ISM_BEHIND;
+    float l = coarse_depth(tile, c - vec2(1.0, 0.0));
+    float r = coarse_depth(tile, c + vec2(1.0, 0.0));
+    float b = coarse_depth(tile, c - vec2(0.0, 1.0));
+    float t = coarse_depth(tile, c + vec2(0.0, 1.0));
+    return (l >= 0.0 && l < limit && r >= 0.0 && r < limit)
+        || (b >= 0.0 && b < limit && t >= 0.0 && t < limit);
+}
+
 void main() {
     ivec2 p = ism_pass_texel(u_resolution, u_size);
     if (p.x < 0) return;
     float depth = take_depth(p);
-    if (depth >= 0.0) {
-        put_depth(p, depth);
-        return;
-    }
     ivec2 tile = p / u_resolution;
     vec2 local = vec2(p - tile * u_resolution);
     float filled = u_unfilled;
     if (u_coarse_resolution > 0) filled = coarse_depth(tile, (local + 0.5) * 0.5 - 0.5);
-    put_depth(p, filled);
+#ifdef ISM_FINE_SPLAT
+    if (depth >= 0.0 && u_coarse_resolution > 0 && hole_in_nearer(tile, local, depth))
+        depth = ISM_EMPTY;  // filled like any hole
+#endif
+    put_depth(p, depth >= 0.0 ? depth : filled);
 }

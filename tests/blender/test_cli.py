@@ -58,6 +58,11 @@ def test_frame_range_writes_numbered_linear_exrs(tmp_path):
     (["render", str(CORNELL), "-o", "x.png", "--set", "interleave=3"], "not one of 1, 2, 4, 8"),
     (["render", str(CORNELL), "-o", "x.png", "--set", "bounce=2"], "unknown setting 'bounce'"),
     (["render", str(CORNELL), "-o", "/proc/forbidden/x.png"], "cannot create output folder"),
+    (["render", str(CORNELL), "-o", str(REPO / "sample_scenes")], "-o names a folder"),
+    (["render", str(CORNELL), "-o", "x.gif"], "cannot write '.gif' images"),
+    (["render", str(CORNELL), "-o", "x.png", "-r", "1x1"], "resolution 1x1 is outside 4..65536"),
+    (["render", str(CORNELL), "-o", "x.png", "-r", "64x64", "-p", "1"],
+     "the image has no pixels: 64x64 at 1 % is 0x0"),
 ])
 def test_bad_input_is_one_clear_line_and_exit_code_2(args, message):
     result = run_cli(*args)
@@ -95,6 +100,56 @@ def test_scene_without_camera_is_refused(blender, tmp_path):
     blender.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
     result = run_cli("render", str(path), "-o", str(tmp_path / "x.png"))
     assert result.returncode == 2 and "no active camera" in result.stderr
+
+
+def test_image_format_follows_the_extension(tmp_path):
+    result = run_cli("render", str(CORNELL), "-o", str(tmp_path / "x.jpg"), "-r", "16x16",
+                     "--set", "visibility=exact", "--set", "vpl_count=8")
+    assert result.returncode == 0, result.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["x.jpg"]
+    assert (tmp_path / "x.jpg").read_bytes()[:3] == b"\xff\xd8\xff"  # JPEG
+
+
+@pytest.mark.parametrize("change, message", [
+    ("border", "the render border leaves no pixels of the 32x32 at 100 % image"),
+    ("empty", "frame 1: the scene camera 'Empty' is not a camera but an object of type Empty"),
+])
+def test_scene_that_cannot_render_is_refused_before_rendering(blender, tmp_path, change,
+                                                              message):
+    scene = open_scene("light_point", 32)
+    if change == "border":
+        scene.render.use_border = True
+        scene.render.border_min_x = scene.render.border_max_x = 0.5
+    else:
+        empty = blender.data.objects.new("Empty", None)
+        scene.collection.objects.link(empty)
+        scene.camera = empty
+    path = tmp_path / f"{change}.blend"
+    blender.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    result = run_cli("render", str(path), "-o", str(tmp_path / "x.png"))
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.strip().splitlines()[-1].startswith(f"error: {message}")
+    assert "Traceback" not in result.stderr and not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("delay", [0.3, 1.0, 2.0])
+def test_ctrl_c_at_any_moment_exits_130_within_a_second(tmp_path, delay):
+    """While Python imports, Blender loads, the scene exports or shaders compile: Python's own
+    handler would wait for the main thread (or raise KeyboardInterrupt anywhere)."""
+    out = tmp_path / "x.png"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "addon", "render", str(CORNELL), "-o", str(out), "-r", "64x64"],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    sent = time.monotonic()
+    process.send_signal(signal.SIGINT)
+    try:
+        _, stderr = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    assert process.returncode == 130, stderr
+    assert time.monotonic() - sent < 1.0
+    assert "Traceback" not in stderr and not out.exists()
 
 
 def test_ctrl_c_cancels_and_exits_130(tmp_path):

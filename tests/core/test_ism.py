@@ -101,13 +101,32 @@ def sparse(shape: tuple[int, int], fraction: float, rng: np.random.Generator,
 
 
 def test_pull_push_fills_every_hole_and_keeps_valid_texels(maps):
+    """Valid texels within a factor BEHIND of each other are kept bit for bit."""
     resolution = 64
-    depth, valid = sparse((2 * resolution, 3 * resolution), 0.1, np.random.default_rng(5))
+    depth, valid = sparse((2 * resolution, 3 * resolution), 0.1, np.random.default_rng(5),
+                          high=ism.BEHIND)
     filled = maps.pull_push(depth, resolution, 6)
     assert filled.shape == depth.shape and np.isfinite(filled).all()
     np.testing.assert_array_equal(filled.view(np.uint32)[valid], depth.view(np.uint32)[valid])
     assert (filled[in_disk(*depth.shape, resolution)] < ism.FAR).all()
-    assert (filled >= 1).all() and (filled <= 2).all()  # averages of valid depths
+    assert (filled >= 1).all() and (filled <= ism.BEHIND).all()  # averages of valid depths
+
+
+def test_a_farther_surface_seen_through_gaps_of_a_nearer_one_is_a_hole(maps):
+    """A wall at depth 1 splatted with gaps, a surface at depth 3 behind it showing through
+    them: the gaps are filled from the wall around them, nearer than 3 / BEHIND, so the far
+    surface is in its shadow there (before: 3, lit: light got through the wall); beside the
+    wall's edge the far surface keeps its depth."""
+    resolution = 32
+    depth = np.full((resolution, resolution), 3.0, np.float32)
+    wall = np.zeros(depth.shape, bool)
+    wall[:, :16] = True
+    gaps = wall & (np.random.default_rng(7).random(depth.shape) < 0.2)
+    gaps[:, 14:16] = False  # the wall's edge column pair is whole
+    depth[wall & ~gaps] = 1.0
+    filled = maps.pull_push(depth, resolution, 5)
+    assert (filled[wall] < 3.0 / ism.BEHIND).all(), filled[gaps]
+    np.testing.assert_array_equal(filled[:, 16:], 3.0)
 
 
 def test_too_few_levels_leave_far_holes(maps):
@@ -295,6 +314,7 @@ def test_render_checks_its_inputs(programs):
     ("ism_push_comp.glsl", "local_size_y =", ism.IMAGE_LOCAL_SIZE),
     ("ism_lib.glsl", "ISM_FAR", "3.0e38"),
     ("ism_pull_comp.glsl", "ISM_EMPTY_BITS", "0xFFFFFFFFu"),
-    ("ism_push_comp.glsl", "ISM_EMPTY_BITS", "0xFFFFFFFFu")])
+    ("ism_push_comp.glsl", "ISM_EMPTY_BITS", "0xFFFFFFFFu"),
+    ("ism_push_comp.glsl", "ISM_BEHIND", repr(ism.BEHIND))])
 def test_glsl_constants_match_python(file, name, value):
     assert f"{name} {value}" in (SHADER_DIR / file).read_text(encoding="utf-8")

@@ -69,6 +69,7 @@ class Renderer:
                            progress or (lambda _f, _m: None), cancelled or (lambda: False),
                            pass_index=pass_index)
         for stage in self.stages:
+            frame.check_cancelled()  # Esc in Blender: also between the long stages
             stage.run(frame)
         return Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats
 

@@ -7,7 +7,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..scene.geometry import bounding_sphere, flatten_instances, light_shapes
+from ..scene.bounds import robust_bounds
+from ..scene.geometry import flatten_instances, light_shapes
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, build_light_samples
 from .batches import shadow_map_batches
 from .compose import sanitize
@@ -55,9 +56,11 @@ class CheckInput(Stage):
 
 class FlattenGeometry(Stage):
     """Every instance's triangles in world space, the lights' visible outlines, the bounding
-    sphere, and the versions of what changed since the last frame."""
+    sphere (far outliers left out, with a warning), and the versions of what changed since the
+    last frame."""
 
     name = "geometry"
+    needs = ("camera",)
     makes = ("geometry", "shapes", "centre")
 
     def __init__(self, kept: KeptProducts) -> None:
@@ -67,7 +70,10 @@ class FlattenGeometry(Stage):
         with frame.stats.timed(self.name):
             frame.geometry = flatten_instances(frame.scene, frame.stats.warnings)
             frame.shapes = light_shapes(frame.scene)
-            frame.centre, frame.radius = bounding_sphere(frame.geometry.positions)
+            frame.centre, frame.radius, outliers = robust_bounds(
+                frame.geometry.positions, frame.camera, frame.scene.instances)
+            if outliers:
+                frame.stats.warnings.append(outliers)
             self.kept.versions.note(frame.geometry)
 
 

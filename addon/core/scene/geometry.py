@@ -154,6 +154,12 @@ def _material_rows(materials: list[Material], warnings: list[str],
     their average colour."""
     albedo = _albedo_table(materials, warnings)
     emission = np.array([m.emission for m in materials], np.float64)
+    for material, row in zip(materials, emission, strict=True):
+        if not (np.isfinite(row).all() and row.min() >= 0):
+            message = (f"material '{material.name}': emission {tuple(row.tolist())} is "
+                       f"negative or not finite: rendered as 0 there")
+            if message not in warnings:
+                warnings.append(message)
     emission = np.where(np.isfinite(emission), np.maximum(emission, 0), 0)
     for row, material in enumerate(materials):
         if material.base_color_texture is not None:

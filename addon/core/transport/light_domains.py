@@ -11,7 +11,7 @@ from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
 
 from ..scene.model import Light, LightKind
 from ..scene.vectors import unit
-from .lights import area_light_points, spot_mask, spot_parameters
+from .lights import area_light_points, light_problem, spot_mask, spot_parameters
 
 QUADRATURE_PER_ANCHOR = 128  # quadrature points per anchor for the Voronoi cell integrals
 MAX_QUADRATURE = 1 << 18
@@ -111,8 +111,8 @@ class LightDomain:
 
 
 def light_domain(light: Light, centre: np.ndarray, radius: float) -> LightDomain | None:
-    """The domain of a light with power, or None (no power, or a non-finite pose)."""
-    if light.power == 0 or not np.isfinite(light.matrix).all():
+    """The domain of a light with power, or None (no power, or left out: ``light_problem``)."""
+    if light.power == 0 or light_problem(light) is not None:
         return None
     m = light.matrix[:3, :3]
     x = unit(m[:, 0][None])[0]

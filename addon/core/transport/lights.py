@@ -272,14 +272,16 @@ def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
           intensity=intensity, shadow=True, resolution=s.sample_shadow_resolution, soft=True)
 
 
-def _light_problem(light: Light) -> str | None:
-    """Why a light cannot be used as it is, or None."""
+def light_problem(light: Light) -> str | None:
+    """Why a light is left out (the message follows its name), or None when it is used."""
     values = [light.power, *light.color, light.radius, light.spot_size, light.spot_blend,
               light.sun_angle, light.size_x, light.size_y]
     if not np.isfinite(light.matrix).all() or not all(np.isfinite(values)):
         return "has NaN/Inf settings or transform and was left out"
     if abs(np.linalg.det(light.matrix[:3, :3])) < 1e-300:
         return "has a zero-scale transform and was left out"
+    if light.power < 0:
+        return f"has negative power ({light.power:g} W): rendered as 0 W"
     return None
 
 
@@ -290,7 +292,7 @@ def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Setting
     rng = np.random.default_rng(settings.seed)
     b = _Builder()
     for light in scene.surface_lights:
-        problem = _light_problem(light)
+        problem = light_problem(light)
         if problem:
             warnings.append(f"light '{light.name}' {problem}")
             continue

@@ -31,6 +31,7 @@ from .lights import (
     LightSamples,
     area_light_points,
     concentric_disk,
+    light_problem,
     spot_mask,
     spot_parameters,
     spread_attenuation,
@@ -237,7 +238,7 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
 def _emitters(scene: Scene, geometry: WorldGeometry, centre: np.ndarray, radius: float
               ) -> list[_Emitter]:
     found = [light_emitter(light, centre, radius) for light in scene.surface_lights
-             if light.power != 0 and np.isfinite(light.matrix).all()]
+             if light.power != 0 and light_problem(light) is None]
     return [e for e in found if e is not None and e.power > 0] + environment_emitters(
         scene, geometry, centre, radius)
 
