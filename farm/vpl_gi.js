@@ -129,7 +129,9 @@ function pythonExpr(settings, overrides) {
         if (!match) throw `extra_settings: cannot read '${item}' (use name=value)`;
         if (match[1] == "incremental" || match[1] == "auto_parameters")
             throw `extra_settings: ${match[1]} is pinned by the job type`;
-        lines.push(`v.${match[1]} = ${match[2]}`);
+        // bpy lets a misspelt name through as a plain Python attribute, silently lost: look
+        // it up first, so that a typo fails the task (KeyError) instead of being ignored.
+        lines.push(`v.bl_rna.properties[${pyString(match[1])}]`, `v.${match[1]} = ${match[2]}`);
     }
     const percentage = pick("resolution_percentage");
     if (percentage) lines.push(`s.render.resolution_percentage = ${integer(percentage, "resolution_percentage")}`);

@@ -135,7 +135,8 @@ def test_launcher_prints_blenders_lines_and_matches_the_render_command(tmp_path)
 
 
 def test_launcher_fails_on_a_broken_python_expr(tmp_path):
-    result = launch("-b", str(CORNELL), "--python-expr", "bpy.context.scene.vpl_gi.nope = 1",
+    result = launch("-b", str(CORNELL),
+                    "--python-expr", "bpy.context.scene.vpl_gi.visibility = 'x'",
                     "--render-output", str(tmp_path / "######"), "--render-frame", "1")
     assert result.returncode != 0
     assert "--python-expr failed" in result.stderr
@@ -170,3 +171,4 @@ def test_job_type_compiles_to_the_recorded_commands():
             expr = dict(args.steps)["expr"]
             assert "v.auto_parameters = \"off\"" in expr and "v.incremental = False" in expr
             assert "s.render.engine = 'VPL_GI'" in expr
+            assert "v.bl_rna.properties[\"vpl_count\"]; v.vpl_count = 32" in expr
