@@ -8,7 +8,7 @@ This reads that subset of Blender's arguments, in Blender's order (options act o
 opened before them), and renders through ``cli.run_render`` (the same code as
 ``python -m addon render``, so frames are bit-identical), printing Blender's lines.
 
-Unlike Blender, an exception in ``--python-expr``/``--python`` fails the command (exit 1):
+Unlike Blender, an exception in ``--python-expr``/``--python`` fails the command (exit 2):
 on a farm a setting that did not apply is an error, not a warning.
 """
 
