@@ -156,6 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="override a VPL GI setting, e.g. --set light_samples=64 "
                              "(repeatable; names as in core/settings.py)")
     render.set_defaults(run=run_render)
+    from .blender_args import add_subcommand  # after CliError and run_render exist
+    add_subcommand(sub)
     return parser
 
 
@@ -202,6 +204,8 @@ def run_render(args: argparse.Namespace) -> int:
             bpy.ops.wm.open_mainfile(filepath=str(scene_file.resolve()), load_ui=False)
         except RuntimeError as exc:
             raise CliError(f"cannot open {scene_file}: {str(exc).strip()}") from None
+        if getattr(args, "prepare", None):  # the blender subcommand's --scene/--python-expr
+            args.prepare(bpy)
         scene = bpy.context.scene
         if scene.camera is None:
             raise CliError(f"scene '{scene.name}' in {scene_file} has no active camera")
@@ -246,10 +250,15 @@ def run_render(args: argparse.Namespace) -> int:
                 print(f"stages: {monitor.last_stats.summary()}")
             # Written only after a finished render, with the scene's colour management for
             # PNG (as Blender's -o does) and linear float for EXR.
+            saving = time.perf_counter()
             with interrupts.saving:
                 bpy.data.images["Render Result"].save_render(filepath=str(path.resolve()),
                                                              scene=scene)
-                print(f"Saved {path} ({time.perf_counter() - start:.2f} s)", flush=True)
+                if getattr(args, "report_saved", None):  # the blender subcommand's lines
+                    args.report_saved(path, time.perf_counter() - start,
+                                      time.perf_counter() - saving)
+                else:
+                    print(f"Saved {path} ({time.perf_counter() - start:.2f} s)", flush=True)
         return 0
     finally:
         monitor.progress_listeners.clear()
