@@ -1,7 +1,7 @@
-"""The README's settings table, made from the settings schema (addon/core/settings.py).
+"""The settings table of docs/settings.md, made from the settings schema (addon/core/settings.py).
 
     .venv/bin/python tools/settings_table.py           # print the markdown table
-    .venv/bin/python tools/settings_table.py --write   # replace the table in README.md
+    .venv/bin/python tools/settings_table.py --write   # replace the table in docs/settings.md
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ sys.path.insert(0, str(REPO))
 
 from addon.core.settings import DEFAULTS, SCHEMA, SECTIONS, Meta, Value  # noqa: E402
 
-README = REPO / "README.md"
+TABLE_FILE = REPO / "docs" / "settings.md"
 START, END = "<!-- settings-table:start -->", "<!-- settings-table:end -->"
 _UNITS = {"TIME_ABSOLUTE": " s"}
 
@@ -55,20 +55,21 @@ def table() -> str:
     return "\n".join(rows)
 
 
-def readme_table(text: str) -> str:
-    """The table between the README's settings-table markers."""
+def marked_table(text: str) -> str:
+    """The table between the settings-table markers of docs/settings.md."""
     return text.split(START, 1)[1].split(END, 1)[0].strip()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--write", action="store_true", help="replace the table in README.md")
+    parser.add_argument("--write", action="store_true",
+                        help="replace the table in docs/settings.md")
     if not parser.parse_args().write:
         print(table())
         return
-    head, rest = README.read_text(encoding="utf-8").split(START, 1)
+    head, rest = TABLE_FILE.read_text(encoding="utf-8").split(START, 1)
     tail = rest.split(END, 1)[1]
-    README.write_text(f"{head}{START}\n{table()}\n{END}{tail}", encoding="utf-8")
+    TABLE_FILE.write_text(f"{head}{START}\n{table()}\n{END}{tail}", encoding="utf-8")
 
 
 if __name__ == "__main__":

@@ -1,5 +1,5 @@
 """The settings schema: every field described once, text parsed by type, clear messages, and
-the README's table made from it."""
+the settings table (docs/settings.md) made from it."""
 
 from __future__ import annotations
 
@@ -10,16 +10,16 @@ import pytest
 
 from addon.cli import CliError, parse_overrides
 from addon.core.settings import DEFAULTS, SCHEMA, SECTIONS, Settings, SettingsError, applies
-from tools.settings_table import README, readme_table, table
+from tools.settings_table import TABLE_FILE, marked_table, table
 
 
 def float32(value: float) -> float:
     return struct.unpack("f", struct.pack("f", value))[0]
 
 
-def test_the_readme_table_is_made_from_the_schema():
-    assert readme_table(README.read_text(encoding="utf-8")) == table(), \
-        "README's settings table is stale: run tools/settings_table.py --write"
+def test_the_settings_table_is_made_from_the_schema():
+    assert marked_table(TABLE_FILE.read_text(encoding="utf-8")) == table(), \
+        "docs/settings.md's table is stale: run tools/settings_table.py --write"
 
 
 @pytest.mark.parametrize("name", [f.name for f in fields(Settings)])
