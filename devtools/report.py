@@ -483,6 +483,7 @@ def run(scene_path: Path, out_dir: Path, options: Options) -> dict[str, object]:
     """Render the report of ``scene_path``, write ``out_dir``/report.json and
     error_vs_time.png, and return the report (with ``references_only``: render or load the
     references, write nothing else). Raises ReportError or ReportCancelled."""
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
     scene = open_scene(scene_path, options.resolution)
     scene.vpl_gi.assign(options.overrides)
     bounces = scene.vpl_gi.bounces
@@ -503,7 +504,8 @@ def run(scene_path: Path, out_dir: Path, options: Options) -> dict[str, object]:
         entries = render_ladder(scene, jobs, r1, r2, exr)
     report.update({
         "ladder": asdict(options.ladder), "overrides": options.overrides,
-        "machine": machine_info(scene), "timing": TIMING, "metrics": METRICS,
+        "machine": {**machine_info(scene), "load_average_at_start": load and list(load)},
+        "timing": TIMING, "metrics": METRICS,
         "renders": entries, "equal_error": tables.equal_error(entries),
         "automatic": pareto_gaps(entries),
     })

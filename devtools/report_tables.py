@@ -118,13 +118,17 @@ def widest_spread(report: dict) -> float:
     return max(widths, default=0.0)
 
 
-def header(report: dict) -> str:
-    """Scene, size, bounces, the VPL GI settings changed from the scene's, the columns."""
+def scene_text(report: dict) -> str:
+    """Scene, size, bounces and the VPL GI settings changed from the scene's."""
     width, height = report["size"]
     changed = ", ".join(f"{name}={value}" for name, value in report.get("overrides", {}).items())
     return (f"{Path(report['scene']).name}, {width}×{height}, {report['bounces']} diffuse "
-            f"bounces; VPL GI: the scene's settings{', with ' + changed if changed else ''}. "
-            "error* = noise-free relative RMSE; energy = mean relative energy")
+            f"bounces; VPL GI: the scene's settings{', with ' + changed if changed else ''}")
+
+
+def header(report: dict) -> str:
+    return (f"{scene_text(report)}. error* = noise-free relative RMSE; energy = mean relative "
+            "energy")
 
 
 def format_table(report: dict) -> str:
@@ -190,6 +194,27 @@ def markdown_table(report: dict) -> str:
                     f"{m[ERROR] * 100:.1f} % | {m['mean_relative_energy'] * 100:+.1f} % | "
                     + " | ".join(cells) + " |")
     return "\n".join(rows)
+
+
+def markdown_section(report: dict) -> str:
+    """One scene's part of the README: a heading line (scene, size, bounces, VPL GI settings,
+    machine), the table, each Cycles + OIDN render's error against the VPL GI lines, and the
+    reference."""
+    machine = report.get("machine", {})
+    load = machine.get("load_average_at_start")
+    parts = [f"**{scene_text(report)}.** {machine.get('cpu_count', '?')} CPU "
+             f"cores{f', load average {load[0]:.1f} at the start' if load else ''}.", "",
+             markdown_table(report), ""]
+    for row in report.get("equal_error", {}).get("cycles", []):
+        if row["line"] != CYCLES_LINES[0]:
+            continue
+        targets = [f"{name} {speed_up_text(found)}" for name, found in row.items()
+                   if name.startswith("VPL GI") and found is not None]
+        parts.append(f"- At {row['line']} {_setting(row)}'s error ({row['error'] * 100:.1f} %, "
+                     f"{seconds_text(row['seconds'])} s): " + "; ".join(targets))
+    parts += ["", f"{reference_text(report)}; it moves any error above by at most "
+                  f"{widest_spread(report) * 100:.1f} % of itself (one standard deviation)."]
+    return "\n".join(parts)
 
 
 def replace_block(text: str, begin: str, end: str, body: str) -> str:
