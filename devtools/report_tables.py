@@ -80,12 +80,14 @@ def _time(found: dict) -> str:
     return f"{relation}{seconds_text(found['seconds'])} s"
 
 
+def _ratio(found: dict) -> str:
+    relation = "" if found["speed_up_relation"] == "=" else found["speed_up_relation"]
+    return f"{relation}{found['speed_up']:.2g}×"
+
+
 def speed_up_text(found: dict | None) -> str:
     """'0.42× (5.1 s)': the speed-up and the other line's time; '-' where none."""
-    if found is None:
-        return "-"
-    relation = "" if found["speed_up_relation"] == "=" else found["speed_up_relation"]
-    return f"{relation}{found['speed_up']:.2g}× ({_time(found)})"
+    return "-" if found is None else f"{_ratio(found)} ({_time(found)})"
 
 
 def _setting(entry: dict) -> str:
@@ -155,12 +157,11 @@ def format_table(report: dict) -> str:
         rows.append(row.rstrip())
     rows.append(f"{SPEED_UP}.")
     for row in report.get("equal_error", {}).get("cycles", []):
-        targets = [f"{name}: {speed_up_text(found)}" for name, found in row.items()
-                   if name.startswith("VPL GI")]
+        targets = [f"{name} needs {_time(found)} (speed-up {_ratio(found)})"
+                   for name, found in row.items() if name.startswith("VPL GI") and found]
         if targets:
-            rows.append(f"{row['line']} {_setting(row)} ({row['error'] * 100:.1f} %, "
-                        f"{seconds_text(row['seconds'])} s): VPL GI's speed-up at its error: "
-                        + "; ".join(targets))
+            rows.append(f"At {row['line']} {_setting(row)}'s error ({row['error'] * 100:.1f} %, "
+                        f"{seconds_text(row['seconds'])} s): " + "; ".join(targets))
     for gap in report.get("automatic", []):
         front = gap["front_error_in_time"]
         quickest = gap["front_time_for_error"]
@@ -208,8 +209,8 @@ def markdown_section(report: dict) -> str:
     for row in report.get("equal_error", {}).get("cycles", []):
         if row["line"] != CYCLES_LINES[0]:
             continue
-        targets = [f"{name} {speed_up_text(found)}" for name, found in row.items()
-                   if name.startswith("VPL GI") and found is not None]
+        targets = [f"{name} needs {_time(found)} (speed-up {_ratio(found)})"
+                   for name, found in row.items() if name.startswith("VPL GI") and found]
         parts.append(f"- At {row['line']} {_setting(row)}'s error ({row['error'] * 100:.1f} %, "
                      f"{seconds_text(row['seconds'])} s): " + "; ".join(targets))
     parts += ["", f"{reference_text(report)}; it moves any error above by at most "

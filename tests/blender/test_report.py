@@ -250,3 +250,22 @@ def test_reference_cache_key_names_scene_size_samples_seed_and_blender():
               reference_key("abc", (640, 360), settings, "5.3.0")]
     assert len({key, *others}) == 1 + len(others)
     assert not settings["use_denoising"]  # references are raw Cycles
+
+
+def test_markdown_section_has_the_table_the_lookups_and_the_reference():
+    renders = [entry("cycles", "Cycles", 16, 10, 0.6), entry("cycles", "Cycles", 64, 40, 0.3),
+               entry("cycles_oidn", "Cycles + OIDN", 4, 3, 0.2),
+               entry("vpl", "VPL GI", 1024, 10, 0.4)]
+    report = {"scene": "x/interior.blend", "size": [640, 360], "bounces": 4,
+              "overrides": {"bounces": 4}, "renders": renders,
+              "equal_error": report_tables.equal_error(renders),
+              "machine": {"cpu_count": 2, "load_average_at_start": [3.0, 2.0, 1.0]},
+              "reference": {"samples": 128, "seeds": [1, 2], "seconds": [600.0, 610.0],
+                            "cached": [False, False], "relative_noise": 0.05}}
+    text = report_tables.markdown_section(report)
+    assert text.startswith("**interior.blend, 640×360, 4 diffuse bounces; VPL GI: the scene's "
+                           "settings, with bounces=4.** 2 CPU cores, load average 3.0")
+    assert "| VPL GI | 1024 p | 10 s | 40.0 % | +0.0 % | <0.3× (<3 s) | 2.2× (22.5 s) |" in text
+    assert "- At Cycles + OIDN 4 p's error (20.0 %, 3 s): VPL GI needs >10 s (speed-up <0.3×)" \
+        in text
+    assert "raw Cycles (no denoiser), 128 samples × 2 (seeds 1, 2), 600 + 610 s" in text
