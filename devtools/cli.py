@@ -42,7 +42,7 @@ def add_report_parser(sub: argparse._SubParsersAction) -> None:
     size.add_argument("--size", type=int, help="a square image of this edge in pixels")
     report.add_argument("--ladder", choices=tuple(LADDER_NAMES), default="compare",
                         help="preset renders to compare: compare (what users pick instead: "
-                             "Cycles + OIDN 4/16/64 spp, Cycles 16/64 spp, VPL GI 1024 and "
+                             "Cycles + OIDN 4/16/64 spp, Cycles 4/16/64 spp, VPL GI 1024 and "
                              "4096 light paths), quick, full, ism (ISM modes), large (ISM up "
                              "to 16k paths), auto (the automatic mode at 1-16 s budgets), "
                              "test (seconds, tiny)")

@@ -118,7 +118,7 @@ _ISM = (("ism", 0.05, 4), ("ism", 0.05), ("exact", 0.05))
 _ALL = (*_ISM, ("classic", 0.05), ("exact", 0.0))
 _QUICK = (16, 64, 256, 1024)
 LADDERS = {
-    "compare": Ladder((16, 64), (VPLLine("vpl_count", (1024, 4096)),), (4, 16, 64)),
+    "compare": Ladder((4, 16, 64), (VPLLine("vpl_count", (1024, 4096)),), (4, 16, 64)),
     "quick": Ladder((4, 16, 64, 256), _modes(_QUICK, *_ALL), (4, 16)),
     "full": Ladder((4, 16, 64, 256, 1024, 4096), _modes((16, 64, 256, 1024, 4096), *_ALL),
                    (4, 16, 64, 256)),

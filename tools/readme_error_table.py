@@ -6,7 +6,7 @@ rendered and written by one command.
 
 Each scene is reported by ``python -m devtools report`` in its own process, one after the other
 (never two at once: the times are wall clock), at 640×360 with 4 diffuse bounces and the
-default 'compare' ladder (Cycles + OIDN 4/16/64 spp, raw Cycles 16/64 spp, VPL GI at the scene's
+default 'compare' ladder (Cycles + OIDN and raw Cycles at 4/16/64 spp, VPL GI at the scene's
 settings with 1024 and 4096 light paths), into renders/report_SCENE/; the tables then replace
 what lies between the markers in README.md. References are cached (.cache/references), so a
 second run renders only the ladders. On a shared machine run it under ``nice -n 19``: every
@@ -24,7 +24,12 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from devtools.report_tables import markdown_section, replace_block  # noqa: E402
+from devtools.report_tables import (  # noqa: E402
+    format_table,
+    markdown_section,
+    markdown_table,
+    replace_block,
+)
 
 README = REPO / "README.md"
 START, END = "<!-- error-table:start -->", "<!-- error-table:end -->"
@@ -47,7 +52,8 @@ def render(scene: str, reference_samples: int) -> None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--from-reports", action="store_true",
-                        help="render nothing: rewrite the tables from renders/report_SCENE/")
+                        help="render nothing: rewrite the tables (README, and table.txt and "
+                             "table.md next to each report.json) from renders/report_SCENE/")
     parser.add_argument("--reference-samples", type=int, default=256,
                         help="Cycles samples of each of the two references (256)")
     parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=SCENES,
@@ -65,7 +71,11 @@ def main() -> int:
             print(f"error: no report for {scene}: {path} (run without --from-reports)",
                   file=sys.stderr)
             return 2
-        sections.append(markdown_section(json.loads(path.read_text())))
+        report = json.loads(path.read_text())
+        if args.from_reports:  # the tables as this version of report_tables.py writes them
+            (path.parent / "table.txt").write_text(format_table(report) + "\n")
+            (path.parent / "table.md").write_text(markdown_table(report) + "\n")
+        sections.append(markdown_section(report))
     command = "tools/readme_error_table.py" + (
         f" --reference-samples {args.reference_samples}" if args.reference_samples != 256
         else "")
