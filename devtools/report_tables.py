@@ -90,6 +90,27 @@ def speed_up_text(found: dict | None) -> str:
     return "-" if found is None else f"{_ratio(found)} ({_time(found)})"
 
 
+def lookup_text(row: dict) -> str:
+    """One Cycles render's error looked up on the VPL GI lines, as a sentence ('' if none)."""
+    targets = []
+    for name, found in row.items():
+        if not name.startswith("VPL GI") or not found:
+            continue
+        seconds, ratio = seconds_text(found["seconds"]), _ratio(found)
+        if found["relation"] == ">":
+            targets.append(f"{name} does not reach it by its slowest render ({seconds} s; "
+                           f"speed-up {ratio})")
+        elif found["relation"] == "<":
+            targets.append(f"{name} is below it already at its quickest render ({seconds} s; "
+                           f"speed-up {ratio})")
+        else:
+            targets.append(f"{name} reaches it in {seconds} s (speed-up {ratio})")
+    if not targets:
+        return ""
+    return (f"{row['line']} {_setting(row)}: {row['error'] * 100:.1f} % in "
+            f"{seconds_text(row['seconds'])} s; " + "; ".join(targets) + ".")
+
+
 def _setting(entry: dict) -> str:
     return f"{entry['value']} {entry['parameter']}"
 
@@ -157,11 +178,9 @@ def format_table(report: dict) -> str:
         rows.append(row.rstrip())
     rows.append(f"{SPEED_UP}.")
     for row in report.get("equal_error", {}).get("cycles", []):
-        targets = [f"{name} needs {_time(found)} (speed-up {_ratio(found)})"
-                   for name, found in row.items() if name.startswith("VPL GI") and found]
-        if targets:
-            rows.append(f"At {row['line']} {_setting(row)}'s error ({row['error'] * 100:.1f} %, "
-                        f"{seconds_text(row['seconds'])} s): " + "; ".join(targets))
+        text = lookup_text(row)
+        if text:
+            rows.append(text)
     for gap in report.get("automatic", []):
         front = gap["front_error_in_time"]
         quickest = gap["front_time_for_error"]
@@ -209,10 +228,9 @@ def markdown_section(report: dict) -> str:
     for row in report.get("equal_error", {}).get("cycles", []):
         if row["line"] != CYCLES_LINES[0]:
             continue
-        targets = [f"{name} needs {_time(found)} (speed-up {_ratio(found)})"
-                   for name, found in row.items() if name.startswith("VPL GI") and found]
-        parts.append(f"- At {row['line']} {_setting(row)}'s error ({row['error'] * 100:.1f} %, "
-                     f"{seconds_text(row['seconds'])} s): " + "; ".join(targets))
+        text = lookup_text(row)
+        if text:
+            parts.append(f"- {text}")
     parts += ["", f"{reference_text(report)}; it moves any error above by at most "
                   f"{widest_spread(report) * 100:.1f} % of itself (one standard deviation)."]
     return "\n".join(parts)
