@@ -131,7 +131,7 @@ LADDERS = {
 """Preset ladders (``--ladder``); ``--cycles-samples``, ``--oidn-samples`` and ``--vpl-ladder``
 replace their parts."""
 AUTO_LINE = "VPL GI automatic (time budget)"
-CYCLES_LINE, OIDN_LINE = "Cycles", "Cycles + OIDN"
+CYCLES_LINE, OIDN_LINE = tables.CYCLES_LINE, tables.OIDN_LINE
 WARM_UP_PERCENTAGE = 25
 """Warm-up renders run at this share of the resolution: what they pay once (GL context,
 shaders, Cycles kernels, the denoiser's kernels) does not depend on it."""

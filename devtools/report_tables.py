@@ -10,7 +10,8 @@ from .curves import TimeAtError, time_at_error
 
 ERROR = "relative_rmse_unbiased"
 VPL_KINDS = ("vpl", "auto")
-CYCLES_LINES = ("Cycles + OIDN", "Cycles")
+CYCLES_LINE, OIDN_LINE = "Cycles", "Cycles + OIDN"
+CYCLES_LINES = (OIDN_LINE, CYCLES_LINE)
 SPEED_UP = ("speed-up at equal error: the time a Cycles line needs for a VPL GI render's error "
             "(log-log interpolation between that line's renders) ÷ the VPL GI render's time; "
             "above 1 VPL GI is faster. '<' and '>' mark bounds: the Cycles line is below that "
