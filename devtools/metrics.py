@@ -42,3 +42,17 @@ def unbiased_squared_error(image: np.ndarray, reference_a: np.ndarray,
 def reference_noise(reference_a: np.ndarray, reference_b: np.ndarray) -> float:
     """RMS noise of one reference, from the difference of two independent ones."""
     return float(np.sqrt(np.mean((_rgb(reference_a) - _rgb(reference_b)) ** 2) / 2.0))
+
+
+def unbiased_squared_error_spread(image: np.ndarray, reference_a: np.ndarray,
+                                  reference_b: np.ndarray) -> float:
+    """Standard deviation of :func:`unbiased_squared_error` from the references' noise, for a
+    fixed image: with x - r_i = e - n_i, each term e² - e(n1 + n2) + n1·n2 varies by
+    2e²σ² + σ⁴ (σ² estimated per value as (r1 - r2)² / 2, e² as the term itself, σ⁴ as a third
+    of (r1 - r2)⁴ / 4: Gaussian moments). A pixel's channels count as fully correlated (as the
+    same light paths make them), which errs on the large side."""
+    x, a, b = _rgb(image), _rgb(reference_a), _rgb(reference_b)
+    sigma2 = (a - b) ** 2 / 2
+    term = np.maximum((x - a) * (x - b), 0.0)
+    pixel_sd = np.sqrt(2 * term * sigma2 + sigma2**2 / 3).mean(axis=-1)
+    return float(np.sqrt(np.sum(pixel_sd**2)) / pixel_sd.size)

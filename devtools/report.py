@@ -1,10 +1,13 @@
-"""Error against render time, VPL GI compared with Cycles (``python -m devtools report``).
+"""Error against render time, VPL GI compared with what users would pick instead
+(``python -m devtools report``).
 
-One scene, one process, one resolution: Cycles (CPU, diffuse bounces only) at a ladder of sample
-counts, VPL GI at a ladder of light-path counts per mode (visibility, clamping), and two
-independently seeded converged Cycles references r1, r2, cached on disk. Every image's error is
-measured against r = (r1 + r2) / 2, and written to ``report.json`` and ``error_vs_time.png``.
-:func:`run` expects the add-on to be registered.
+One scene, one process, one resolution (640×360 by default): Cycles (CPU, diffuse bounces only)
+at a ladder of sample counts, raw and with OpenImageDenoise; VPL GI along lines that each vary
+one setting (``vpl_count``, ``passes``, ...); and two independently seeded raw Cycles references
+r1, r2, cached on disk. Every image's error is measured against r = (r1 + r2) / 2 (noise-free:
+mean((x - r1)(x - r2))), each VPL GI render's time is compared with the time the Cycles curves
+need for its error (report_tables.py), and all is written to ``report.json``, ``table.txt``,
+``table.md`` and ``error_vs_time.png``. :func:`run` expects the add-on to be registered.
 """
 
 from __future__ import annotations
@@ -16,22 +19,23 @@ import os
 import platform
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from contextlib import suppress
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import BinaryIO
 
 import bpy
 import numpy as np
-from matplotlib.figure import Figure
 
 from addon import ENGINE_ID
 from addon.core.gpu.gl import GLUnavailableError, shared_context
+from addon.core.settings import Value
 from addon.engine import monitor
 
 from . import metrics
+from . import report_tables as tables
 from .obj_scene import scene_from_obj
 
 DEFAULT_CACHE = Path(__file__).resolve().parents[1] / ".cache" / "references"
@@ -44,6 +48,8 @@ TIMING = ("wall-clock seconds of bpy.ops.render.render(), scene export included 
 METRICS = {
     "relative_rmse_unbiased": "sqrt(max(0, mean((x - r1)(x - r2)))) / mean(r): relative RMSE "
                               "against the converged image, free of the references' noise",
+    "relative_rmse_unbiased_range": "relative_rmse_unbiased with the estimate moved by one "
+                                    "standard deviation of the references' noise either way",
     "relative_rmse": "RMSE(x, r) / mean(r)",
     "rmse": "RMSE(x, r) over pixels and RGB",
     "relative_mse": "mean((x - r)² / (r² + 0.01))",
@@ -65,46 +71,78 @@ class RenderFailed(Exception):
 
 
 @dataclass(frozen=True)
-class VPLMode:
-    """VPL GI settings held fixed along one line of the plot while vpl_count grows."""
+class VPLLine:
+    """One VPL GI line of the plot: the setting ``parameter`` takes ``values`` in turn while
+    ``fixed`` settings (name, value) hold, on top of the report's ``--set`` settings. ``name``
+    labels the line (default: VPL GI and the fixed settings); lines need distinct labels."""
 
-    visibility: str
-    clamp_distance: float
-    interleave: str = "1"  # the enum property's value: "1" (off), "2", "4", "8"
+    parameter: str
+    values: tuple[Value, ...]
+    fixed: tuple[tuple[str, Value], ...] = ()
+    name: str = ""
 
     @property
     def label(self) -> str:
-        pattern = "" if self.interleave == "1" else f", interleave {self.interleave}×"
-        return f"VPL GI {self.visibility}, clamp {self.clamp_distance:g}{pattern}"
+        if self.name:
+            return self.name
+        held = ", ".join(f"{name}={value:g}" if isinstance(value, float) else f"{name}={value}"
+                         for name, value in self.fixed)
+        return f"VPL GI {held}" if held else "VPL GI"
 
 
 @dataclass(frozen=True)
 class Ladder:
-    """What one report renders besides the references."""
+    """What one report renders besides the references: raw Cycles and Cycles + OIDN at sample
+    counts, VPL GI lines, and automatic-mode budgets."""
 
     cycles_samples: tuple[int, ...]
-    vpl_counts: tuple[int, ...]
-    vpl_modes: tuple[VPLMode, ...]
+    vpl_lines: tuple[VPLLine, ...]
+    oidn_samples: tuple[int, ...] = ()
     auto_budgets: tuple[float, ...] = ()  # seconds per frame for the automatic mode 'time'
 
 
-_ISM_MODES = (VPLMode("ism", 0.05, "4"), VPLMode("ism", 0.05), VPLMode("exact", 0.05))
-_ALL_MODES = (*_ISM_MODES, VPLMode("classic", 0.05), VPLMode("exact", 0.0))
+def _mode(visibility: str, clamp: float, interleave: int = 1, counts: tuple[int, ...] = ()
+          ) -> VPLLine:
+    """A line of light-path counts in one visibility mode, clamp and interleaving."""
+    name = f"VPL GI {visibility}, clamp {clamp:g}" + \
+        (f", interleave {interleave}×" if interleave > 1 else "")
+    return VPLLine("vpl_count", counts, (("visibility", visibility), ("clamp_distance", clamp),
+                                         ("interleave", interleave)), name)
+
+
+def _modes(counts: tuple[int, ...], *modes: tuple) -> tuple[VPLLine, ...]:
+    return tuple(_mode(*mode, counts=counts) for mode in modes)
+
+
+_ISM = (("ism", 0.05, 4), ("ism", 0.05), ("exact", 0.05))
+_ALL = (*_ISM, ("classic", 0.05), ("exact", 0.0))
+_QUICK = (16, 64, 256, 1024)
 LADDERS = {
-    "quick": Ladder((4, 16, 64, 256), (16, 64, 256, 1024), _ALL_MODES),
-    "full": Ladder((4, 16, 64, 256, 1024, 4096), (16, 64, 256, 1024, 4096), _ALL_MODES),
-    "ism": Ladder((4, 16, 64, 256), (64, 256, 1024, 4096), _ISM_MODES),
-    "large": Ladder((4, 16, 64, 256), (1024, 4096, 16384), (VPLMode("ism", 0.05, "4"),)),
-    "test": Ladder((4, 64), (16, 256), (VPLMode("classic", 0.05),), (0.5,)),
-    "auto": Ladder((4, 16, 64, 256), (16, 64, 256, 1024), _ISM_MODES[:2], (1, 2, 4, 8, 16)),
+    "compare": Ladder((4, 16, 64), (VPLLine("vpl_count", (1024, 4096)),), (4, 16, 64)),
+    "quick": Ladder((4, 16, 64, 256), _modes(_QUICK, *_ALL), (4, 16)),
+    "full": Ladder((4, 16, 64, 256, 1024, 4096), _modes((16, 64, 256, 1024, 4096), *_ALL),
+                   (4, 16, 64, 256)),
+    "ism": Ladder((4, 16, 64, 256), _modes((64, 256, 1024, 4096), *_ISM), (4, 16, 64)),
+    "large": Ladder((4, 16, 64, 256), _modes((1024, 4096, 16384), ("ism", 0.05, 4)),
+                    (4, 16, 64)),
+    "test": Ladder((4, 64), _modes((16, 256), ("classic", 0.05)), (4,), (0.5,)),
+    "auto": Ladder((4, 16, 64, 256), _modes(_QUICK, *_ISM[:2]), (4, 16), (1, 2, 4, 8, 16)),
 }
+"""Preset ladders (``--ladder``); ``--cycles-samples``, ``--oidn-samples`` and ``--vpl-ladder``
+replace their parts."""
 AUTO_LINE = "VPL GI automatic (time budget)"
+CYCLES_LINE, OIDN_LINE = tables.CYCLES_LINE, tables.OIDN_LINE
+WARM_UP_PERCENTAGE = 25
+"""Warm-up renders run at this share of the resolution: what they pay once (GL context,
+shaders, Cycles kernels, the denoiser's kernels) does not depend on it."""
 
 
-def cycles_settings(samples: int, bounces: int, seed: int) -> dict[str, object]:
-    """Cycles set up like VPL GI: CPU, diffuse bounces only, no denoiser, adaptive sampling,
-    clamping or light-sampling cut-off, a one-pixel box filter."""
-    return {
+def cycles_settings(samples: int, bounces: int, seed: int, denoise: bool = False
+                    ) -> dict[str, object]:
+    """Cycles set up like VPL GI: CPU, diffuse bounces only, no adaptive sampling, clamping or
+    light-sampling cut-off, a one-pixel box filter; no denoiser, or with ``denoise``
+    OpenImageDenoise with albedo and normal guides (Blender's defaults, as users render)."""
+    settings: dict[str, object] = {
         "device": "CPU", "samples": samples, "seed": seed,
         "max_bounces": bounces, "diffuse_bounces": bounces, "glossy_bounces": 0,
         "transmission_bounces": 0, "volume_bounces": 0, "transparent_max_bounces": 0,
@@ -112,11 +150,33 @@ def cycles_settings(samples: int, bounces: int, seed: int) -> dict[str, object]:
         "sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0,
         "light_sampling_threshold": 0.0, "pixel_filter_type": "BOX", "filter_width": 1.0,
     }
+    if denoise:
+        settings.update(use_denoising=True, denoiser="OPENIMAGEDENOISE",
+                        denoising_input_passes="RGB_ALBEDO_NORMAL",
+                        denoising_prefilter="ACCURATE", denoising_quality="HIGH")
+    return settings
 
 
-def open_scene(path: Path, size: int) -> bpy.types.Scene:
-    """Open ``path`` (a .blend, or an .obj asset made into a scene by obj_scene.py) at size ×
-    size pixels, set up to render the Combined pass to a 32-bit EXR."""
+OPTIONAL_CYCLES_SETTINGS = frozenset({"denoising_quality"})
+"""Cycles settings that older Blender versions lack (left at their default there)."""
+
+
+@dataclass(frozen=True)
+class Options:
+    """How to run one report: the image size, the ladder, VPL GI settings every VPL GI render
+    gets (``--set``), and the references."""
+
+    ladder: Ladder
+    resolution: tuple[int, int] = (640, 360)
+    overrides: dict[str, Value] = field(default_factory=dict)
+    reference_samples: int = 256
+    cache_dir: Path = DEFAULT_CACHE
+    references_only: bool = False
+
+
+def open_scene(path: Path, resolution: tuple[int, int]) -> bpy.types.Scene:
+    """Open ``path`` (a .blend, or an .obj asset made into a scene by obj_scene.py) at
+    ``resolution`` (width, height), set up to render the Combined pass to a 32-bit EXR."""
     try:
         if path.suffix.lower() == ".obj":
             scene_from_obj(path)
@@ -128,7 +188,7 @@ def open_scene(path: Path, size: int) -> bpy.types.Scene:
     if scene.camera is None:
         raise ReportError(f"scene '{scene.name}' in {path} has no active camera")
     render = scene.render
-    render.resolution_x = render.resolution_y = size
+    render.resolution_x, render.resolution_y = resolution
     render.resolution_percentage = 100
     render.use_compositing = render.use_sequencer = False
     render.threads_mode = "AUTO"
@@ -176,38 +236,48 @@ def render_cycles(scene: bpy.types.Scene, settings: dict[str, object], exr: Path
                   ) -> tuple[np.ndarray, float]:
     scene.render.engine = "CYCLES"
     for name, value in settings.items():
-        setattr(scene.cycles, name, value)
+        if name not in OPTIONAL_CYCLES_SETTINGS or hasattr(scene.cycles, name):
+            setattr(scene.cycles, name, value)
+    if settings.get("use_denoising"):  # the view layer's switch too (on by default)
+        for view_layer in scene.view_layers:
+            view_layer.cycles.use_denoising = True
     return render_timed(scene, exr)
 
 
-def render_vpl(scene: bpy.types.Scene, mode: VPLMode, vpl_count: int, exr: Path
+def vpl_values(base: dict[str, Value], overrides: dict[str, Value], line: VPLLine | None = None,
+               value: Value | None = None) -> dict[str, Value]:
+    """The settings of one VPL GI render: the scene's (``base``), the automatic mode off, the
+    report's ``--set`` settings, the line's fixed settings, then its parameter's value."""
+    values = {**base, "auto_parameters": "off", **overrides}
+    if line is not None:
+        values.update(line.fixed)
+        values[line.parameter] = value
+    return values
+
+
+def render_vpl(scene: bpy.types.Scene, values: dict[str, Value], exr: Path
                ) -> tuple[np.ndarray, float]:
     scene.render.engine = ENGINE_ID
-    for name, value in {**asdict(mode), "vpl_count": vpl_count, "auto_parameters": "off"
-                        }.items():
-        setattr(scene.vpl_gi, name, value)
+    scene.vpl_gi.assign(values)
     return render_timed(scene, exr)
 
 
-def render_auto(scene: bpy.types.Scene, budget: float, exr: Path) -> tuple[np.ndarray, float]:
+def render_auto(scene: bpy.types.Scene, values: dict[str, Value], budget: float, exr: Path
+                ) -> tuple[np.ndarray, float]:
     """VPL GI in the automatic mode 'time' with ``budget`` seconds per frame."""
-    scene.render.engine = ENGINE_ID
-    scene.vpl_gi.auto_parameters, scene.vpl_gi.time_budget = "time", budget
-    try:
-        return render_timed(scene, exr)
-    finally:
-        scene.vpl_gi.auto_parameters = "off"
+    return render_vpl(scene, {**values, "auto_parameters": "time", "time_budget": budget}, exr)
 
 
 def file_digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def reference_key(blend_digest: str, size: int, settings: dict[str, object]) -> str:
-    """Cache key: the .blend's bytes, resolution, Cycles settings (samples, bounces, seed, ...)
-    and Blender's version."""
-    text = json.dumps({"blend": blend_digest, "size": size, "cycles": settings,
-                       "blender": bpy.app.version_string}, sort_keys=True)
+def reference_key(blend_digest: str, resolution: tuple[int, int], settings: dict[str, object],
+                  blender_version: str) -> str:
+    """Cache key: the scene file's bytes, resolution, Cycles settings (samples, seed, bounces,
+    ...) and Blender's version."""
+    text = json.dumps({"blend": blend_digest, "resolution": list(resolution), "cycles": settings,
+                       "blender": blender_version}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
@@ -234,7 +304,9 @@ def reference(scene: bpy.types.Scene, settings: dict[str, object], key: str, cac
         raise ReportError(f"the Cycles reference failed: {exc}") from None
     cache_dir.mkdir(parents=True, exist_ok=True)
     write_atomically(image_path, lambda file: np.save(file, image))
-    meta = json.dumps({"seconds": seconds, "settings": settings}).encode()
+    meta = json.dumps({"seconds": seconds, "settings": settings,
+                       "resolution": [scene.render.resolution_x, scene.render.resolution_y],
+                       "blender": bpy.app.version_string}).encode()
     write_atomically(meta_path, lambda file: file.write(meta))
     return image, seconds, False
 
@@ -242,9 +314,13 @@ def reference(scene: bpy.types.Scene, settings: dict[str, object], key: str, cac
 def error_metrics(image: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> dict[str, float]:
     """Every metric of ``image`` against r = (r1 + r2) / 2 (see METRICS)."""
     r = (r1 + r2) / 2
+    mean = float(r.mean())
     unbiased = metrics.unbiased_squared_error(image, r1, r2)
+    spread = metrics.unbiased_squared_error_spread(image, r1, r2)
     return {
-        "relative_rmse_unbiased": math.sqrt(max(0.0, unbiased)) / float(r.mean()),
+        "relative_rmse_unbiased": math.sqrt(max(0.0, unbiased)) / mean,
+        "relative_rmse_unbiased_range": [math.sqrt(max(0.0, unbiased - spread)) / mean,
+                                         math.sqrt(max(0.0, unbiased + spread)) / mean],
         "relative_rmse": metrics.relative_rmse(image, r),
         "rmse": metrics.rmse(image, r),
         "relative_mse": metrics.relative_mse(image, r),
@@ -253,56 +329,74 @@ def error_metrics(image: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> dict[str
     }
 
 
-def warm_up(scene: bpy.types.Scene, ladder: Ladder, bounces: int, exr: Path) -> None:
-    """One untimed render per engine and VPL GI mode, so one-off start-up costs are not timed;
-    a failure here shows again (and is recorded) in the timed render."""
+@dataclass
+class Job:
+    """One ladder render: its report entry (without results) and how to render it."""
+
+    entry: dict[str, object]
+    render: Callable[[Path], tuple[np.ndarray, float]]
+    warm_up: bool = False  # also rendered once, untimed and smaller, before any timed render
+
+
+def ladder_jobs(scene: bpy.types.Scene, options: Options, bounces: int) -> list[Job]:
+    """Every render of the ladder, in order: raw Cycles, Cycles + OIDN, the VPL GI lines, the
+    automatic mode. The first of each line is also its warm-up."""
+    ladder, base = options.ladder, scene.vpl_gi.values()
+    jobs = []
+    for denoise, samples_list in ((False, ladder.cycles_samples), (True, ladder.oidn_samples)):
+        for i, samples in enumerate(samples_list):
+            settings = cycles_settings(samples, bounces, LADDER_SEED + i, denoise)
+            entry = {"engine": "CYCLES", "kind": "cycles_oidn" if denoise else "cycles",
+                     "line": OIDN_LINE if denoise else CYCLES_LINE, "parameter": "samples",
+                     "value": samples, "settings": settings}
+            jobs.append(Job(entry, partial(render_cycles, scene, settings), i == 0))
+    for line in ladder.vpl_lines:
+        for i, value in enumerate(line.values):
+            values = vpl_values(base, options.overrides, line, value)
+            entry = {"engine": ENGINE_ID, "kind": "vpl", "line": line.label,
+                     "parameter": line.parameter, "value": value}
+            jobs.append(Job(entry, partial(render_vpl, scene, values), i == 0))
+    for i, budget in enumerate(ladder.auto_budgets):
+        values = vpl_values(base, options.overrides)
+        entry = {"engine": ENGINE_ID, "kind": "auto", "line": AUTO_LINE, "parameter": "s budget",
+                 "value": budget}
+        # the warm-up measures the cost model on the first run on a machine
+        jobs.append(Job(entry, partial(render_auto, scene, values, budget), i == 0))
+    return jobs
+
+
+def warm_up(scene: bpy.types.Scene, jobs: list[Job], exr: Path) -> None:
+    """One untimed render per line at WARM_UP_PERCENTAGE of the size, so that one-off start-up
+    costs are not timed; a failure here shows again (and is recorded) in the timed render."""
     print("warming up (untimed)", flush=True)
-    render_cycles(scene, cycles_settings(1, bounces, LADDER_SEED), exr)
-    for mode in ladder.vpl_modes:
-        with suppress(RenderFailed):
-            render_vpl(scene, mode, min(ladder.vpl_counts), exr)
-    if ladder.auto_budgets:  # measures the cost model on the first run on a machine
-        with suppress(RenderFailed):
-            render_auto(scene, min(ladder.auto_budgets), exr)
-
-
-Render = Callable[[], tuple[np.ndarray, float]]
-
-
-def measure(render: Render, r1: np.ndarray, r2: np.ndarray) -> dict[str, object]:
-    """Run ``render()`` -> (image, seconds) and return its seconds and metrics, or its error."""
+    scene.render.resolution_percentage = WARM_UP_PERCENTAGE
     try:
-        image, seconds = render()
+        for job in jobs:
+            if job.warm_up:
+                with suppress(RenderFailed):
+                    job.render(exr)
+                stop_if_cancelled()
+    finally:
+        scene.render.resolution_percentage = 100
+
+
+def measure(job: Job, r1: np.ndarray, r2: np.ndarray, exr: Path) -> dict[str, object]:
+    """Run the job's render and return its seconds and metrics, or its error."""
+    try:
+        image, seconds = job.render(exr)
     except RenderFailed as exc:
         return {"error": str(exc)}
     return {"seconds": seconds, "metrics": error_metrics(image, r1, r2)}
 
 
 def progress_line(index: int, total: int, entry: dict[str, object]) -> str:
-    head = f"[{index:>2}/{total}] {entry['line']}, {entry['value']} {entry['parameter']}"
+    head = f"[{index:>2}/{total}] {entry['line']}, {entry['parameter']} {entry['value']}"
     if "error" in entry:
         return f"{head}: failed: {entry['error']}"
-    error = entry["metrics"]["relative_rmse_unbiased"]
-    return f"{head}: {entry['seconds']:.2f} s, relative RMSE {error * 100:.2f} %"
-
-
-def ladder_renders(scene: bpy.types.Scene, ladder: Ladder, bounces: int, exr: Path
-                   ) -> Iterator[tuple[dict[str, object], Render]]:
-    """(entry without results, render()) for every render of the ladder, in order."""
-    for i, samples in enumerate(ladder.cycles_samples):
-        settings = cycles_settings(samples, bounces, LADDER_SEED + i)
-        entry = {"engine": "CYCLES", "line": "Cycles", "parameter": "samples", "value": samples,
-                 "settings": settings}
-        yield entry, partial(render_cycles, scene, settings, exr)
-    for mode in ladder.vpl_modes:
-        for count in ladder.vpl_counts:
-            entry = {"engine": ENGINE_ID, "line": mode.label, "parameter": "light paths",
-                     "value": count}
-            yield entry, partial(render_vpl, scene, mode, count, exr)
-    for budget in ladder.auto_budgets:
-        entry = {"engine": ENGINE_ID, "line": AUTO_LINE, "parameter": "s budget",
-                 "value": budget}
-        yield entry, partial(render_auto, scene, budget, exr)
+    m = entry["metrics"]
+    return (f"{head}: {entry['seconds']:.2f} s, relative RMSE "
+            f"{m['relative_rmse_unbiased'] * 100:.2f} %, energy "
+            f"{m['mean_relative_energy'] * 100:+.2f} %")
 
 
 def cpu_model() -> str:
@@ -323,79 +417,98 @@ def gl_renderer() -> str:
 
 
 def machine_info(scene: bpy.types.Scene) -> dict[str, object]:
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
     return {"cpu": cpu_model(), "cpu_count": os.cpu_count(), "render_threads": scene.render.threads,
             "platform": platform.platform(), "gl_renderer": gl_renderer(),
-            "blender": bpy.app.version_string}
+            "blender": bpy.app.version_string,
+            "load_average_at_end": list(load) if load else None}
 
 
-def render_references(scene: bpy.types.Scene, blend_digest: str, samples: int, bounces: int,
-                      cache_dir: Path, exr: Path) -> list[tuple[np.ndarray, float, bool]]:
+def render_references(scene: bpy.types.Scene, blend_digest: str, options: Options, bounces: int,
+                      exr: Path) -> list[tuple[np.ndarray, float, bool]]:
     """The references r1, r2: (image, seconds, cached) per seed of REFERENCE_SEEDS."""
     references = []
     for seed in REFERENCE_SEEDS:
-        settings = cycles_settings(samples, bounces, seed)
-        key = reference_key(blend_digest, scene.render.resolution_x, settings)
-        references.append(reference(scene, settings, key, cache_dir, exr))
+        settings = cycles_settings(options.reference_samples, bounces, seed)
+        key = reference_key(blend_digest, options.resolution, settings, bpy.app.version_string)
+        references.append(reference(scene, settings, key, options.cache_dir, exr))
         stop_if_cancelled()
     return references
 
 
-def render_ladder(scene: bpy.types.Scene, ladder: Ladder, bounces: int, r1: np.ndarray,
-                  r2: np.ndarray, exr: Path) -> list[dict[str, object]]:
+def render_ladder(scene: bpy.types.Scene, jobs: list[Job], r1: np.ndarray, r2: np.ndarray,
+                  exr: Path) -> list[dict[str, object]]:
     """One entry per ladder render: engine, settings, seconds and metrics (or error)."""
     entries = []
-    total = (len(ladder.cycles_samples) + len(ladder.vpl_counts) * len(ladder.vpl_modes)
-             + len(ladder.auto_budgets))
-    for index, (entry, render) in enumerate(ladder_renders(scene, ladder, bounces, exr), 1):
-        entry.update(measure(render, r1, r2))
+    for index, job in enumerate(jobs, 1):
+        entry = {**job.entry, **measure(job, r1, r2, exr)}
         stop_if_cancelled()
         stats = monitor.last_stats if entry["engine"] == ENGINE_ID else None
         if stats is not None:
             entry["stages"] = {"ran": stats.timings, "skipped": stats.skipped}
-        if entry["line"] == AUTO_LINE and stats is not None:
+        if entry["kind"] == "auto" and stats is not None:
             entry["chosen"] = [n for n in stats.notes if n.startswith("automatic parameters")]
         elif entry["engine"] == ENGINE_ID:
             entry["settings"] = asdict(scene.vpl_gi.to_settings())
         entries.append(entry)
-        print(progress_line(index, total, entry), flush=True)
+        print(progress_line(index, len(jobs), entry), flush=True)
     return entries
 
 
-def reference_summary(references: list[tuple[np.ndarray, float, bool]], samples: int,
-                      cache_dir: Path) -> dict[str, object]:
+def reference_summary(references: list[tuple[np.ndarray, float, bool]], options: Options
+                      ) -> dict[str, object]:
     (r1, *_), (r2, *_) = references
     mean = float(((r1 + r2) / 2).mean())
     return {
-        "engine": "CYCLES", "samples": samples, "seeds": list(REFERENCE_SEEDS),
+        "engine": "CYCLES", "denoised": False, "samples": options.reference_samples,
+        "seeds": list(REFERENCE_SEEDS),
         "seconds": [seconds for _, seconds, _ in references],
-        "cached": [cached for *_, cached in references], "cache_dir": str(cache_dir),
+        "cached": [cached for *_, cached in references], "cache_dir": str(options.cache_dir),
         "mean": mean,
         "relative_noise": metrics.reference_noise(r1, r2) / math.sqrt(2) / mean,
         "relative_noise_meaning": "RMS noise of (r1 + r2) / 2 relative to its mean",
+        "why": REFERENCE_WHY,
     }
 
 
-def run(scene_path: Path, out_dir: Path, ladder: Ladder, size: int = 128,
-        reference_samples: int = 4096, cache_dir: Path = DEFAULT_CACHE) -> dict[str, object]:
+REFERENCE_WHY = (
+    "raw Cycles without a denoiser: a denoiser's bias would become part of the yardstick. Two "
+    "independent seeds: mean((x - r1)(x - r2)) estimates the squared error against the "
+    "converged image with the references' own noise removed in expectation, so they need not "
+    "be noise-free, only enough that the estimate's spread from their noise (the "
+    "relative_rmse_unbiased_range of each render) is small against the errors compared")
+
+
+def run(scene_path: Path, out_dir: Path, options: Options) -> dict[str, object]:
     """Render the report of ``scene_path``, write ``out_dir``/report.json and
-    error_vs_time.png, and return the report. Raises ReportError or ReportCancelled."""
-    scene = open_scene(scene_path, size)
+    error_vs_time.png, and return the report (with ``references_only``: render or load the
+    references, write nothing else). Raises ReportError or ReportCancelled."""
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
+    scene = open_scene(scene_path, options.resolution)
+    scene.vpl_gi.assign(options.overrides)
     bounces = scene.vpl_gi.bounces
     blend_digest = file_digest(scene_path)
+    jobs = ladder_jobs(scene, options, bounces)
     with tempfile.TemporaryDirectory(prefix="vpl_gi_report_") as tmp:
         exr = Path(tmp) / "render.exr"
-        warm_up(scene, ladder, bounces, exr)
-        references = render_references(scene, blend_digest, reference_samples, bounces,
-                                       cache_dir, exr)
+        references = render_references(scene, blend_digest, options, bounces, exr)
+        report = {
+            "scene": str(scene_path), "scene_sha256": blend_digest,
+            "size": list(options.resolution), "bounces": bounces,
+            "reference": reference_summary(references, options),
+        }
+        if options.references_only:
+            return report
         (r1, *_), (r2, *_) = references
-        entries = render_ladder(scene, ladder, bounces, r1, r2, exr)
-    report = {
-        "scene": str(scene_path), "scene_sha256": blend_digest, "size": [size, size],
-        "bounces": bounces, "ladder": asdict(ladder), "machine": machine_info(scene),
+        warm_up(scene, jobs, exr)
+        entries = render_ladder(scene, jobs, r1, r2, exr)
+    report.update({
+        "ladder": asdict(options.ladder), "overrides": options.overrides,
+        "machine": {**machine_info(scene), "load_average_at_start": load and list(load)},
         "timing": TIMING, "metrics": METRICS,
-        "reference": reference_summary(references, reference_samples, cache_dir),
-        "renders": entries, "automatic": pareto_gaps(entries),
-    }
+        "renders": entries, "equal_error": tables.equal_error(entries),
+        "automatic": pareto_gaps(entries),
+    })
     write_outputs(report, out_dir)
     return report
 
@@ -404,10 +517,9 @@ def pareto_gaps(renders: list[dict]) -> list[dict[str, float]]:
     """Each automatic render against the measured front of VPL GI's ladder lines: the least
     error any ladder render reached in no more time, and the least time any ladder render
     needed for no more error (None where no ladder render qualifies)."""
-    ladder = [e for e in renders if "metrics" in e and e["engine"] == ENGINE_ID
-              and e["line"] != AUTO_LINE]
+    ladder = [e for e in renders if "metrics" in e and e["kind"] == "vpl"]
     gaps = []
-    for auto in (e for e in renders if "metrics" in e and e["line"] == AUTO_LINE):
+    for auto in (e for e in renders if "metrics" in e and e["kind"] == "auto"):
         error = auto["metrics"]["relative_rmse_unbiased"]
         faster = [e["metrics"]["relative_rmse_unbiased"] for e in ladder
                   if e["seconds"] <= auto["seconds"]]
@@ -422,72 +534,6 @@ def pareto_gaps(renders: list[dict]) -> list[dict[str, float]]:
 def write_outputs(report: dict[str, object], out_dir: Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "report.json").write_text(json.dumps(report, indent=2) + "\n")
-    plot(report, out_dir / "error_vs_time.png")
-
-
-def lines(renders: list[dict]) -> dict[str, list[dict]]:
-    """Successful renders grouped by plot line, in ladder order."""
-    grouped: dict[str, list[dict]] = {}
-    for entry in renders:
-        if "metrics" in entry:
-            grouped.setdefault(entry["line"], []).append(entry)
-    return grouped
-
-
-def plot(report: dict, path: Path) -> None:
-    """Noise-free relative RMSE against seconds, log-log, one line per engine/mode."""
-    figure = Figure(figsize=(8, 6), dpi=110, layout="constrained")
-    axes = figure.add_subplot()
-    for line, entries in lines(report["renders"]).items():
-        points = [(e["seconds"], e["metrics"]["relative_rmse_unbiased"], e["value"])
-                  for e in entries if e["metrics"]["relative_rmse_unbiased"] > 0]
-        if not points:
-            continue
-        x, y, _ = zip(*points, strict=True)
-        axes.plot(x, y, marker="o", label=line)
-        for xi, yi, label in points:
-            axes.annotate(str(label), (xi, yi), textcoords="offset points", xytext=(4, 4),
-                          fontsize=8)
-    noise = report["reference"]["relative_noise"]
-    if noise > 0:
-        axes.axhline(noise, color="grey", linestyle=":", label="reference's own noise")
-    axes.set_xscale("log")
-    axes.set_yscale("log")
-    axes.set_xlabel("render time (s, wall clock, export included)")
-    axes.set_ylabel("relative RMSE (noise-free estimate)")
-    width, height = report["size"]
-    axes.set_title(f"{Path(report['scene']).name}, {width}×{height}, {report['bounces']} "
-                   f"bounces; labels: Cycles samples, VPL GI light paths", fontsize=10)
-    axes.grid(True, which="both", alpha=0.3)
-    axes.legend(fontsize=8)
-    figure.savefig(path)
-
-
-def format_table(report: dict) -> str:
-    """The report as a text table: one row per render, then the reference."""
-    rows = [f"{'engine / mode':<26} {'setting':>17} {'time (s)':>9} {'relRMSE*':>9} "
-            f"{'relRMSE':>8} {'relMSE':>9} {'energy':>8}"]
-    for e in report["renders"]:
-        head = f"{e['line']:<26} {e['value']:>6} {e['parameter']:<10}"
-        if "error" in e:
-            rows.append(f"{head} failed: {e['error']}")
-            continue
-        m = e["metrics"]
-        rows.append(f"{head} {e['seconds']:>9.2f} {m['relative_rmse_unbiased'] * 100:>8.2f}% "
-                    f"{m['relative_rmse'] * 100:>7.2f}% {m['relative_mse']:>9.2e} "
-                    f"{m['mean_relative_energy'] * 100:>+7.2f}%")
-    for gap in report.get("automatic", []):
-        front = gap["front_error_in_time"]
-        quickest = gap["front_time_for_error"]
-        rows.append(f"automatic, {gap['budget']:g} s budget: {gap['seconds']:.2f} s, "
-                    f"{gap['error'] * 100:.2f} %; the ladder's best in that time: "
-                    + (f"{front * 100:.2f} %" if front is not None else "none that fast")
-                    + "; its quickest to that error: "
-                    + (f"{quickest:.2f} s" if quickest is not None else "none that good"))
-    ref = report["reference"]
-    seconds = " + ".join(f"{s:.1f}" for s in ref["seconds"])
-    rows.append(f"* noise-free estimate. Reference: Cycles {ref['samples']} samples × 2 (seeds "
-                f"{', '.join(map(str, ref['seeds']))}), {seconds} s"
-                f"{' (cached)' if all(ref['cached']) else ''}, own noise "
-                f"{ref['relative_noise'] * 100:.3f} % of its mean")
-    return "\n".join(rows)
+    (out_dir / "table.txt").write_text(tables.format_table(report) + "\n")
+    (out_dir / "table.md").write_text(tables.markdown_table(report) + "\n")
+    tables.plot(report, out_dir / "error_vs_time.png")
