@@ -60,8 +60,8 @@ test: lint suite
 ## The suite of BLENDER alone, timed.
 suite: $(STAMP)
 	@echo "== Blender $(BLENDER): $$($(PY) -c 'import importlib.metadata as m, sys; \
-		print("bpy", m.version("bpy"), "on Python", sys.version.split()[0])'), \
-		tests: $(or $(TESTS_$(BLENDER)),all)"
+		print("bpy", m.version("bpy"), "on Python", sys.version.split()[0])')," \
+		"tests: $(or $(TESTS_$(BLENDER)),all)"
 	@start=$$(date +%s); status=0; \
 	timeout $(SUITE_TIMEOUT) $(PY) -m pytest $(TESTS_$(BLENDER)) || status=$$?; \
 	seconds=$$(( $$(date +%s) - start )); \

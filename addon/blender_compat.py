@@ -50,6 +50,13 @@ def uses_nodes(datablock: bpy.types.Material | bpy.types.World) -> bool:
     return True if BLENDER_5 else bool(datablock.use_nodes)
 
 
+def ensure_nodes(datablock: bpy.types.Material | bpy.types.World) -> None:
+    """Give a material or world its node tree: ``use_nodes = True`` on 4.x; nothing on 5.x,
+    where every one has a tree and setting ``use_nodes`` only warns."""
+    if not BLENDER_5:
+        datablock.use_nodes = True
+
+
 def cycles_output_node(tree: bpy.types.ShaderNodeTree | None):
     """The output node Cycles renders from (``get_output_node('CYCLES')``, as Cycles itself
     asks): an output for Cycles only wins over one for all engines, an active one over an

@@ -10,7 +10,7 @@ from pathlib import Path
 import bpy
 from mathutils import Vector
 
-from addon.blender_compat import uses_nodes
+from addon.blender_compat import ensure_nodes, uses_nodes
 
 SUN_STRENGTH = 10.0
 SKY = (0.03, 0.035, 0.045)
@@ -73,7 +73,7 @@ def _add_sun_and_sky(scene: bpy.types.Scene) -> None:
     sun.rotation_euler = (math.radians(30), 0.0, math.radians(35))  # 60° high
     scene.collection.objects.link(sun)
     world = bpy.data.worlds.new("Sky")
-    world.use_nodes = True
+    ensure_nodes(world)
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (*SKY, 1.0)
     scene.world = world
 

@@ -14,7 +14,7 @@ from addon.core.frame.renderer import Renderer
 from addon.core.settings import Settings
 from addon.export import ExportCache, _triangles, export_scene
 from tests.blender.rendering import configure_cycles, render_linear
-from tests.blender.versions import BLENDER_5, nodeless_material
+from tests.blender.versions import BLENDER_5, ensure_nodes, nodeless_material
 
 SIZE = 24
 
@@ -74,7 +74,7 @@ def add_light(bpy, kind: str, energy: float, location=(0, 0, 1), **props):
 
 def diffuse_material(bpy, name: str, color) -> object:
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
+    ensure_nodes(material)
     tree = material.node_tree
     tree.nodes.clear()
     out = tree.nodes.new("ShaderNodeOutputMaterial")
@@ -349,7 +349,7 @@ def test_light_cast_shadow_switch_reaches_the_renderer(blender, engine_export, t
 def shader_material(bpy, name: str, build) -> object:
     """A material whose Surface is the node returned by build(nodes, links)."""
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
+    ensure_nodes(material)
     tree = material.node_tree
     tree.nodes.clear()
     out = tree.nodes.new("ShaderNodeOutputMaterial")
@@ -430,7 +430,7 @@ def test_material_is_read_from_the_output_cycles_renders(blender):
     bpy = blender
     new_scene(bpy)
     material = bpy.data.materials.new("Targets")
-    material.use_nodes = True
+    ensure_nodes(material)
     nodes, links = material.node_tree.nodes, material.node_tree.links
     nodes.clear()
     for target, color in (("EEVEE", (0.1, 0.9, 0.1, 1)), ("ALL", (0.9, 0.1, 0.1, 1)),

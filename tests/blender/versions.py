@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import bpy
 
-from addon.blender_compat import BLENDER_5, VERSION
+from addon.blender_compat import BLENDER_5, VERSION, ensure_nodes
 
-__all__ = ["BLENDER_5", "VERSION", "compositor_output", "nodeless_material"]
+__all__ = ["BLENDER_5", "VERSION", "compositor_output", "ensure_nodes", "nodeless_material"]
 
 
 def compositor_output(scene: bpy.types.Scene):
