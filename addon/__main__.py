@@ -1,12 +1,10 @@
 """``python -m addon ...``: the command-line entry (see cli.py). Ctrl-C is taken over before
 anything slow is imported (interrupts.py)."""
 
-import sys
-
 from .interrupts import interrupts
 
 interrupts.start()
 
-from .cli import main  # noqa: E402  (after the interrupts: it imports numpy)
+from .cli import exit_process, main  # noqa: E402  (after the interrupts: it imports numpy)
 
-sys.exit(main())
+exit_process(main())

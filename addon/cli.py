@@ -120,23 +120,32 @@ def check_image_size(render) -> None:
 
 
 class ProgressBar:
-    """A one-line progress bar on stderr for frames and the stages within a frame."""
+    """A one-line progress bar on stderr for frames and the stages within a frame; in a log
+    (not a terminal) one line per stage, as Blender 5.x no longer prints its own stats lines
+    in the background."""
 
     def __init__(self, frames: int, stream=sys.stderr) -> None:
         self.frames, self.frame_index, self.stream = frames, 0, stream
         self.interactive = stream.isatty()
+        self.last_message: str | None = None
 
     def update(self, fraction: float, message: str) -> None:
         total = (self.frame_index + max(0.0, min(1.0, fraction))) / self.frames
         filled = int(total * 30)
         line = (f"\r[{'#' * filled}{'.' * (30 - filled)}] {total * 100:5.1f}% "
                 f"frame {self.frame_index + 1}/{self.frames} {message[:40]:<40}")
-        if self.interactive or fraction >= 1.0:
-            self.stream.write(line + ("" if self.interactive else "\n"))
-            self.stream.flush()
+        if self.interactive:
+            self.stream.write(line)
+        elif message != self.last_message or fraction >= 1.0:
+            self.stream.write(line.lstrip("\r").rstrip() + "\n")
+        else:
+            return
+        self.last_message = message
+        self.stream.flush()
 
     def finish_frame(self) -> None:
         self.frame_index += 1
+        self.last_message = None
         if self.interactive:
             self.stream.write("\n")
 
@@ -277,3 +286,15 @@ def run_command(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     return run_command(build_parser(), argv)
+
+
+def exit_process(code: int) -> None:
+    """End a command-line process with ``code``. Once bpy is imported, without Python's
+    teardown: bpy 4.2 then crashes (SIGSEGV, exit 139: its static destructors free registered
+    classes after Python has finalized) and bpy 4.5 can hang (tests/conftest.py); every
+    image is saved and every line printed by now."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    if "bpy" in sys.modules:
+        os._exit(code)
+    sys.exit(code)

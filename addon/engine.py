@@ -10,6 +10,7 @@ import bpy
 import numpy as np
 
 from . import ENGINE_ID
+from .blender_compat import pass_name
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats
@@ -21,8 +22,9 @@ from .viewport import ViewportState
 DENOISING_DATA = "cycles.denoising_store_passes"
 """Cycles' "Denoising Data" checkbox (View Layer > Passes > Data), which VPL GI honours too."""
 
-# Pass name -> (channels, channel ids, type, view-layer toggle that enables it; a dotted path
+# Pass name (VPL GI's, Blender 4.x's) -> (channels, channel ids, type, view-layer toggle that enables it; a dotted path
 # for a toggle in a property group, such as Cycles' view-layer settings).
+# Registered and written under the running Blender's names (blender_compat).
 OPTIONAL_PASSES = {
     "Depth": (1, "Z", "VALUE", "use_pass_z"),
     "Normal": (3, "XYZ", "VECTOR", "use_pass_normal"),
@@ -163,19 +165,20 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
     def _write_result(self, frame: Frame) -> None:
         result = self.begin_result(0, 0, frame.width, frame.height)
         layer = result.layers[0]
+        ours = {pass_name(name): data for name, data in frame.passes.items()}
         for render_pass in layer.passes:
-            data = frame.passes.get(render_pass.name)
+            data = ours.get(render_pass.name)
             if data is not None and data.shape[2] == render_pass.channels:
                 render_pass.rect.foreach_set(np.ascontiguousarray(data, np.float32).ravel())
         self.end_result(result)
 
     def update_render_passes(self, scene: bpy.types.Scene | None = None,
                              renderlayer: bpy.types.ViewLayer | None = None) -> None:
-        """Declare the passes this engine fills, under Blender's own names."""
+        """Declare the passes this engine fills, under the running Blender's own names."""
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
         for name, (channels, ids, kind, toggle) in OPTIONAL_PASSES.items():
             if toggled(renderlayer, toggle):
-                self.register_pass(scene, renderlayer, name, channels, ids, kind)
+                self.register_pass(scene, renderlayer, pass_name(name), channels, ids, kind)
 
 
 def register() -> None:

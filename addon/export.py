@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, cycles_output_node, uses_nodes
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
@@ -315,15 +316,12 @@ def _fingerprint(obj: bpy.types.Object) -> tuple[int, ...]:
 # -- materials ------------------------------------------------------------------------------
 
 def _surface_node(tree: bpy.types.NodeTree | None, output_type: str):
-    """The shader node linked to the active output's Surface socket, or None."""
-    if tree is None:
+    """The shader node linked to the Surface socket of the output Cycles renders from (an
+    output for EEVEE only is skipped, as Cycles skips it), or None."""
+    output = cycles_output_node(tree)
+    if output is None or output.type != output_type or not output.inputs["Surface"].is_linked:
         return None
-    outputs = [n for n in tree.nodes if n.type == output_type]
-    active = next((n for n in outputs if getattr(n, "is_active_output", False)),
-                  outputs[0] if outputs else None)
-    if active is None or not active.inputs["Surface"].is_linked:
-        return None
-    return active.inputs["Surface"].links[0].from_node
+    return output.inputs["Surface"].links[0].from_node
 
 
 def _input_value(node, name: str, default):
@@ -404,20 +402,29 @@ def _shader(node, name: str, glossy: set[str], images: ImageReader) -> Material:
     raise _Unsupported(f"shader '{node.bl_label}' is not supported")
 
 
+def _default_surface(glossy: set[str] | None) -> Material:
+    """An empty slot or an object without slots: Cycles 4.x renders it diffuse 0.8 grey,
+    Cycles 5.x as a default Principled BSDF (whose glossy part VPL GI does not render)."""
+    if DEFAULT_SURFACE_IS_PRINCIPLED and glossy is not None:
+        glossy.add(DEFAULT_MATERIAL.name)
+    return DEFAULT_MATERIAL
+
+
 def export_material(material: bpy.types.Material | None, warnings: list[str],
                     glossy: set[str] | None = None, images: ImageReader | None = None
                     ) -> Material:
     """Base colour, emission, roughness and metallic of a material's surface (constant values
     or image textures, read by ``images``).
 
-    A material without nodes is diffuse in its viewport colour (as in Cycles), with a warning;
+    A material without nodes (Blender 4.x) is diffuse in its viewport colour (as in Cycles),
+    with a warning;
     an unsupported node tree falls back to the viewport colour with one warning. Names of
     materials with a glossy part are added to ``glossy``."""
     if material is None:
-        return DEFAULT_MATERIAL
+        return _default_surface(glossy)
     viewport = Material(material.name, _rgb(material.diffuse_color),
                         roughness=float(material.roughness), metallic=float(material.metallic))
-    if not material.use_nodes or material.node_tree is None:
+    if not uses_nodes(material):
         warnings.append(f"material '{material.name}' has no shader nodes: rendered as a "
                         f"diffuse surface in its viewport colour (as Cycles does)")
         return viewport
@@ -518,7 +525,7 @@ def export_world(world: bpy.types.World | None, warnings: list[str]) -> World:
     """The world's Background colour × strength, or its Environment Texture."""
     if world is None:
         return World()
-    node = _surface_node(world.node_tree, "OUTPUT_WORLD") if world.use_nodes else None
+    node = _surface_node(world.node_tree, "OUTPUT_WORLD") if uses_nodes(world) else None
     if node is None or node.type != "BACKGROUND":
         return World(_rgb(world.color), 1.0)
     strength = float(_input_value(node, "Strength", 1.0))
@@ -653,6 +660,8 @@ class _Export:
             obj.to_mesh_clear()
 
     def materials_of(self, obj: bpy.types.Object) -> list[Material]:
+        if not obj.material_slots:
+            _default_surface(self.glossy)
         found = []
         for slot in obj.material_slots:
             key = slot.material.name_full if slot.material else ""

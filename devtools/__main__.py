@@ -1,7 +1,7 @@
 """``python -m devtools ...``: the developer command-line entry (see cli.py)."""
 
-import sys
+from addon.cli import exit_process
 
 from .cli import main
 
-sys.exit(main())
+exit_process(main())

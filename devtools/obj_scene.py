@@ -10,6 +10,8 @@ from pathlib import Path
 import bpy
 from mathutils import Vector
 
+from addon.blender_compat import ensure_nodes, uses_nodes
+
 SUN_STRENGTH = 10.0
 SKY = (0.03, 0.035, 0.045)
 
@@ -19,15 +21,22 @@ def _diffuse_only() -> bool:
     material emits light."""
     emits = False
     for material in bpy.data.materials:
-        if not material.use_nodes:
+        if not uses_nodes(material):
             continue
         for node in material.node_tree.nodes:
             if node.type == "BSDF_PRINCIPLED":
                 node.inputs["Roughness"].default_value = 1.0
                 node.inputs["Specular IOR Level"].default_value = 0.0
                 node.inputs["Metallic"].default_value = 0.0
-                strength = node.inputs["Emission Strength"].default_value
                 color = node.inputs["Emission Color"].default_value
+                if node.inputs["Emission Strength"].default_value == 0 and max(color[:3]) > 1:
+                    # Blender 4.2's importer puts Ke (17 12 4) in the colour and leaves the
+                    # strength 0 (no emission); 4.5 and 5.x give colour Ke/17, strength 17.
+                    peak = max(color[:3])
+                    node.inputs["Emission Color"].default_value = (*(c / peak for c in
+                                                                     color[:3]), 1.0)
+                    node.inputs["Emission Strength"].default_value = peak
+                strength = node.inputs["Emission Strength"].default_value
                 emits |= strength > 0 and max(color[:3]) > 0
     return emits
 
@@ -64,7 +73,7 @@ def _add_sun_and_sky(scene: bpy.types.Scene) -> None:
     sun.rotation_euler = (math.radians(30), 0.0, math.radians(35))  # 60° high
     scene.collection.objects.link(sun)
     world = bpy.data.worlds.new("Sky")
-    world.use_nodes = True
+    ensure_nodes(world)
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (*SKY, 1.0)
     scene.world = world
 

@@ -351,7 +351,8 @@ def stage_source(
     """Copy ``source_dir`` to ``staging`` with a manifest narrowed to ``platforms``."""
 
     def ignore(_dir: str, names: list[str]) -> set[str]:
-        return {name for name in names if name in _STAGING_SKIP}
+        return {name for name in names
+                if name in _STAGING_SKIP or name.startswith(".venv")}  # .venv-5.3 ...
 
     shutil.copytree(source_dir, staging, ignore=ignore, symlinks=True)
     (staging / WHEEL_DIR_NAME).mkdir()

@@ -6,7 +6,7 @@ import hashlib
 import signal
 import subprocess
 import sys
-import time
+import threading
 from pathlib import Path
 
 import pytest
@@ -156,15 +156,25 @@ def test_ctrl_c_cancels_and_exits_130(tmp_path):
     process = subprocess.Popen(
         [sys.executable, "-m", "addon", "render", str(CORNELL), "-o", str(tmp_path / "x.png"),
          "-r", "256x256", "--set", "light_samples=1024", "--set", "antialiasing=4"],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    for line in process.stdout:  # Blender prints a stats line when our render starts
-        if "Exporting scene" in line or time.monotonic() > deadline:
-            break
+        cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    started = threading.Event()
+    lines: list[str] = []
+
+    def read_progress() -> None:  # the progress bar's first line: our render has started
+        for line in process.stderr:
+            lines.append(line)
+            if "frame 1/1" in line:
+                started.set()
+
+    reader = threading.Thread(target=read_progress, daemon=True)
+    reader.start()
+    assert started.wait(timeout=90), f"no progress line within 90 s: {lines[-5:]}"
+    assert process.poll() is None, "the render ended before Ctrl-C"
     process.send_signal(signal.SIGINT)
     try:
         process.wait(timeout=60)
     finally:
         process.kill()
-    assert process.returncode == 130
+    reader.join(timeout=5)
+    assert process.returncode == 130, "".join(lines[-10:])
     assert not (tmp_path / "x.png").exists()

@@ -14,6 +14,7 @@ from addon.core.scene.model import LightKind
 from addon.core.settings import Settings
 from addon.export import export_scene
 from tests.blender.rendering import open_scene, render_linear
+from tests.blender.versions import compositor_output
 
 PASS_TOGGLES = ("use_pass_z", "use_pass_normal", "use_pass_diffuse_direct",
                 "use_pass_diffuse_indirect", "use_pass_diffuse_color", "use_pass_emit")
@@ -32,15 +33,41 @@ def test_engine_is_listed_and_its_panels_show(blender):
 
 
 def test_passes_are_registered_under_blender_names(blender):
+    """The compositor's Render Layers node offers our passes under the names it gives Cycles'
+    (Blender 5.0 renamed DiffCol to "Diffuse Color" and so on)."""
     scene = open_scene("cornell_box", 16)
     layer = scene.view_layers[0]
     for toggle in PASS_TOGGLES:
         setattr(layer, toggle, True)
-    scene.use_nodes = True
-    node = scene.node_tree.nodes.new("CompositorNodeRLayers")
-    outputs = {socket.name for socket in node.outputs if socket.enabled}
-    expected = {"Image", "Alpha", "Depth", "Normal", "DiffDir", "DiffInd", "DiffCol", "Emit"}
-    assert expected <= outputs
+    tree, _ = compositor_output(scene)
+    outputs = {}
+    for engine in ("CYCLES", "VPL_GI"):
+        scene.render.engine = engine
+        node = tree.nodes.new("CompositorNodeRLayers")
+        outputs[engine] = {socket.name for socket in node.outputs if socket.enabled}
+    assert outputs["VPL_GI"] == outputs["CYCLES"]
+    assert len(outputs["VPL_GI"]) == 2 + len(PASS_TOGGLES)  # Image, Alpha and the six
+
+
+def test_compositor_receives_the_diffuse_colour_pass(blender, tmp_path):
+    """A render's Diffuse Color pass reaches the compositor under Blender's name: routed to the
+    compositor's output, every pixel of the saved image is a material's albedo."""
+    bpy = blender
+    scene = open_scene("light_point", 8)
+    scene.view_layers[0].use_pass_diffuse_color = True
+    scene.vpl_gi.antialiasing = 1  # one sample per pixel: no edge mixes two albedos
+    scene.render.engine = "VPL_GI"
+    tree, output = compositor_output(scene)
+    node = tree.nodes.new("CompositorNodeRLayers")
+    (name,) = {s.name for s in node.outputs if s.enabled} - {"Image", "Alpha"}
+    tree.links.new(node.outputs[name], output)
+    image = render_linear(scene, "VPL_GI", tmp_path / "albedo.exr")[..., :3].reshape(-1, 3)
+    exported = export_scene(bpy.context.evaluated_depsgraph_get())
+    albedos = np.array([(0.0, 0.0, 0.0)]  # background
+                       + [m.base_color for i in exported.instances for m in i.materials])
+    nearest = np.abs(image[:, None, :] - albedos[None]).max(axis=2).min(axis=1)
+    assert nearest.max() < 1e-4, image
+    assert len(np.unique(image.round(4), axis=0)) >= 2  # several surfaces, not one colour
 
 
 def test_sample_scene_exports_lights_camera_and_materials(blender):

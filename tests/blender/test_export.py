@@ -14,6 +14,7 @@ from addon.core.frame.renderer import Renderer
 from addon.core.settings import Settings
 from addon.export import ExportCache, _triangles, export_scene
 from tests.blender.rendering import configure_cycles, render_linear
+from tests.blender.versions import BLENDER_5, ensure_nodes, nodeless_material
 
 SIZE = 24
 
@@ -73,7 +74,7 @@ def add_light(bpy, kind: str, energy: float, location=(0, 0, 1), **props):
 
 def diffuse_material(bpy, name: str, color) -> object:
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
+    ensure_nodes(material)
     tree = material.node_tree
     tree.nodes.clear()
     out = tree.nodes.new("ShaderNodeOutputMaterial")
@@ -348,7 +349,7 @@ def test_light_cast_shadow_switch_reaches_the_renderer(blender, engine_export, t
 def shader_material(bpy, name: str, build) -> object:
     """A material whose Surface is the node returned by build(nodes, links)."""
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
+    ensure_nodes(material)
     tree = material.node_tree
     tree.nodes.clear()
     out = tree.nodes.new("ShaderNodeOutputMaterial")
@@ -395,9 +396,7 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
         return node
     checker = shader_material(bpy, "Checker", textured)
     checker.diffuse_color = (0.5, 0.6, 0.7, 1)
-    plain = bpy.data.materials.new("Plain")
-    plain.use_nodes = False
-    plain.diffuse_color = (0.9, 0.5, 0.1, 1)
+    plain, plain_warned = nodeless_material("Plain", (0.9, 0.5, 0.1, 1))
     for i, material in enumerate([mix, metal, shiny, checker, plain, None]):
         for j in range(3):  # three objects per material: warnings stay one per material
             obj = add_plane(bpy, f"P{i}{j}", 0.2, x=i * 0.5 - 1.2, z=0.1 * j)
@@ -415,10 +414,39 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
     assert sorted(scene.warnings) == [
         "material 'Checker': input 'Color' of 'Diffuse BSDF' is linked to 'Checker Texture'; "
         "using its viewport colour",
-        "material 'Plain' has no shader nodes: rendered as a diffuse surface in its viewport "
-        "colour (as Cycles does)",
+        *(["material 'Plain' has no shader nodes: rendered as a diffuse surface in its "
+           "viewport colour (as Cycles does)"] if plain_warned else []),
         "material 'Shiny': shader 'Glossy BSDF' is not supported; using its viewport colour"]
-    assert len(scene.notes) == 1 and "'Metal'" in scene.notes[0]
+    # Cycles 5.x renders an empty slot as a default Principled BSDF: glossy, like 'Metal'
+    glossy = ["(no material)", "Metal"] if BLENDER_5 else ["Metal"]
+    assert len(scene.notes) == 1
+    assert f"{len(glossy)} material(s) with a glossy part (e.g. '{glossy[0]}')" in scene.notes[0]
+
+
+def test_material_is_read_from_the_output_cycles_renders(blender):
+    """Outputs for EEVEE only are skipped, and one for Cycles only wins over one for all
+    engines, as Cycles chooses (Blender 5.x converts 4.x materials without nodes into such
+    trees)."""
+    bpy = blender
+    new_scene(bpy)
+    material = bpy.data.materials.new("Targets")
+    ensure_nodes(material)
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    nodes.clear()
+    for target, color in (("EEVEE", (0.1, 0.9, 0.1, 1)), ("ALL", (0.9, 0.1, 0.1, 1)),
+                          ("CYCLES", (0.2, 0.3, 0.7, 1))):
+        output = nodes.new("ShaderNodeOutputMaterial")
+        output.target = target
+        diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+        diffuse.inputs["Color"].default_value = color
+        links.new(diffuse.outputs[0], output.inputs["Surface"])
+    add_plane(bpy, "Tile", 0.5).data.materials.append(material)
+    scene = export_scene(bpy.context.evaluated_depsgraph_get())
+    assert scene.instances[0].materials[0].base_color == pytest.approx((0.2, 0.3, 0.7))
+    assert not scene.warnings
+    nodes.remove(next(n for n in nodes if n.type == "OUTPUT_MATERIAL" and n.target == "CYCLES"))
+    scene = export_scene(bpy.context.evaluated_depsgraph_get())
+    assert scene.instances[0].materials[0].base_color == pytest.approx((0.9, 0.1, 0.1))
 
 
 def test_mix_shader_renders_as_cycles(blender, tmp_path):
@@ -455,8 +483,9 @@ def _no_faces(bpy):
 
 
 def _material_without_nodes(bpy):
-    material = bpy.data.materials.new("Nodeless")
-    material.use_nodes = False
+    if BLENDER_5:
+        pytest.skip("Blender 5.x materials always have shader nodes (use_nodes was removed)")
+    material, _ = nodeless_material("Nodeless", (0.8, 0.8, 0.8, 1))
     add_plane(bpy, "Tile", 0.5, z=0.3).data.materials.append(material)
     return ("material 'Nodeless' has no shader nodes: rendered as a diffuse surface in its "
             "viewport colour (as Cycles does)")
@@ -493,11 +522,14 @@ def test_bad_input_gives_one_warning_and_a_finite_frame(blender, engine_export, 
 # -- 5. units ---------------------------------------------------------------------------------
 
 def units_scene(bpy, scale_length: float, k: float):
-    """Floor and wall lit by a point light, modelled k Blender units per metre."""
+    """Floor and wall lit by a point light, modelled k Blender units per metre. Both are
+    diffuse 0.8 grey (without a material Cycles 5.x would add a specular highlight)."""
     scene = new_scene(bpy, 16, k=k)
     scene.unit_settings.scale_length = scale_length
-    add_plane(bpy, "Floor", 4.0 * k)
+    grey = diffuse_material(bpy, "Grey", (0.8, 0.8, 0.8))
+    add_plane(bpy, "Floor", 4.0 * k).data.materials.append(grey)
     wall = add_plane(bpy, "Wall", 2.0 * k, x=-0.5 * k, z=0.5 * k)
+    wall.data.materials.append(grey)
     wall.rotation_euler.y = 0.5
     add_light(bpy, "POINT", 100.0 * k**2, location=(0.5 * k, 0, 1 * k))
     configure_cycles(scene, 16)

@@ -169,6 +169,24 @@ for name in ("moderngl", "glcontext", "xatlas", "scipy", "pyoidn", "cffi", "pycp
     except Exception as exc:
         modules[name] = f"ImportError: {exc}"
 result["module_files"] = modules
+result["python"] = f"cp{sys.version_info.major}{sys.version_info.minor}"
+# Every wheel Blender unpacked for the extension (the site-packages the modules came from),
+# as {dist-info folder: [its WHEEL tags]}, and the compiled modules loaded from there.
+sites = {os.path.dirname(os.path.dirname(f)) if f.endswith("__init__.py") else
+         os.path.dirname(f) for f in modules.values() if not f.startswith("ImportError")}
+unpacked = {}
+for site_dir in sorted(sites):
+    for entry in sorted(os.listdir(site_dir)):
+        if entry.endswith(".dist-info"):
+            with open(os.path.join(site_dir, entry, "WHEEL"), encoding="utf-8") as wheel:
+                unpacked[entry] = [line.split(":", 1)[1].strip() for line in wheel
+                                   if line.startswith("Tag:")]
+result["site_dirs"] = sorted(sites)
+result["unpacked"] = unpacked
+result["native_modules"] = sorted(
+    os.path.basename(m.__file__) for m in list(sys.modules.values())
+    if getattr(m, "__file__", None) and m.__file__.endswith(".so")
+    and any(m.__file__.startswith(site_dir + os.sep) for site_dir in sites))
 
 try:
     for obj in list(bpy.data.objects):
@@ -259,6 +277,23 @@ def test_install_enable_and_render(extension_zip: Path, tmp_path: Path) -> None:
     for name, file in result["module_files"].items():
         # Loaded from the wheels Blender unpacked under <user resources>/extensions/.local/.
         assert Path(file).resolve().is_relative_to(resources.resolve()), f"{name}: {file}{context}"
+    # ... and those are the wheels pinned for this Blender's Python, and only those.
+    python = result["python"]
+    assert python == f"cp{sys.version_info.major}{sys.version_info.minor}", context
+    pins, _ = build_tool.load_pins()
+    expected = {build_tool.normalize_name(p.package): p.version for p in pins
+                if p.platform == PLATFORM and p.python == python}
+    assert len(expected) == 4, expected
+    unpacked = {}
+    for dist_info, tags in result["unpacked"].items():
+        name, version = dist_info.removesuffix(".dist-info").rsplit("-", 1)
+        unpacked[build_tool.normalize_name(name)] = version
+        assert tags and all(tag.startswith(f"{python}-{python}-") for tag in tags), \
+            f"{dist_info}: {tags}{context}"
+    assert unpacked == expected, context
+    assert result["native_modules"], context
+    abi = f"cpython-{python.removeprefix('cp')}-"
+    assert all(abi in so for so in result["native_modules"]), context
     assert not result["errors"], context
     assert result["engine_set"] == "VPL_GI", context
     assert "denoise" in result["stages"] and not result["warnings"], context
