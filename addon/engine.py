@@ -22,9 +22,9 @@ from .viewport import ViewportState
 DENOISING_DATA = "cycles.denoising_store_passes"
 """Cycles' "Denoising Data" checkbox (View Layer > Passes > Data), which VPL GI honours too."""
 
-# Pass name (VPL GI's, Blender 4.x's) -> (channels, channel ids, type, view-layer toggle that enables it; a dotted path
-# for a toggle in a property group, such as Cycles' view-layer settings).
-# Registered and written under the running Blender's names (blender_compat).
+# Pass name (VPL GI's, Blender 4.x's) -> (channels, channel ids, type, view-layer toggle that
+# enables it; a dotted path for a toggle in a property group, such as Cycles' view-layer
+# settings). Registered and written under the running Blender's names (blender_compat).
 OPTIONAL_PASSES = {
     "Depth": (1, "Z", "VALUE", "use_pass_z"),
     "Normal": (3, "XYZ", "VECTOR", "use_pass_normal"),
