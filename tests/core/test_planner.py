@@ -22,7 +22,8 @@ from tests.core.builders import (
 )
 
 DIRECT = Settings(bounces=0, antialiasing=1, light_samples=4, shadow_resolution=256,
-                  sample_shadow_resolution=64, world_samples=16)
+                  sample_shadow_resolution=64, world_samples=16,
+                  direct_shadows="shadow_maps")  # counts shadow maps
 
 
 def relative_rmse(a: np.ndarray, b: np.ndarray) -> float:

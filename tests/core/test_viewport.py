@@ -21,7 +21,10 @@ from addon.core.viewport_session import (
 )
 from tests.core.builders import floor_scene, icosphere, light, top_down_camera, translation
 
-SETTINGS = Settings(vpl_count=128, bounces=2, ism_points=1024, interleave=1)
+# shadow maps for direct light: the tests follow what edits keep (a ray-traced light keeps
+# nothing and is traced again after every edit)
+SETTINGS = Settings(vpl_count=128, bounces=2, ism_points=1024, interleave=1,
+                    direct_shadows="shadow_maps")
 
 
 def scene(light_x: float = 0.0, ball_colour=(0.8, 0.2, 0.2)):
@@ -85,7 +88,8 @@ def test_edits_rerun_only_what_they_change(session):
     moved_view = top_down_camera(192, extent=5.0)
     camera_only, frame = run(session, Changes(camera=True), camera=moved_view)
     assert not any(k.startswith(("vpl", "ism", "ray tracing")) for k in camera_only.ran)
-    assert {"vpl generation", "ism", "ray tracing setup"} <= set(camera_only.skipped)
+    assert {"vpl generation", "ism", "ray tracing setup", "shadow maps"} <= set(
+        camera_only.skipped)
     assert camera_only.latency < first.latency
 
     light_move, frame = run(session, Changes(lights=True), scene=scene(light_x=0.05))
