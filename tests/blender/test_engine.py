@@ -215,14 +215,11 @@ DENOISING_PASSES = ("Denoising Normal", "Denoising Albedo", "Denoising Depth")
 
 
 def _composite(scene, make_output) -> None:
-    """Compositor: Render Layers → make_output(nodes, links, render_layers) → Composite."""
-    scene.use_nodes = True
+    """Compositor: Render Layers → make_output(nodes, links, render_layers) → the output."""
     scene.render.use_compositing = True
-    tree = scene.node_tree
-    tree.nodes.clear()
+    tree, output = compositor_output(scene)
     layers = tree.nodes.new("CompositorNodeRLayers")
-    composite = tree.nodes.new("CompositorNodeComposite")
-    tree.links.new(make_output(tree.nodes, tree.links, layers), composite.inputs["Image"])
+    tree.links.new(make_output(tree.nodes, tree.links, layers), output)
 
 
 def test_denoising_data_passes_are_registered_and_filled(blender, tmp_path):
@@ -230,8 +227,8 @@ def test_denoising_data_passes_are_registered_and_filled(blender, tmp_path):
     the compositor's Denoise node works on them as on Cycles' renders."""
     scene = open_scene("cornell_box", 24)
     layer = scene.view_layers[0]
-    scene.use_nodes = True
-    node = scene.node_tree.nodes.new("CompositorNodeRLayers")
+    tree, _ = compositor_output(scene)
+    node = tree.nodes.new("CompositorNodeRLayers")
     assert not {s.name for s in node.outputs if s.enabled} & set(DENOISING_PASSES)
     layer.cycles.denoising_store_passes = True
     scene.render.engine = "VPL_GI"

@@ -283,12 +283,13 @@ def test_install_enable_and_render(extension_zip: Path, tmp_path: Path) -> None:
     pins, _ = build_tool.load_pins()
     expected = {build_tool.normalize_name(p.package): p.version for p in pins
                 if p.platform == PLATFORM and p.python == python}
-    assert len(expected) == 4, expected
+    assert {"moderngl", "glcontext", "xatlas", "scipy"} <= set(expected), expected
     unpacked = {}
     for dist_info, tags in result["unpacked"].items():
         name, version = dist_info.removesuffix(".dist-info").rsplit("-", 1)
         unpacked[build_tool.normalize_name(name)] = version
-        assert tags and all(tag.startswith(f"{python}-{python}-") for tag in tags), \
+        assert tags and all(tag.startswith((f"{python}-{python}-", "py3-none-"))
+                            for tag in tags), \
             f"{dist_info}: {tags}{context}"
     assert unpacked == expected, context
     assert result["native_modules"], context
