@@ -31,17 +31,22 @@ def _compatible_panels() -> list[type]:
     return panels
 
 
-class _RenderPanel:
-    """Mixin: a panel in Render Properties shown while this engine is selected."""
+class _EnginePanel:
+    """Mixin: a panel in the Properties editor shown while this engine is selected."""
 
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
-    bl_context = "render"
     COMPAT_ENGINES: ClassVar[set[str]] = {ENGINE_ID}
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         return context.engine in cls.COMPAT_ENGINES
+
+
+class _RenderPanel(_EnginePanel):
+    """Mixin: a panel in Render Properties shown while this engine is selected."""
+
+    bl_context = "render"
 
 
 class RENDER_PT_vpl_gi(_RenderPanel, bpy.types.Panel):
@@ -75,20 +80,13 @@ class _SectionPanel(_RenderPanel):
                 col.prop(props, name)
 
 
-class VIEWLAYER_PT_vpl_gi_passes(bpy.types.Panel):
+class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
     """View Layer Properties > Passes while this engine is selected: the view-layer toggles of
     the passes it fills (Blender's own Passes panel is EEVEE's and Workbench's), Cycles'
     Denoising Data checkbox among them."""
 
     bl_label = "Passes"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
     bl_context = "view_layer"
-    COMPAT_ENGINES: ClassVar[set[str]] = {ENGINE_ID}
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return context.engine in cls.COMPAT_ENGINES
 
     def draw(self, context: bpy.types.Context) -> None:
         from .engine import OPTIONAL_PASSES
