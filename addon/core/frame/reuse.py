@@ -22,9 +22,9 @@ def settings_key(settings: Settings, fields: Iterable[str]) -> tuple:
     return tuple(getattr(settings, name) for name in fields)
 
 
-def lights_key(scene_lights: object, world: object) -> bytes:
-    """The lights and the world as comparable bytes (what light paths start from)."""
-    return pickle.dumps((scene_lights, world))
+def content_key(*parts: object) -> bytes:
+    """Scene data (lights, the world, the camera) as comparable bytes, for a product's key."""
+    return pickle.dumps(parts)
 
 
 def _texture_state(geometry: WorldGeometry) -> tuple[np.ndarray, ...]:

@@ -27,7 +27,7 @@ from ..transport.vpl import VPLs, generate_vpls, propagate
 from .gpu_session import GpuSession
 from .planner import Bounds, reaches_bounds
 from .result import Stats
-from .reuse import KeptProducts, lights_key, settings_key
+from .reuse import KeptProducts, content_key, settings_key
 from .state import FrameState, RenderError, Stage
 
 VPL_FIELDS = ("vpl_count", "bounces", "seed", "termination", "vpl_source", "rsm_resolution",
@@ -95,9 +95,9 @@ class MakeVPLs(Stage):
         scene, settings, stats, kept = frame.scene, frame.settings, frame.stats, self.kept
         guided = settings.vpl_guidance == "camera" and settings.vpl_source == "paths" \
             and not settings.incremental
-        key = (kept.versions.geometry, lights_key(scene.lights, scene.world),
+        key = (kept.versions.geometry, content_key(scene.lights, scene.world),
                *settings_key(settings, VPL_FIELDS),
-               lights_key(frame.camera, None) if guided else None)
+               content_key(frame.camera) if guided else None)
         reused = kept.get("vpls", key)
         if reused is not None:
             stats.skipped["vpl generation"] = "lights, world, geometry and settings unchanged"

@@ -51,7 +51,7 @@ import moderngl
 import numpy as np
 
 from ..scene.surface_points import SurfacePoints, sample_surface_points
-from ..scene.vectors import triangle_areas
+from ..scene.vectors import triangle_areas, unit
 from .gl import ProgramCache, require_compute
 
 BINDING_POINTS = 20  # ISM_BINDING_POINTS in ism_splat_comp.glsl
@@ -111,10 +111,9 @@ def _vpl_data(position: np.ndarray, normal: np.ndarray,
     n = np.asarray(normal, np.float64).reshape(-1, 3)
     if len(p) != len(n):
         raise ValueError(f"{len(p)} VPL positions but {len(n)} normals")
-    length = np.linalg.norm(n, axis=1, keepdims=True)
     out = np.zeros((max(1, len(p)), 2, 4), np.float32)
     out[:len(p), 0, :3] = p
-    out[:len(p), 1, :3] = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    out[:len(p), 1, :3] = unit(n)
     if directional is not None:
         out[:len(p), 0, 3] = directional
     out[:len(p), 1, 3] = np.arange(len(p)) if tiles is None else tiles
