@@ -14,9 +14,10 @@ from .blender_compat import pass_name
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats
-from .core.gpu.gl import GLUnavailableError
+from .core.gpu.gl import GLUnavailableError, shared_context
 from .core.settings import SettingsError
 from .export import export_scene
+from .preferences import chosen_device
 from .viewport import ViewportState
 
 DENOISING_DATA = "cycles.denoising_store_passes"
@@ -66,7 +67,7 @@ def shared_renderer() -> Renderer:
     """One Renderer (and GL context) per Blender process, created on first render."""
     global _renderer
     if _renderer is None:
-        _renderer = Renderer()
+        _renderer = Renderer(shared_context(chosen_device()))
     return _renderer
 
 

@@ -105,9 +105,8 @@ class MakeVPLs(Stage):
             return reused
         try:
             tracer = upload_triangles(self.gpu, kept, frame.geometry, stats)
-        except GLUnavailableError as exc:
-            stats.warnings.append(f"indirect light skipped: {exc}")
-            return VPLs.empty()
+        except GLUnavailableError as exc:  # a frame without its indirect light is wrong
+            raise RenderError(str(exc)) from None
         geometry, centre, radius = frame.geometry, frame.centre, frame.radius
         if settings.vpl_source == "rsm":
             with stats.timed("vpl generation (rsm)"):
