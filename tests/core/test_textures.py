@@ -205,3 +205,22 @@ def test_vpls_take_the_albedo_of_the_texel_they_hit():
     got = geometry.albedo_at(np.array([1, 0, 0]), points)
     np.testing.assert_allclose(got[:2], [(0.9, 0.1, 0.1), (0.1, 0.9, 0.1)], atol=1e-6)
     np.testing.assert_allclose(got[2], (0.5, 0.5, 0.1), atol=1e-6)  # halfway between texels
+
+
+def test_vpls_take_the_albedo_of_the_mode_they_sample():
+    """albedo_at follows the texture's extension and interpolation: Clip is black outside
+    0..1, Closest takes whole texels."""
+    pixels = np.ones((1, 2, 4), np.float32)
+    pixels[0, 0, :3], pixels[0, 1, :3] = (0.9, 0.1, 0.1), (0.1, 0.9, 0.1)
+    points = np.array([[-0.7, -0.8, 0.0], [0.4, -0.8, 0.0]])  # u = x + 1: 0.3 and 1.4; v = 0.2
+    albedo = {}
+    for interpolation, extension in (("Closest", "CLIP"), ("Linear", "REPEAT")):
+        texture = Texture("rg", pixels, interpolation=interpolation, extension=extension)
+        floor = Instance(textured_quad(1.0, repeat=2.0), np.eye(4),
+                         [Material("m", base_color_texture=texture)])
+        geometry = flatten_instances(Scene([floor]), [])
+        albedo[interpolation] = geometry.albedo_at(np.array([0, 0]), points)
+    np.testing.assert_allclose(albedo["Closest"], [(0.9, 0.1, 0.1), (0, 0, 0)], atol=1e-6)
+    # Linear, Repeat: u = 0.3 is 0.9 of texel 0 and 0.1 of texel 1; u = 1.4 (0.4) 0.7 and 0.3
+    np.testing.assert_allclose(albedo["Linear"], [(0.82, 0.18, 0.1), (0.66, 0.34, 0.1)],
+                               atol=1e-6)
