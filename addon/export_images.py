@@ -5,7 +5,9 @@ input, its Vector input unlinked (the active render UV map) or linked to a UV Ma
 Texture Coordinate node's UV output; every interpolation (Smart is Cubic, as Cycles' SVM
 samples it) and extension, Flat projection. Pixels of byte images are in the image's colour
 space: sRGB ones are decoded by the renderer after interpolation, as Cycles does; float
-images are linear already.
+images are linear already. As Cycles, the Color output of a byte image with Straight alpha in
+a colour (not data) space is associated — multiplied by alpha — unless the node's Alpha output
+is linked; float images' pixels are associated as Blender stores them.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import bpy
 import numpy as np
 
 from .core.scene.model import EXTENSIONS, Texture
-from .core.scene.textures import missing_texture
+from .core.scene.textures import associate_bytes, missing_texture
 
 RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear"}
 INTERPOLATION = {"Closest": "Closest", "Linear": "Linear", "Cubic": "Cubic", "Smart": "Cubic"}
@@ -78,7 +80,8 @@ class ImageReader:
     def __init__(self, warnings: list[str]) -> None:
         self.warnings = warnings
         self._pixels: dict[str, tuple[np.ndarray, bool] | None] = {}
-        self._textures: dict[tuple[str, str, str], Texture] = {}
+        self._associated: dict[str, np.ndarray] = {}
+        self._textures: dict[tuple[str, bool, str, str], Texture] = {}
 
     def _warn(self, message: str) -> None:
         if message not in self.warnings:
@@ -111,6 +114,25 @@ class ImageReader:
                        f"magenta (1, 0, 1) as Cycles does")
             return missing_texture("(none)")
         key = image.name_full
+        read = self._read(image, material)
+        if read is None:
+            return self._textures.setdefault((key, False, "", ""), missing_texture(image.name))
+        pixels, srgb = read
+        interpolation, extension = self._sampling(node, material, label)
+        associate = (not image.is_float and image.alpha_mode == "STRAIGHT"
+                     and not image.colorspace_settings.is_data
+                     and not node.outputs["Alpha"].is_linked and bool((pixels[..., 3] < 1).any()))
+        mode = (key, associate, interpolation, extension)
+        if mode not in self._textures:
+            if associate:
+                pixels = self._associated.setdefault(key, associate_bytes(pixels))
+            self._textures[mode] = Texture(image.name, pixels, srgb, interpolation, extension)
+        return self._textures[mode]
+
+    def _read(self, image, material: str) -> tuple[np.ndarray, bool] | None:
+        """The image's pixels and sRGB flag (read once per export), None when unreadable; the
+        warnings about them, once per material."""
+        key = image.name_full
         if key not in self._pixels:
             pixels = read_pixels(image, self.warnings)
             srgb = not image.is_float and image.colorspace_settings.name == "sRGB"
@@ -120,18 +142,18 @@ class ImageReader:
             self._warn(f"material '{material}': image '{image.name}' is missing or cannot be "
                        f"read ({image.filepath or 'no file'}): shown in magenta (1, 0, 1) as "
                        f"Cycles does")
-            return self._textures.setdefault((key, "", ""), missing_texture(image.name))
-        if not image.is_float and space not in RAW_SPACES | {"sRGB"}:
+        elif not image.is_float and space not in RAW_SPACES | {"sRGB"}:
             self._warn(f"material '{material}': image '{image.name}': colour space '{space}' "
                        f"is not supported (read as Non-Color)")
+        return self._pixels[key]
+
+    def _sampling(self, node, material: str, label: str) -> tuple[str, str]:
+        """The node's interpolation (Smart as Cubic) and extension; Linear/Repeat, with a
+        warning, for a value this add-on does not know (a newer Blender's)."""
         interpolation = INTERPOLATION.get(node.interpolation, "Linear")
         extension = node.extension if node.extension in EXTENSIONS else "REPEAT"
         if (interpolation, extension) != (INTERPOLATION.get(node.interpolation), node.extension):
             self._warn(f"material '{material}': {label}: interpolation "
                        f"{node.interpolation.title()}, extension {node.extension.title()} not "
                        f"supported (rendered as {interpolation}, {extension.title()})")
-        mode = (key, interpolation, extension)
-        if mode not in self._textures:
-            pixels, srgb = self._pixels[key]
-            self._textures[mode] = Texture(image.name, pixels, srgb, interpolation, extension)
-        return self._textures[mode]
+        return interpolation, extension

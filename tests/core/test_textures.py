@@ -224,3 +224,23 @@ def test_vpls_take_the_albedo_of_the_mode_they_sample():
     # Linear, Repeat: u = 0.3 is 0.9 of texel 0 and 0.1 of texel 1; u = 1.4 (0.4) 0.7 and 0.3
     np.testing.assert_allclose(albedo["Linear"], [(0.82, 0.18, 0.1), (0.66, 0.34, 0.1)],
                                atol=1e-6)
+
+
+def test_byte_alpha_is_associated_in_integer_bytes_as_cycles():
+    """c·a/255 rounded down in byte codes: 204·128/255 = 102.4 → 102, 153·128/255 → 76."""
+    pixels = np.array([[[204, 153, 255, 128], [204, 153, 255, 0], [10, 20, 30, 255]]],
+                      np.float32) / 255
+    got = np.rint(tex.associate_bytes(pixels) * 255)
+    np.testing.assert_array_equal(got, [[[102, 76, 128, 128], [0, 0, 0, 0], [10, 20, 30, 255]]])
+
+
+def test_a_new_sampling_mode_makes_new_vpls():
+    """The scene version VPLs are keyed by changes when only a texture's extension does."""
+    from addon.core.frame.reuse import SceneVersions
+
+    versions = SceneVersions()
+    for extension, expected in (("REPEAT", 1), ("REPEAT", 1), ("CLIP", 2)):
+        texture = Texture("t", image(5, 2, 2), extension=extension)
+        floor = Instance(textured_quad(1.0), np.eye(4), [Material("m", base_color_texture=texture)])
+        versions.note(flatten_instances(Scene([floor]), []))
+        assert versions.geometry == expected

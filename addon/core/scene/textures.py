@@ -39,6 +39,15 @@ def decode_srgb(values: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.04045, v / 12.92, ((np.maximum(v, 0.04045) + 0.055) / 1.055) ** 2.4)
 
 
+def associate_bytes(pixels: np.ndarray) -> np.ndarray:
+    """8-bit RGBA pixels (values k/255) with colour multiplied by alpha as Cycles loads byte
+    images whose alpha it associates: integer byte arithmetic, c·a/255 rounded down."""
+    codes = np.rint(np.clip(pixels, 0, 1) * 255).astype(np.int32)
+    out = pixels.copy()
+    out[..., :3] = (codes[..., :3] * codes[..., 3:]) // 255 / 255
+    return out
+
+
 _MEANS: WeakKeyDictionary[Texture, np.ndarray] = WeakKeyDictionary()
 
 
