@@ -79,7 +79,7 @@ class ImageReader:
 
     def __init__(self, warnings: list[str]) -> None:
         self.warnings = warnings
-        self._pixels: dict[str, tuple[np.ndarray, bool] | None] = {}
+        self._pixels: dict[str, tuple[np.ndarray, bool, bool] | None] = {}
         self._associated: dict[str, np.ndarray] = {}
         self._textures: dict[tuple[str, bool, str, str], Texture] = {}
 
@@ -117,11 +117,11 @@ class ImageReader:
         read = self._read(image, material)
         if read is None:
             return self._textures.setdefault((key, False, "", ""), missing_texture(image.name))
-        pixels, srgb = read
+        pixels, srgb, translucent = read
         interpolation, extension = self._sampling(node, material, label)
-        associate = (not image.is_float and image.alpha_mode == "STRAIGHT"
+        associate = (translucent and not image.is_float and image.alpha_mode == "STRAIGHT"
                      and not image.colorspace_settings.is_data
-                     and not node.outputs["Alpha"].is_linked and bool((pixels[..., 3] < 1).any()))
+                     and not node.outputs["Alpha"].is_linked)
         mode = (key, associate, interpolation, extension)
         if mode not in self._textures:
             if associate:
@@ -129,14 +129,15 @@ class ImageReader:
             self._textures[mode] = Texture(image.name, pixels, srgb, interpolation, extension)
         return self._textures[mode]
 
-    def _read(self, image, material: str) -> tuple[np.ndarray, bool] | None:
-        """The image's pixels and sRGB flag (read once per export), None when unreadable; the
-        warnings about them, once per material."""
+    def _read(self, image, material: str) -> tuple[np.ndarray, bool, bool] | None:
+        """The image's pixels, sRGB flag and whether some alpha is below 1 (read once per
+        export), None when unreadable; the warnings about them, once per material."""
         key = image.name_full
         if key not in self._pixels:
             pixels = read_pixels(image, self.warnings)
             srgb = not image.is_float and image.colorspace_settings.name == "sRGB"
-            self._pixels[key] = None if pixels is None else (pixels, srgb)
+            self._pixels[key] = None if pixels is None else \
+                (pixels, srgb, bool((pixels[..., 3] < 1).any()))
         space = image.colorspace_settings.name
         if self._pixels[key] is None:
             self._warn(f"material '{material}': image '{image.name}' is missing or cannot be "
