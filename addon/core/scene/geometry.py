@@ -87,7 +87,7 @@ class WorldGeometry:
 
     def albedo_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
         """Albedo (m, 3) at points on triangles: the base colour, or the texture sampled at the
-        interpolated UV (bilinear, Repeat), capped like base colours."""
+        interpolated UV (with its interpolation and extension), capped like base colours."""
         albedo = self.albedo[triangle].astype(np.float64)
         if not self.has_textures or len(triangle) == 0:
             return albedo

@@ -15,9 +15,15 @@ import numpy as np
 Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
 
 
+INTERPOLATIONS = ("Closest", "Linear", "Cubic")  # Image Texture node names (Smart: Cubic)
+EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
+
+
 @dataclass(eq=False)
 class Texture:
-    """An image sampled through the mesh's UVs: Linear interpolation, Repeat extension.
+    """An image sampled through the mesh's UVs as Cycles samples it: ``interpolation`` one of
+    INTERPOLATIONS, ``extension`` one of EXTENSIONS (Blender's names; see
+    ``scene/textures.py``).
 
     ``pixels`` are as Blender stores them, rows bottom-up (UV (0, 0) is the first texel);
     with ``srgb`` they are sRGB-encoded and decoded after interpolation, as Cycles does with
@@ -26,6 +32,14 @@ class Texture:
     name: str
     pixels: np.ndarray  # (h, w, 4) float32 RGBA
     srgb: bool = False
+    interpolation: str = "Linear"
+    extension: str = "REPEAT"
+
+    def __post_init__(self) -> None:
+        if self.interpolation not in INTERPOLATIONS or self.extension not in EXTENSIONS:
+            raise ValueError(f"texture '{self.name}': interpolation {self.interpolation!r} "
+                             f"or extension {self.extension!r} is not one of "
+                             f"{INTERPOLATIONS} / {EXTENSIONS}")
 
 
 @dataclass
