@@ -4,9 +4,10 @@ For each sample scene it renders a command-line frame with default settings in e
 (`python -m addon render`, every frame its own process, so nothing is reused between frames:
 each frame does all of its work), alternating old and new, and prints the median of
 ``--repeat`` per stage and in total; then, per tree, the viewport's first-frame latencies
-(tools/bench_viewport.py) and the 10k-instance export + upload against Cycles' sync
-(tools/bench_export.py). The older commit is checked out with ``git worktree`` in a temporary
-folder (removed at the end); both trees run with this interpreter.
+(this tree's tools/bench_viewport.py on each tree's add-on) and the 10k-instance export +
+upload against Cycles' sync (tools/bench_export.py). The older commit is checked out with
+``git worktree`` in a temporary folder (removed at the end); both trees run with this
+interpreter.
 
     .venv/bin/python tools/bench_versions.py --old babc501 [--scenes interior cornell_box]
         [--size 640x360] [--repeat 3] [--parts frame viewport export]
@@ -88,8 +89,8 @@ def viewport_table(trees: dict[str, Path], scenes: list[str], width: int) -> Non
     rows: dict[tuple[str, str], dict[str, str]] = {}
     for label, tree in trees.items():
         scene = None
-        for line in run(tree, "tools/bench_viewport.py", "--scenes", *scenes, "--size",
-                        str(width)).splitlines():
+        for line in run(REPO, "tools/bench_viewport.py", "--repo", str(tree), "--scenes",
+                        *scenes, "--size", str(width)).splitlines():
             if ".blend:" in line:
                 scene = line.split(":", 1)[0]
             cells = [c.strip() for c in line.strip("|").split("|")]
