@@ -439,6 +439,13 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
 
 # -- lights, world, camera ------------------------------------------------------------------
 
+def is_portal(obj: bpy.types.Object) -> bool:
+    """An area light marked Portal (Cycles' light portal): an opening that guides world
+    light, not a light."""
+    cycles = getattr(obj.data, "cycles", None)
+    return obj.data.type == "AREA" and bool(getattr(cycles, "is_portal", False))
+
+
 def export_light(obj: bpy.types.Object, matrix) -> Light:
     """A light with its ray visibility: camera (area-light shapes) and diffuse are honoured;
     glossy, transmission and volume scatter reach only closures VPL GI does not render, and
@@ -697,6 +704,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             problem, = transform_problems(matrix[None])
             if problem:
                 result.warnings.append(f"light '{obj.name}' {problem} and was skipped")
+            elif is_portal(obj):
+                result.portals.append(export_light(obj, matrix))
             else:
                 result.lights.append(export_light(obj, matrix))
             continue

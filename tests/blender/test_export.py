@@ -553,3 +553,16 @@ def test_unit_scale_is_ignored_as_cycles_ignores_it(blender, tmp_path):
     for label in ("m", "mm"):
         ours, cycles = images[label, "VPL_GI"], images[label, "CYCLES"]
         assert ours.mean() == pytest.approx(cycles.mean(), rel=0.02)
+
+
+def test_light_portal_guides_world_light_and_emits_nothing(blender):
+    bpy = blender
+    new_scene(bpy)
+    add_plane(bpy, "Floor", 4.0)
+    portal = add_light(bpy, "AREA", 1000.0, location=(0, 0, 2), size=1.5)
+    portal.data.cycles.is_portal = True
+    add_light(bpy, "AREA", 50.0, location=(1, 0, 2))
+    scene = export_scene(bpy.context.evaluated_depsgraph_get())
+    assert [light.name for light in scene.lights] == ["AreaLight.001"]
+    assert [p.name for p in scene.portals] == ["AreaLight"]
+    assert scene.portals[0].world_area == pytest.approx(1.5**2)

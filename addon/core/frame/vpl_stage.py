@@ -95,7 +95,7 @@ class MakeVPLs(Stage):
         scene, settings, stats, kept = frame.scene, frame.settings, frame.stats, self.kept
         guided = settings.vpl_guidance == "camera" and settings.vpl_source == "paths" \
             and not settings.incremental
-        key = (kept.versions.geometry, content_key(scene.lights, scene.world),
+        key = (kept.versions.geometry, content_key(scene.lights, scene.world, scene.portals),
                *settings_key(settings, VPL_FIELDS),
                content_key(frame.camera) if guided else None)
         reused = kept.get("vpls", key)

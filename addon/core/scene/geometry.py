@@ -357,8 +357,7 @@ def light_shapes(scene: Scene) -> WorldGeometry:
         fan = np.stack([np.zeros((n, 2)), ring, np.roll(ring, -1, axis=0)], axis=1).reshape(-1, 2)
         local = np.hstack([fan, np.zeros((len(fan), 1))])
         world = _transform_points(light.matrix, local)
-        axis_x, axis_y = light.matrix[:3, 0], light.matrix[:3, 1]
-        area = light.local_area * float(np.linalg.norm(np.cross(axis_x, axis_y)))
+        area = light.world_area
         if area <= 0:
             continue
         facing = -light.matrix[:3, 2] / max(np.linalg.norm(light.matrix[:3, 2]), 1e-300)

@@ -167,6 +167,12 @@ class Light:
         width, height = self.area_size
         return (np.pi / 4 if self.is_round else 1.0) * width * height
 
+    @property
+    def world_area(self) -> float:
+        """Area of the shape in the world (the light's matrix may scale it)."""
+        m = np.asarray(self.matrix, dtype=np.float64)
+        return self.local_area * float(np.linalg.norm(np.cross(m[:3, 0], m[:3, 1])))
+
 
 @dataclass
 class EnvironmentMap:
@@ -219,6 +225,8 @@ class Scene:
     instances: list[Instance] = field(default_factory=list)
     lights: list[Light] = field(default_factory=list)
     world: World = field(default_factory=World)
+    portals: list[Light] = field(default_factory=list)  # area lights marked Portal (Cycles):
+    # openings that world light enters through; they emit nothing themselves
     camera: Camera | None = None
     film_transparent: bool = False
     warnings: list[str] = field(default_factory=list)

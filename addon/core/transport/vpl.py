@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.environment import EnvironmentSampler
+from ..scene.environment import EnvironmentSampler, lookup
 from ..scene.geometry import WorldGeometry
-from ..scene.model import Light, LightKind, Scene
+from ..scene.model import Light, LightKind, Scene, World
 from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
 from .lights import (
@@ -185,10 +185,13 @@ def _parallel_sampler(travel_and_flux, centre: np.ndarray, radius: float):
 
 def _world_emitter(scene: Scene, centre: np.ndarray, radius: float) -> _Emitter | None:
     """Parallel rays from every direction: uniform for a constant colour, importance-sampled
-    from the environment map otherwise (flux L / pdf × π R² per path)."""
+    from the environment map otherwise (flux L / pdf × π R² per path); through the light
+    portals instead where the scene has any."""
     radiance = scene.world.radiance
     if not np.any(radiance > 0):
         return None
+    if scene.portals:
+        return _portal_emitter(scene.world, scene.portals)
     disk = np.pi * radius**2
     flux = radiance * 4 * np.pi * disk
     env = scene.world.environment
@@ -202,6 +205,32 @@ def _world_emitter(scene: Scene, centre: np.ndarray, radius: float) -> _Emitter 
         sky, ratio = sampler.sample(u[:, 3:5])
         return -sky, ratio * disk
     return _Emitter(flux, _parallel_sampler(importance, centre, radius))
+
+
+def _portal_emitter(world: World, portals: list[Light]) -> _Emitter | None:
+    """World light entering through Cycles' light portals (area lights marked Portal, facing
+    into the room along their -Z): a path starts on a portal chosen by area, travels
+    cosine-distributed into the room and carries L_world(-d) π A (A: all portals' area), the
+    flux through the openings; light entering elsewhere is not traced (as portals mean)."""
+    areas = np.array([portal.world_area for portal in portals])
+    total = float(areas.sum())
+    if total <= 0:
+        return None
+    cdf = np.cumsum(areas) / total
+    inward = [unit(-portal.matrix[:3, 2][None])[0] for portal in portals]
+
+    def sample(u: np.ndarray) -> _Paths:
+        pick = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), len(portals) - 1)
+        origin, direction = np.zeros((len(u), 3)), np.zeros((len(u), 3))
+        for index, portal in enumerate(portals):
+            rows = np.flatnonzero(pick == index)
+            origin[rows] = area_light_points(portal, u[rows, 1:3])
+            direction[rows] = cosine_directions(np.repeat(inward[index][None], len(rows), 0),
+                                                u[rows, 3:5])
+        radiance = np.repeat(world.radiance[None], len(u), 0) if world.environment is None \
+            else lookup(world.environment, -direction)
+        return _Paths(origin, direction, radiance * np.pi * total)
+    return _Emitter(world.radiance * np.pi * total, sample)
 
 
 def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
