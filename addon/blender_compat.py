@@ -28,6 +28,9 @@ _PASS_NAMES_5 = {
     "DiffDir": "Diffuse Direct",
     "DiffInd": "Diffuse Indirect",
     "DiffCol": "Diffuse Color",
+    "GlossDir": "Glossy Direct",
+    "GlossInd": "Glossy Indirect",
+    "GlossCol": "Glossy Color",
     "Emit": "Emission",
 }
 
