@@ -106,9 +106,41 @@ class WorldGeometry:
         return bool(self.textures)
 
     def albedo_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
-        """Albedo (m, 3) at points on triangles: the base colour, or the texture sampled at the
-        interpolated UV (bilinear, Repeat), capped like base colours."""
-        albedo = self.albedo[triangle].astype(np.float64)
+        """Reflectance for light paths (m, 3) at points on triangles (``albedo``'s, with the
+        base colour from ``base_at``)."""
+        if not self.has_textures or len(triangle) == 0:
+            return self.albedo[triangle].astype(np.float64)
+        albedo = self.base_at(triangle, position)
+        material = self.triangle_material[triangle]
+        for row in np.unique(material):
+            if self.materials[row, SPECULAR + 7] > 0:
+                group = np.flatnonzero(material == row)
+                albedo[group] = self._path_albedo(albedo[group], row)
+        return albedo
+
+    def reflectance_split(self, triangle: np.ndarray, position: np.ndarray,
+                          mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What a light path arriving at cosine ``mu`` (m,) keeps at points on triangles: the
+        diffuse reflectance (m, 3) (base colour × the diffuse weight averaged over outgoing
+        directions), the glossy albedo (m, 3) at ``mu``, and the lobe's roughness (m,)."""
+        diffuse = self.base_at(triangle, position)
+        gloss, rough = np.zeros_like(diffuse), np.zeros(len(triangle))
+        material = self.triangle_material[triangle]
+        for row in np.unique(material):
+            params = self.materials[row, SPECULAR:]
+            if params[7] <= 0:
+                continue
+            group = np.flatnonzero(material == row)
+            _, gloss[group] = principled.layer_weights(
+                diffuse[group], *principled.specular_parameters(params), mu[group])
+            diffuse[group] *= principled.diffuse_average(params)
+            rough[group] = params[0]
+        return diffuse, gloss, rough
+
+    def base_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
+        """Base colour (m, 3) at points on triangles: the material's, or the texture sampled
+        at the interpolated UV (bilinear, Repeat), capped like base colours."""
+        albedo = np.clip(self._per_triangle(0)[triangle].astype(np.float64), 0.0, MAX_ALBEDO)
         if not self.has_textures or len(triangle) == 0:
             return albedo
         layer = self.materials[self.triangle_material[triangle], 8].astype(int)
@@ -123,14 +155,9 @@ class WorldGeometry:
         b1, b2 = (d22 * p1 - d12 * p2) / det, (d11 * p2 - d12 * p1) / det
         uv = self.uv.reshape(-1, 3, 2)[triangle[rows]].astype(np.float64)
         at = uv[:, 0] + b1[:, None] * (uv[:, 1] - uv[:, 0]) + b2[:, None] * (uv[:, 2] - uv[:, 0])
-        material = self.triangle_material[triangle[rows]]
         for k in np.unique(layer[rows]):
             group = layer[rows] == k
-            albedo[rows[group]] = np.clip(tex.sample(self.textures[k], at[group]), 0, MAX_ALBEDO)
-        for row in np.unique(material):
-            if self.materials[row, SPECULAR + 7] > 0:
-                group = rows[material == row]
-                albedo[group] = self._path_albedo(albedo[group], row)
+            albedo[rows[group]] = tex.sample(self.textures[k], at[group])
         return np.clip(albedo, 0.0, MAX_ALBEDO)
 
 

@@ -250,3 +250,48 @@ def specular_parameters(row: np.ndarray) -> tuple[float, float, float, np.ndarra
     """(roughness, metallic, eta, F0 × tint, s_avg) of a specular row, for ``layer_weights``."""
     return float(row[0]), float(row[1]), float(row[2]), np.asarray(row[4:7], float), \
         float(row[3])
+
+
+def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarray,
+                      u: np.ndarray) -> np.ndarray:
+    """Directions (m, 3) a glossy lobe of roughness ``rough`` (m,) reflects light arriving
+    along ``incoming`` (m, 3, direction of travel) into, sampled from its visible normals
+    (Heitz 2018) with unit-square samples ``u`` (m, 2); those below the surface are mirrored
+    above it."""
+    alpha = np.maximum(np.asarray(rough, float) ** 2, 1e-4)[:, None]
+    view = -incoming
+    helper = np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t = np.cross(helper, normal)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(normal, t)
+    local = np.stack([(view * t).sum(1), (view * b).sum(1),
+                      np.maximum((view * normal).sum(1), 1e-6)], axis=1)
+    stretched = local * np.hstack([alpha, alpha, np.ones_like(alpha)])
+    stretched /= np.linalg.norm(stretched, axis=1, keepdims=True)
+    lensq = stretched[:, 0] ** 2 + stretched[:, 1] ** 2
+    t1 = np.where(lensq[:, None] > 1e-7,
+                  np.stack([-stretched[:, 1], stretched[:, 0], 0 * lensq], 1)
+                  / np.sqrt(np.maximum(lensq, 1e-30))[:, None], [[1.0, 0.0, 0.0]])
+    t2 = np.cross(stretched, t1)
+    r, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
+    p1, p2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + stretched[:, 2])
+    p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
+    p3 = np.sqrt(np.maximum(1.0 - p1 * p1 - p2 * p2, 0.0))
+    h = p1[:, None] * t1 + p2[:, None] * t2 + p3[:, None] * stretched
+    h = h * np.hstack([alpha, alpha, np.ones_like(alpha)])
+    h[:, 2] = np.maximum(h[:, 2], 0.0)
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-30)
+    out_local = 2.0 * (local * h).sum(1, keepdims=True) * h - local
+    out_local[:, 2] = np.abs(out_local[:, 2])
+    out = out_local[:, :1] * t + out_local[:, 1:2] * b + out_local[:, 2:] * normal
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-30)
+
+
+def diffuse_average(row: np.ndarray) -> float:
+    """The diffuse weight averaged over outgoing cosine-weighted directions (what a diffuse
+    VPL of this material emits per unit base colour): ∫ weight(μ) 2μ dμ."""
+    x, w = np.polynomial.legendre.leggauss(8)
+    mu, weight = 0.5 * (x + 1.0), 0.5 * w * (x + 1.0)
+    diffuse, _ = layer_weights(np.zeros((len(mu), 3)), *specular_parameters(row), mu)
+    return float((diffuse * weight).sum())
