@@ -442,7 +442,8 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
 
 def export_light(obj: bpy.types.Object, matrix) -> Light:
     """A light with its ray visibility: camera (area-light shapes) and diffuse are honoured;
-    glossy, transmission and volume scatter reach only closures VPL GI does not render, and
+    glossy is not (its highlights stay), transmission and volume scatter reach only closures
+    VPL GI does not render, and
     a light object's shadow visibility changes nothing in Cycles (measured, 4.5)."""
     data = obj.data
     kind = LightKind(data.type)

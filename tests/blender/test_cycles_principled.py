@@ -24,7 +24,7 @@ from tests.blender.rendering import configure_cycles, open_scene, render_linear
 from tests.blender.test_cycles_direct import edge_mask
 
 SIZE = 64
-CYCLES_SAMPLES = 512
+CYCLES_SAMPLES = 256
 
 
 def set_principled(material, roughness: float = 0.5, metallic: float = 0.0,
