@@ -60,13 +60,12 @@ class WorldGeometry:
     @cached_property
     def albedo(self) -> np.ndarray:
         """Each triangle's reflectance for light paths, (T, 3) float32."""
-        rows = self.materials.copy()
-        glossy = np.flatnonzero(rows[:, SPECULAR + 7] > 0)
-        for row in glossy:
-            rows[row, 0:3] = self._path_albedo(rows[row, 0:3][None], row)[0]
+        glossy = np.flatnonzero(self.materials[:, SPECULAR + 7] > 0)
         if len(glossy) == 0:
             return self._per_triangle(0)
-        table = np.ascontiguousarray(rows[:, 0:3])
+        table = np.ascontiguousarray(self.materials[:, 0:3])
+        for row in glossy:
+            table[row] = self._path_albedo(table[row][None], row)[0]
         return np.take(table, self.triangle_material, axis=0)
 
     def _path_albedo(self, base: np.ndarray, row: int) -> np.ndarray:
