@@ -63,7 +63,7 @@ class WorldGeometry:
         glossy = np.flatnonzero(self.materials[:, SPECULAR + 7] > 0)
         if len(glossy) == 0:
             return self._per_triangle(0)
-        table = np.ascontiguousarray(self.materials[:, 0:3])
+        table = self.materials[:, 0:3].copy()  # never a view: rows change below
         for row in glossy:
             table[row] = self._path_albedo(table[row][None], row)[0]
         return np.take(table, self.triangle_material, axis=0)
