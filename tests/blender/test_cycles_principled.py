@@ -22,6 +22,7 @@ import pytest
 from devtools import metrics
 from tests.blender.rendering import configure_cycles, open_scene, render_linear
 from tests.blender.test_cycles_direct import edge_mask
+from tests.blender.versions import ensure_nodes
 
 SIZE = 64
 CYCLES_SAMPLES = 256
@@ -112,7 +113,7 @@ def floor_scene(bpy, roughness: float):
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_plane_add(size=8.0)
     floor = bpy.data.materials.new("Floor")
-    floor.use_nodes = True
+    ensure_nodes(floor)
     floor.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = \
         (0.5, 0.5, 0.5, 1.0)
     set_principled(floor, roughness)
@@ -120,7 +121,7 @@ def floor_scene(bpy, roughness: float):
     bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 2.0, 2.0),
                                      rotation=(math.pi / 2, 0.0, 0.0))
     wall = bpy.data.materials.new("Wall")
-    wall.use_nodes = True
+    ensure_nodes(wall)
     wall.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = \
         (0.6, 0.1, 0.1, 1.0)
     set_principled(wall, 1.0, level=0.0)
@@ -155,7 +156,7 @@ def test_metallic_sphere(blender, tmp_path, without_specular):
     blender.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=64, ring_count=32)
     blender.ops.object.shade_smooth()
     metal = blender.data.materials.new("Metal")
-    metal.use_nodes = True
+    ensure_nodes(metal)
     metal.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = \
         (0.9, 0.6, 0.3, 1.0)
     set_principled(metal, 0.4, metallic=1.0)
