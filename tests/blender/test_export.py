@@ -382,6 +382,9 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
         node.inputs["Base Color"].default_value = (0.2, 0.4, 0.6, 1)
         node.inputs["Roughness"].default_value = 0.3
         node.inputs["Metallic"].default_value = 0.7
+        node.inputs["IOR"].default_value = 1.45
+        node.inputs["Specular IOR Level"].default_value = 0.3
+        node.inputs["Specular Tint"].default_value = (1.0, 0.5, 0.25, 1)
         return node
     metal = shader_material(bpy, "Metal", principled)
 
@@ -406,6 +409,9 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
     assert got["Mix"].base_color == pytest.approx((0.6, 0.15, 0.075))
     assert got["Mix"].emission == pytest.approx((0.05, 0.5, 0.1))
     assert (got["Metal"].roughness, got["Metal"].metallic) == pytest.approx((0.3, 0.7))
+    assert (got["Metal"].ior, got["Metal"].specular_ior_level) == pytest.approx((1.45, 0.3))
+    assert got["Metal"].specular_tint == pytest.approx((1.0, 0.5, 0.25))
+    assert got["Shiny"].specular_ior_level == 0.0  # a fallback is diffuse
     assert got["Metal"].base_color == pytest.approx((0.2, 0.4, 0.6))
     assert got["Shiny"].base_color == pytest.approx((0.3, 0.2, 0.1))
     assert got["Checker"].base_color == pytest.approx((0.5, 0.6, 0.7))
@@ -417,10 +423,9 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
         *(["material 'Plain' has no shader nodes: rendered as a diffuse surface in its "
            "viewport colour (as Cycles does)"] if plain_warned else []),
         "material 'Shiny': shader 'Glossy BSDF' is not supported; using its viewport colour"]
-    # Cycles 5.x renders an empty slot as a default Principled BSDF: glossy, like 'Metal'
-    glossy = ["(no material)", "Metal"] if BLENDER_5 else ["Metal"]
-    assert len(scene.notes) == 1
-    assert f"{len(glossy)} material(s) with a glossy part (e.g. '{glossy[0]}')" in scene.notes[0]
+    # Cycles 5.x renders an empty slot as a default Principled BSDF (specular level 0.5)
+    assert got["(no material)"].specular_ior_level == (0.5 if BLENDER_5 else 0.0)
+    assert scene.notes == []
 
 
 def test_material_is_read_from_the_output_cycles_renders(blender):

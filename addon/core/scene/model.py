@@ -44,18 +44,23 @@ class Texture:
 
 @dataclass
 class Material:
-    """A diffuse material: base colour (albedo) and emitted radiance (colour × strength).
+    """A material: base colour (albedo), emitted radiance (colour × strength) and the
+    Principled BSDF's specular layers (core/scene/principled.py).
 
     With ``base_color_texture`` the texture is the base colour (``base_color`` is unused);
     with ``emission_texture`` the emitted radiance is the texture times ``emission`` (the
-    strength per channel). Roughness and metallic are Principled BSDF's values, carried for
-    glossy transport; the renderer is diffuse only and does not use them yet."""
+    strength per channel). Roughness, metallic, IOR, specular IOR level and specular tint are
+    the Principled BSDF's inputs; with level 0 and metallic 0 (the defaults here, as for a
+    Diffuse BSDF) the material is pure Lambert."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     roughness: float = 0.5
     metallic: float = 0.0
+    ior: float = 1.5
+    specular_ior_level: float = 0.0
+    specular_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
     base_color_texture: Texture | None = None
     emission_texture: Texture | None = None
 
