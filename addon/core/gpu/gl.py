@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import re
+from concurrent.futures import ThreadPoolExecutor
 from functools import cache
 from pathlib import Path
 
@@ -80,7 +81,13 @@ def explain_failure(errors: list[str], device: int | None) -> str:
 
 def list_devices() -> list[str]:
     """One line per EGL device: its index, renderer and OpenGL version (or why it cannot
-    render)."""
+    render). Probed in a thread of its own: a context made current here would replace the
+    caller's (Blender's, or a renderer's)."""
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        return pool.submit(_probe_devices).result()
+
+
+def _probe_devices() -> list[str]:
     lines = []
     for index in range(MAX_DEVICES):
         try:

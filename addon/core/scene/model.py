@@ -230,12 +230,12 @@ class Scene:
     instances: list[Instance] = field(default_factory=list)
     lights: list[Light] = field(default_factory=list)
     world: World = field(default_factory=World)
-    portals: list[Light] = field(default_factory=list)  # area lights marked Portal (Cycles):
-    # openings that world light enters through; they emit nothing themselves
     camera: Camera | None = None
     film_transparent: bool = False
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # informational, not problems
+    portals: list[Light] = field(default_factory=list)  # area lights marked Portal (Cycles):
+    # openings that world light enters through; they emit nothing themselves
 
     @property
     def surface_lights(self) -> list[Light]:
