@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from . import bake
 from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, cycles_output_node, uses_nodes
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
@@ -259,6 +260,11 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
                 None if uvs is None else corner), problems
 
 
+def read_mesh(mesh: bpy.types.Mesh, name: str) -> Mesh:
+    """The triangles of a mesh datablock (a bake's temporary copy), problems left out."""
+    return _mesh_arrays(mesh, name, f"mesh '{name}'", faces_expected=True)[0]
+
+
 def _uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
     """The active render UV map's coordinates per corner, (L, 2), or None without one."""
     layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
@@ -411,15 +417,16 @@ def _default_surface(glossy: set[str] | None) -> Material:
 
 
 def export_material(material: bpy.types.Material | None, warnings: list[str],
-                    glossy: set[str] | None = None, images: ImageReader | None = None
-                    ) -> Material:
+                    glossy: set[str] | None = None, images: ImageReader | None = None,
+                    fallbacks: dict[str, str] | None = None) -> Material:
     """Base colour, emission, roughness and metallic of a material's surface (constant values
     or image textures, read by ``images``).
 
     A material without nodes (Blender 4.x) is diffuse in its viewport colour (as in Cycles),
     with a warning;
-    an unsupported node tree falls back to the viewport colour with one warning. Names of
-    materials with a glossy part are added to ``glossy``."""
+    an unsupported node tree falls back to the viewport colour with one warning (none where
+    the tree can be baked: ``fallbacks`` gets the reason, and bake.apply says what it did).
+    Names of materials with a glossy part are added to ``glossy``."""
     if material is None:
         return _default_surface(glossy)
     viewport = Material(material.name, _rgb(material.diffuse_color),
@@ -433,8 +440,20 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
         return _shader(node, material.name, set() if glossy is None else glossy,
                        images or ImageReader(warnings))
     except (_Unsupported, UnsupportedLink) as reason:
-        warnings.append(f"material '{material.name}': {reason}; using its viewport colour")
+        if fallbacks is not None:
+            fallbacks[material.name] = str(reason)
+        if fallbacks is None or bake.bake_reason(material, str(reason)) is None:
+            warnings.append(f"material '{material.name}': {reason}; using its viewport colour")
         return viewport
+
+
+def fallback_reasons(obj: bpy.types.Object) -> dict[str, str]:
+    """Why each of the object's materials falls back to its viewport colour (by name)."""
+    fallbacks: dict[str, str] = {}
+    for slot in obj.material_slots:
+        if slot.material is not None:
+            export_material(slot.material, [], fallbacks=fallbacks)
+    return fallbacks
 
 
 # -- lights, world, camera ------------------------------------------------------------------
@@ -583,6 +602,8 @@ class _Export:
         self.glossy: set[str] = set()
         self.images = ImageReader(result.warnings)
         self.generated: dict[str, dict[int, int]] = {}
+        self.fallbacks: dict[str, str] = {}
+        self.bake_resolution = bake.settings_of(depsgraph.scene)[0]
 
     def include(self, obj: bpy.types.Object) -> bool:
         """False for geometry no ray sees; warns once per object about flags not honoured."""
@@ -667,9 +688,18 @@ class _Export:
             key = slot.material.name_full if slot.material else ""
             if key not in self.materials:
                 self.materials[key] = export_material(slot.material, self.result.warnings,
-                                                      self.glossy, self.images)
+                                                      self.glossy, self.images, self.fallbacks)
             found.append(self.materials[key])
         return found
+
+    def placed(self, inst, obj: bpy.types.Object) -> tuple[Mesh, list[Material], str]:
+        """The instance's mesh and materials (with its object's bake, if any) and name."""
+        mesh, materials = self.mesh(inst, obj), self.materials_of(obj)
+        if self.fallbacks:
+            mesh, materials = bake.apply(obj, mesh, materials, self.fallbacks,
+                                         self.bake_resolution, self.result.notes,
+                                         self.result.warnings)
+        return mesh, materials, obj.name
 
 
 def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = None) -> Scene:
@@ -705,8 +735,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         memo = (obj.original, obj.data)
         known = placements.get(memo)
         if known is None:
-            known = placements[memo] = (state.mesh(inst, obj), state.materials_of(obj),
-                                        obj.name) if state.include(obj) else None
+            known = placements[memo] = state.placed(inst, obj) if state.include(obj) else None
         elif known:
             cache.stats["meshes_reused"] += 1
         if known and known[0].triangle_count:

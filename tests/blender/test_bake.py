@@ -1,0 +1,200 @@
+"""Material bakes: procedural colours, a texture behind a Mapping node and a mesh without UVs
+(xatlas) against Cycles; the bake cache; the user's data left as it was."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon import bake
+from addon.export import export_scene
+from tests.blender.rendering import configure_cycles, render_linear
+from tests.blender.test_export import add_light, add_mesh, add_plane, new_scene
+from tests.blender.test_textures import byte_image, gradient, with_uvs
+from tests.blender.versions import ensure_nodes
+
+SIZE = 48
+CYCLES_SAMPLES = 64
+# Measured (bpy 4.5, llvmpipe, Cycles 64 samples, bake 256², 4 samples): see
+# docs/measurements.md. Bounds: the baked image within 3 % energy and 5 % relRMSE; the old
+# viewport-colour fallback (0.8 grey) fails both on every case.
+ENERGY_BOUND = 0.03
+RMSE_BOUNDS = {"noise": 0.01, "mapping": 0.01, "generated": 0.05}
+
+
+def procedural_material(bpy, name: str, kind: str, image=None):
+    """A Diffuse BSDF coloured by a node chain: 'noise' (Noise Texture → ColorRamp),
+    'mapping' (an image through a Mapping node on UVs), 'generated' (a Voronoi texture on
+    Generated coordinates mixed with a colour by a Math node)."""
+    material = bpy.data.materials.new(name)
+    ensure_nodes(material)
+    tree = material.node_tree
+    tree.nodes.clear()
+    nodes, links = tree.nodes, tree.links
+    out = nodes.new("ShaderNodeOutputMaterial")
+    shader = nodes.new("ShaderNodeBsdfDiffuse")
+    links.new(shader.outputs[0], out.inputs["Surface"])
+    if kind == "noise":
+        noise = nodes.new("ShaderNodeTexNoise")
+        noise.inputs["Scale"].default_value = 3.0
+        ramp = nodes.new("ShaderNodeValToRGB")
+        ramp.color_ramp.elements[0].color = (0.9, 0.2, 0.1, 1.0)
+        ramp.color_ramp.elements[1].color = (0.1, 0.3, 0.9, 1.0)
+        links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+        links.new(ramp.outputs["Color"], shader.inputs["Color"])
+    elif kind == "mapping":
+        coords = nodes.new("ShaderNodeTexCoord")
+        mapping = nodes.new("ShaderNodeMapping")
+        mapping.inputs["Scale"].default_value = (2.0, 2.0, 1.0)
+        mapping.inputs["Rotation"].default_value = (0.0, 0.0, 0.4)
+        texture = nodes.new("ShaderNodeTexImage")
+        texture.image = image
+        links.new(coords.outputs["UV"], mapping.inputs["Vector"])
+        links.new(mapping.outputs["Vector"], texture.inputs["Vector"])
+        links.new(texture.outputs["Color"], shader.inputs["Color"])
+    else:
+        coords = nodes.new("ShaderNodeTexCoord")
+        voronoi = nodes.new("ShaderNodeTexVoronoi")
+        voronoi.inputs["Scale"].default_value = 2.5
+        math = nodes.new("ShaderNodeMath")
+        math.operation = "MULTIPLY"
+        math.inputs[1].default_value = 0.8
+        mix = nodes.new("ShaderNodeMixRGB")
+        mix.inputs["Color1"].default_value = (0.1, 0.6, 0.2, 1.0)
+        mix.inputs["Color2"].default_value = (0.9, 0.8, 0.1, 1.0)
+        links.new(coords.outputs["Generated"], voronoi.inputs["Vector"])
+        links.new(voronoi.outputs["Distance"], math.inputs[0])
+        links.new(math.outputs[0], mix.inputs["Fac"])
+        links.new(mix.outputs["Color"], shader.inputs["Color"])
+    return material
+
+
+def add_box(bpy, name: str, size: float):
+    """A box without UV maps, seen from above at a slant."""
+    h = size / 2
+    verts = [(x, y, z) for x in (-h, h) for y in (-h, h) for z in (-h, h)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    obj = add_mesh(bpy, name, verts, faces)
+    obj.rotation_euler = (0.5, 0.3, 0.2)
+    return obj
+
+
+def case_scene(bpy, kind: str):
+    scene = new_scene(bpy, SIZE, ortho_scale=2.4)
+    scene.vpl_gi.bake_resolution = "256"
+    scene.vpl_gi.antialiasing = 4
+    if kind == "generated":
+        obj = add_box(bpy, "Box", 1.4)
+    else:
+        obj = with_uvs(add_plane(bpy, "Plane", 2.0))
+    image = byte_image(bpy, "Paint", gradient(4, 4, 1)) if kind == "mapping" else None
+    obj.data.materials.append(procedural_material(bpy, kind.title(), kind, image))
+    add_light(bpy, "SUN", 3.0, angle=0.0)
+    return scene
+
+
+def compare(reference: np.ndarray, ours: np.ndarray) -> tuple[float, float]:
+    """Energy (mean ratio − 1) and relRMSE of ours against the reference."""
+    energy = ours.mean() / reference.mean() - 1.0
+    rmse = np.sqrt(np.mean((ours - reference) ** 2)) / reference.mean()
+    return float(energy), float(rmse)
+
+
+@pytest.mark.parametrize("kind", ["noise", "mapping", "generated"])
+def test_baked_materials_match_cycles(blender, tmp_path, kind):
+    """Each procedural material renders like Cycles (0 bounces, a sun); the old fallback
+    (the viewport colour) is outside the bounds."""
+    bpy = blender
+    scene = case_scene(bpy, kind)
+    configure_cycles(scene, CYCLES_SAMPLES)
+    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")[..., :3]
+    bake.CACHE.clear()
+    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")[..., :3]
+    assert len(bake.CACHE.entries) == 1
+    energy, rmse = compare(reference, ours)
+    bake.CACHE.clear()
+    bpy.app.handlers.render_pre.remove(bake._before_render)  # no bake: the old fallback
+    try:
+        fallback = render_linear(scene, "VPL_GI", tmp_path / "old.exr")[..., :3]
+    finally:
+        bpy.app.handlers.render_pre.append(bake._before_render)
+    old_energy, old_rmse = compare(reference, fallback)
+    print(f"{kind}: energy {energy:+.4f} relRMSE {rmse:.4f} | fallback energy "
+          f"{old_energy:+.4f} relRMSE {old_rmse:.4f}")
+    assert abs(energy) < ENERGY_BOUND and rmse < RMSE_BOUNDS[kind]
+    assert abs(old_energy) > ENERGY_BOUND or old_rmse > RMSE_BOUNDS[kind]
+
+
+def datablock_names(bpy) -> dict[str, set[str]]:
+    """Every datablock's name, by collection, and each mesh's UV maps and material users."""
+    names = {}
+    for attribute in dir(bpy.data):
+        collection = getattr(bpy.data, attribute)
+        if isinstance(collection, bpy.types.bpy_prop_collection) and attribute != "window_managers":
+            try:
+                names[attribute] = {(item.name_full, item.users) for item in collection}
+            except (AttributeError, TypeError):
+                continue
+    names["uv maps"] = {(m.name, layer.name) for m in bpy.data.meshes for layer in m.uv_layers}
+    names["nodes"] = {(m.name, len(m.node_tree.nodes), len(m.node_tree.links))
+                      for m in bpy.data.materials if m.node_tree}
+    return names
+
+
+def test_cache_and_user_data(blender):
+    """A second frame reuses the bake; a changed tree bakes again; the user's data is as it
+    was (no UV map, no datablock left), also when the bake fails."""
+    bpy = blender
+    scene = case_scene(bpy, "generated")
+    bake.CACHE.clear()
+    before = datablock_names(bpy)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    first = bake.bake_scene(depsgraph)
+    assert len(first.baked) == 1 and first.problems == []
+    assert datablock_names(bpy) == before
+    exported = export_scene(depsgraph)
+    material = exported.instances[0].materials[0]
+    assert material.base_color_texture is not None
+    assert exported.instances[0].mesh.uvs is not None  # xatlas, on the copy only
+    assert any("baked 'Generated'" in note for note in exported.notes)
+    assert not exported.warnings
+
+    scene.frame_set(2)
+    second = bake.bake_scene(bpy.context.evaluated_depsgraph_get())
+    assert second.baked == [] and len(bake.CACHE.entries) == 1
+
+    math = next(n for n in bpy.data.materials["Generated"].node_tree.nodes if n.type == "MATH")
+    math.inputs[1].default_value = 0.5
+    third = bake.bake_scene(bpy.context.evaluated_depsgraph_get())
+    assert len(third.baked) == 1 and len(bake.CACHE.entries) == 2
+    assert datablock_names(bpy) == {**before, "nodes": datablock_names(bpy)["nodes"]}
+
+    def interrupted(*_args, **_kwargs):
+        raise KeyboardInterrupt
+    math.inputs[1].default_value = 0.4
+    state = datablock_names(bpy)
+    original, bake._run_bake = bake._run_bake, interrupted
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            bake.bake_scene(bpy.context.evaluated_depsgraph_get())
+    finally:
+        bake._run_bake = original
+    assert datablock_names(bpy) == state
+    bake.CACHE.clear()
+
+
+def test_missing_bake_and_memory_cap(blender):
+    """Without a bake the material keeps its viewport colour with a warning naming why; a
+    bake over the memory cap is refused with a message naming the settings."""
+    bpy = blender
+    scene = case_scene(bpy, "noise")
+    bake.CACHE.clear()
+    exported = export_scene(bpy.context.evaluated_depsgraph_get())
+    assert exported.instances[0].materials[0].base_color_texture is None
+    assert len(exported.warnings) == 1 and "Noise Texture" in exported.warnings[0]
+    assert "no bake for object 'Plane'" in exported.warnings[0]
+    scene.vpl_gi.bake_resolution = "4096"
+    scene.vpl_gi.bake_memory = 16
+    cache = bake.bake_scene(bpy.context.evaluated_depsgraph_get())
+    assert cache.baked == [] and len(cache.problems) == 1
+    assert "Bake Resolution" in cache.problems[0] and "16 MiB" in cache.problems[0]
