@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import bpy
@@ -28,6 +29,7 @@ from bpy.app.handlers import persistent
 
 from . import ENGINE_ID, bake_tree
 from .blender_compat import ensure_nodes
+from .core.frame.result import Stats
 from .core.scene.model import Material, Mesh, Texture
 from .core.settings import DEFAULTS
 from .uv_unwrap import unsuitable, unwrap
@@ -35,6 +37,7 @@ from .uv_unwrap import unsuitable, unwrap
 BAKE_SAMPLES = 4  # Cycles samples per texel: anti-aliases the texel's footprint
 BAKE_MARGIN = 4  # texels the bake extends past each UV island (bilinear lookups at edges)
 TEXEL_BYTES = 16  # float32 RGBA
+NOT_BAKED = "not baked: bakes run before background renders, in the viewport and by Bake Materials"
 
 
 @dataclass
@@ -369,9 +372,7 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
     entry = CACHE.entries.get(bake_key(obj, resolution))
     if entry is None:
         for name, reason in reasons.items():
-            message = (f"material '{name}': {reason}; using its viewport colour (no bake for "
-                       f"object '{obj.original.name}': bakes run before background renders "
-                       f"and by Bake Materials)")
+            message = f"material '{name}': {reason}; using its viewport colour ({NOT_BAKED})"
             if message not in warnings:
                 warnings.append(message)
         return mesh, materials
@@ -388,6 +389,18 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
     if note not in notes:
         notes.append(note)
     return (entry.mesh if entry.mesh is not None else mesh), result
+
+
+def report(stats: Stats, notes: list[str]) -> None:
+    """Put the export's bake notes and the bake pass's problems into a frame's stats, and the
+    time of the bakes made since
+    the last report as its 'material bake' stage (a frame that reused its bakes has none)."""
+    stats.notes[:0] = [note for note in notes if note not in stats.notes]
+    stats.warnings.extend(p for p in CACHE.problems if p not in stats.warnings)
+    CACHE.problems = []
+    if CACHE.baked:
+        stats.timings["material bake"] = sum(entry.seconds for _, entry in CACHE.baked)
+        CACHE.baked = []
 
 
 # -- when bakes run -------------------------------------------------------------------------
@@ -429,6 +442,21 @@ class VPLGI_OT_bake_materials(bpy.types.Operator):
 
 def _draw_button(panel: bpy.types.Panel, _context: bpy.types.Context) -> None:
     panel.layout.operator(VPLGI_OT_bake_materials.bl_idname)
+
+
+def bake_soon(on_baked: Callable[[], None]) -> None:
+    """Bake the context's scene on a timer (the main thread, outside drawing: the viewport),
+    then call ``on_baked`` if anything was baked."""
+    def run() -> None:
+        if not _baking.acquire(blocking=False):
+            return
+        try:
+            cache = bake_scene(bpy.context.evaluated_depsgraph_get())
+        finally:
+            _baking.release()
+        if cache.baked:
+            on_baked()
+    bpy.app.timers.register(run, first_interval=0.0)
 
 
 def register() -> None:

@@ -9,6 +9,7 @@ import pytest
 from addon import bake
 from addon.export import export_scene
 from tests.blender.rendering import configure_cycles, render_linear
+from tests.blender.test_cli import run_cli
 from tests.blender.test_export import add_light, add_mesh, add_plane, new_scene
 from tests.blender.test_textures import byte_image, gradient, with_uvs
 from tests.blender.versions import ensure_nodes
@@ -192,9 +193,28 @@ def test_missing_bake_and_memory_cap(blender):
     exported = export_scene(bpy.context.evaluated_depsgraph_get())
     assert exported.instances[0].materials[0].base_color_texture is None
     assert len(exported.warnings) == 1 and "Noise Texture" in exported.warnings[0]
-    assert "no bake for object 'Plane'" in exported.warnings[0]
+    assert "not baked: bakes run before background renders" in exported.warnings[0]
     scene.vpl_gi.bake_resolution = "4096"
     scene.vpl_gi.bake_memory = 16
     cache = bake.bake_scene(bpy.context.evaluated_depsgraph_get())
     assert cache.baked == [] and len(cache.problems) == 1
     assert "Bake Resolution" in cache.problems[0] and "16 MiB" in cache.problems[0]
+
+
+def test_command_line_bakes_once_and_reports_it(blender, tmp_path):
+    """``python -m addon render`` bakes before the first frame (render_pre), reuses the bake
+    on the second, and says what it baked, why and how long it took."""
+    bpy = blender
+    case_scene(bpy, "noise")
+    path = tmp_path / "noise.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    result = run_cli("render", str(path), "-o", str(tmp_path / "frame_#.png"), "-f", "1..2",
+                     "-r", "16x16", "--set", "bake_resolution=64")
+    assert result.returncode == 0, result.stderr
+    assert "warning" not in result.stderr
+    notes = [line for line in result.stdout.splitlines() if line.startswith("note: baked")]
+    assert len(notes) == 2 and "'Noise' on object 'Plane' (64 px" in notes[0]
+    assert "Noise Texture" in notes[0] and "Color Ramp" in notes[0]
+    stages = [line for line in result.stdout.splitlines() if line.startswith("stages:")]
+    assert "material bake" in stages[0] and "material bake" not in stages[1]
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == ["frame_1.png", "frame_2.png"]
