@@ -50,6 +50,7 @@ class Baked:
     seconds: float
     reasons: dict[str, str]  # material name -> why it was baked
     nbytes: int
+    evaluated: str | None = None  # with xatlas UVs: the hash of the mesh they were made on
     used: int = 0  # the cache generation that last used it
 
 
@@ -146,11 +147,27 @@ def mesh_hash(mesh: bpy.types.Mesh) -> str:
 
 
 def bake_key(obj: bpy.types.Object, resolution: int) -> tuple:
-    """The cache key of an evaluated mesh object's bake."""
+    """The cache key of an evaluated mesh object's bake: its slots' node trees, its original
+    mesh and modifier settings (not the evaluated mesh, which differs between the viewport's
+    evaluation, where bakes run, and a final render's: a bake in the object's own UV map
+    holds for both) and the resolution."""
     slots = tuple((slot.material.name_full, bake_tree.tree_hash(slot.material.node_tree))
                   if slot.material is not None and slot.material.node_tree is not None
                   else None for slot in obj.material_slots)
-    return obj.original.name_full, slots, mesh_hash(obj.data), resolution
+    original = obj.original
+    shape_keys = original.data.shape_keys
+    shapes = tuple((k.name, k.value, k.mute) for k in shape_keys.key_blocks) \
+        if shape_keys is not None else ()
+    modifiers = tuple(bake_tree.struct_hash(modifier) for modifier in original.modifiers)
+    return (original.name_full, slots, mesh_hash(original.data), shapes, modifiers,
+            resolution)
+
+
+def _valid(entry: Baked | None, obj: bpy.types.Object) -> bool:
+    """Whether a cached bake fits the evaluated object: a bake in xatlas UVs only on the
+    geometry it was made on."""
+    return entry is not None and (entry.evaluated is None or
+                                  entry.evaluated == mesh_hash(obj.data))
 
 
 # -- the bake -------------------------------------------------------------------------------
@@ -260,7 +277,8 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
             textures[channel] = Texture(f"{obj.original.name} ({channel} bake)", pixels)
         core_mesh = read_mesh(mesh, obj.name) if unwrapped else None
     nbytes = sum(t.pixels.nbytes for t in textures.values())
-    return Baked(textures, core_mesh, time.perf_counter() - start, reasons, nbytes)
+    return Baked(textures, core_mesh, time.perf_counter() - start, reasons, nbytes,
+                 mesh_hash(obj.data) if unwrapped else None)
 
 
 def _bakeable(material: bpy.types.Material | None) -> bool:
@@ -325,7 +343,7 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
         if not reasons:
             continue
         key = bake_key(obj, resolution)
-        if key in CACHE.entries:
+        if _valid(CACHE.entries.get(key), obj):
             CACHE.entries[key].used = CACHE.generation
             continue
         label = f"object '{obj.original.name}'"
@@ -370,7 +388,7 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
     if not reasons:
         return mesh, materials
     entry = CACHE.entries.get(bake_key(obj, resolution))
-    if entry is None:
+    if not _valid(entry, obj):
         for name, reason in reasons.items():
             message = f"material '{name}': {reason}; using its viewport colour ({NOT_BAKED})"
             if message not in warnings:

@@ -66,6 +66,13 @@ def _struct(value, out: list, depth: int = 0) -> None:
             out.append(f"{name}={_plain(item)}")
 
 
+def struct_hash(value) -> str:
+    """A hash of a struct's settings (a modifier's), IDs by name."""
+    out: list[str] = []
+    _struct(value, out)
+    return hashlib.blake2b("\n".join(out).encode(), digest_size=16).hexdigest()
+
+
 def tree_hash(tree: bpy.types.NodeTree) -> str:
     """A hash of everything in a node tree that can change what it computes: each node's
     type, settings and unlinked input values, the links, and node groups' trees."""
