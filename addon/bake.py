@@ -10,8 +10,8 @@ bakes run before the render: in a ``render_pre`` handler when it is called on th
 bake is missing keeps the viewport-colour fallback with a warning saying why.
 
 Nothing of the user's is changed: the bake works on a temporary scene holding a temporary
-object with an evaluated, triangulated copy of the mesh (plus an xatlas UV map when the mesh
-has no suitable one) and copies of its materials, all removed afterwards (errors and Ctrl-C
+object with an evaluated copy of the mesh (triangulated, with an xatlas UV map, when the
+mesh has no suitable UV map) and copies of its materials, all removed afterwards (errors and Ctrl-C
 included). Bakes are cached by object, material node-tree hashes, mesh content and
 resolution, within a memory cap."""
 
@@ -195,13 +195,17 @@ class _Temporary:
         self.made.clear()
 
 
-def _triangulated_copy(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
-                       temporary: _Temporary) -> bpy.types.Mesh:
-    """A new mesh of the evaluated object, every attribute kept, in triangles."""
+def _copy(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
+          temporary: _Temporary) -> bpy.types.Mesh:
+    """A new mesh of the evaluated object, every attribute kept."""
+    return temporary.add(bpy.data.meshes, bpy.data.meshes.new_from_object(
+        obj, preserve_all_data_layers=True, depsgraph=depsgraph))
+
+
+def _triangulate(mesh: bpy.types.Mesh) -> None:
+    """Split every face of the mesh into triangles (attributes kept)."""
     import bmesh  # importable only once bpy is
 
-    mesh = temporary.add(bpy.data.meshes, bpy.data.meshes.new_from_object(
-        obj, preserve_all_data_layers=True, depsgraph=depsgraph))
     work = bmesh.new()
     try:
         work.from_mesh(mesh)
@@ -209,17 +213,21 @@ def _triangulated_copy(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
         work.to_mesh(mesh)
     finally:
         work.free()
-    return mesh
 
 
 def _bake_uvs(mesh: bpy.types.Mesh, resolution: int) -> bool:
-    """Make the bake's UV map active on a triangulated mesh: its own active render map when
-    suitable, else a new xatlas one. True if xatlas made it."""
+    """Make the bake's UV map active: the mesh's own active render map when suitable
+    (the mesh is left as Blender tessellates it, as Cycles renders it), else a new xatlas
+    map on the mesh, triangulated first. True if xatlas made it."""
     uvs = _active_uvs(mesh)
-    if unsuitable(None if uvs is None else uvs.reshape(-1, 2)) is None:
-        layer = next(layer for layer in mesh.uv_layers if layer.active_render)
-        mesh.uv_layers.active = layer
-        return False
+    if uvs is not None:
+        mesh.calc_loop_triangles()
+        corners = _array(mesh.loop_triangles, "loops", len(mesh.loop_triangles) * 3, np.int32)
+        if unsuitable(uvs.reshape(-1, 2)[corners]) is None:
+            mesh.uv_layers.active = next(layer for layer in mesh.uv_layers
+                                         if layer.active_render)
+            return False
+    _triangulate(mesh)
     positions = _array(mesh.vertices, "co", len(mesh.vertices) * 3, np.float32).reshape(-1, 3)
     corners = _array(mesh.loops, "vertex_index", len(mesh.loops), np.int32).reshape(-1, 3)
     layer = mesh.uv_layers.new(name="VPL GI bake", do_init=False)
@@ -250,7 +258,7 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
     start = time.perf_counter()
     materials = [slot.material for slot in obj.material_slots]
     with _Temporary() as temporary:
-        mesh = _triangulated_copy(obj, depsgraph, temporary)
+        mesh = _copy(obj, depsgraph, temporary)
         unwrapped = _bake_uvs(mesh, resolution)
         scene = temporary.add(bpy.data.scenes, bpy.data.scenes.new("VPL GI bake"))
         scene.render.engine = "CYCLES"
@@ -313,13 +321,32 @@ def _channel_copy(material: bpy.types.Material | None, channel: str) -> bpy.type
 
 # -- a scene's bakes ------------------------------------------------------------------------
 
-def needed(obj: bpy.types.Object, fallbacks: dict[str, str]) -> dict[str, str]:
-    """Materials of an evaluated object that need a bake -> why (from the exporter's
-    fallback reasons, keyed by material name)."""
+def named_uv_maps(material: bpy.types.Material | None) -> frozenset[str]:
+    """The UV maps that UV Map nodes of a material's tree name (the exporter reads only the
+    active render map)."""
+    if material is None or material.node_tree is None:
+        return frozenset()
+    return frozenset(node.uv_map for node in material.node_tree.nodes
+                     if node.type == "UVMAP" and node.uv_map)
+
+
+def needed(obj: bpy.types.Object, fallbacks: dict[str, str],
+           named: dict[str, frozenset[str]]) -> dict[str, str]:
+    """Materials of an evaluated object that need a bake -> why: the exporter's fallback
+    reasons (by material name), or UV Map nodes naming another map than the object's active
+    render one (``named``: by material name)."""
     found = {}
+    active = next((layer.name for layer in obj.data.uv_layers if layer.active_render), None) \
+        if obj.type == "MESH" else None
     for slot in obj.material_slots:
         material = slot.material
-        reason = bake_reason(material, fallbacks.get(material.name) if material else None)
+        if material is None:
+            continue
+        other = sorted(named.get(material.name, frozenset()) - {active})
+        reason = fallbacks.get(material.name) or (
+            f"a UV Map node reads UV map '{other[0]}', not the active render map" if other
+            else None)
+        reason = bake_reason(material, reason)
         if reason is not None:
             found[material.name] = reason
     return found
@@ -339,7 +366,8 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
         if obj.type != "MESH" or inst.is_instance or obj.original.name_full in done:
             continue
         done.add(obj.original.name_full)
-        reasons = needed(obj, fallback_reasons(obj))
+        reasons = needed(obj, fallback_reasons(obj), {slot.material.name: named_uv_maps(
+            slot.material) for slot in obj.material_slots if slot.material is not None})
         if not reasons:
             continue
         key = bake_key(obj, resolution)
@@ -380,11 +408,11 @@ def baked_material(material: Material, source: bpy.types.Material, entry: Baked)
 
 
 def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
-          fallbacks: dict[str, str], resolution: int, notes: list[str], warnings: list[str]
-          ) -> tuple[Mesh, list[Material]]:
+          fallbacks: dict[str, str], named: dict[str, frozenset[str]], resolution: int,
+          notes: list[str], warnings: list[str]) -> tuple[Mesh, list[Material]]:
     """An exported object's mesh and materials with its cached bake applied (the bake's UV
     mesh and textures), or unchanged with a warning per material when the bake is missing."""
-    reasons = needed(obj, fallbacks) if obj.type == "MESH" else {}
+    reasons = needed(obj, fallbacks, named) if obj.type == "MESH" else {}
     if not reasons:
         return mesh, materials
     entry = CACHE.entries.get(bake_key(obj, resolution))

@@ -603,6 +603,7 @@ class _Export:
         self.images = ImageReader(result.warnings)
         self.generated: dict[str, dict[int, int]] = {}
         self.fallbacks: dict[str, str] = {}
+        self.named_uvs: dict[str, frozenset[str]] = {}
         self.bake_resolution = bake.settings_of(depsgraph.scene)[0]
 
     def include(self, obj: bpy.types.Object) -> bool:
@@ -689,14 +690,17 @@ class _Export:
             if key not in self.materials:
                 self.materials[key] = export_material(slot.material, self.result.warnings,
                                                       self.glossy, self.images, self.fallbacks)
+                named = bake.named_uv_maps(slot.material)
+                if named:
+                    self.named_uvs[slot.material.name] = named
             found.append(self.materials[key])
         return found
 
     def placed(self, inst, obj: bpy.types.Object) -> tuple[Mesh, list[Material], str]:
         """The instance's mesh and materials (with its object's bake, if any) and name."""
         mesh, materials = self.mesh(inst, obj), self.materials_of(obj)
-        if self.fallbacks:
-            mesh, materials = bake.apply(obj, mesh, materials, self.fallbacks,
+        if self.fallbacks or self.named_uvs:
+            mesh, materials = bake.apply(obj, mesh, materials, self.fallbacks, self.named_uvs,
                                          self.bake_resolution, self.result.notes,
                                          self.result.warnings)
         return mesh, materials, obj.name
