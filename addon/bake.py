@@ -486,10 +486,6 @@ class VPLGI_OT_bake_materials(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def _draw_button(panel: bpy.types.Panel, _context: bpy.types.Context) -> None:
-    panel.layout.operator(VPLGI_OT_bake_materials.bl_idname)
-
-
 def bake_soon(on_baked: Callable[[], None]) -> None:
     """Bake the context's scene on a timer (the main thread, outside drawing: the viewport),
     then call ``on_baked`` if anything was baked."""
@@ -506,16 +502,14 @@ def bake_soon(on_baked: Callable[[], None]) -> None:
 
 
 def register() -> None:
-    """The Bake Materials operator (a button in the Material Bakes panel: call after the
-    panels are registered) and the render_pre handler."""
+    """The Bake Materials operator (a button in the Material Bakes panel) and the
+    render_pre handler."""
     bpy.utils.register_class(VPLGI_OT_bake_materials)
-    bpy.types.RENDER_PT_vpl_gi_bakes.append(_draw_button)
     bpy.app.handlers.render_pre.append(_before_render)
 
 
 def unregister() -> None:
     if _before_render in bpy.app.handlers.render_pre:
         bpy.app.handlers.render_pre.remove(_before_render)
-    bpy.types.RENDER_PT_vpl_gi_bakes.remove(_draw_button)
     bpy.utils.unregister_class(VPLGI_OT_bake_materials)
     CACHE.clear()
