@@ -152,8 +152,12 @@ def test_baked_materials_match_cycles(blender, tmp_path, kind):
     configure_cycles(scene, CYCLES_SAMPLES)
     reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")[..., :3]
     bake.CACHE.clear()
+    scene.render.engine = "VPL_GI"
+    before = datablock_names(bpy)
     ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")[..., :3]
     assert len(bake.CACHE.entries) == 1
+    assert datablock_names(bpy) == before  # the user's data as it was (render_linear's
+    # loaded image is removed again)
     energy, rmse = compare(reference, ours)
     bake.CACHE.clear()
     bpy.app.handlers.render_pre.remove(bake._before_render)  # no bake: the old fallback
@@ -262,3 +266,46 @@ def test_command_line_bakes_once_and_reports_it(blender, tmp_path):
     stages = [line for line in result.stdout.splitlines() if line.startswith("stages:")]
     assert "material bake" in stages[0] and "material bake" not in stages[1]
     assert sorted(p.name for p in tmp_path.glob("*.png")) == ["frame_1.png", "frame_2.png"]
+
+
+def test_viewport_bakes_on_a_timer_then_exports_again(blender, monkeypatch):
+    """The Rendered viewport's first export has no bake: it schedules one on a timer (outside
+    drawing), which bakes, asks the engine for an update, and the next export uses it."""
+    from types import SimpleNamespace
+
+    from addon.viewport import ViewportState
+    from tests.blender.test_viewport_glue import FakeEngine
+
+    bpy = blender
+    scene = case_scene(bpy, "noise")
+    scene.vpl_gi.bake_resolution = "64"
+    scene.vpl_gi.vpl_count = 16
+    bake.CACHE.clear()
+    timers: list = []
+    monkeypatch.setattr(bake.bpy.app.timers, "register",
+                        lambda function, first_interval=0.0: timers.append(function))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    camera = scene.camera.evaluated_get(depsgraph)
+    region_data = SimpleNamespace(
+        view_matrix=np.array(camera.matrix_world.inverted()),
+        window_matrix=np.array(camera.calc_matrix_camera(depsgraph, x=16, y=16)),
+        is_perspective=False)
+    context = SimpleNamespace(region=SimpleNamespace(width=16, height=16),
+                              region_data=region_data, scene=scene)
+    calls: list = []
+    engine = FakeEngine(calls)
+    engine.tag_update = lambda: calls.append("update")
+    state = ViewportState(engine)
+    try:
+        state.update(context, depsgraph)
+        assert len(timers) == 2  # the redraw poll (registered first) and the bake
+        assert state.session._scene.instances[0].materials[0].base_color_texture is None
+        timers[1]()
+        assert "update" in calls and len(bake.CACHE.entries) == 1
+        state.update(context, bpy.context.evaluated_depsgraph_get())
+        material = state.session._scene.instances[0].materials[0]
+        assert material.base_color_texture is not None
+        assert state.session.wait_idle(300) and state.session.error is None
+    finally:
+        state.close()
+        bake.CACHE.clear()
