@@ -337,7 +337,7 @@ def needed(obj: bpy.types.Object, fallbacks: dict[str, str],
     render one (``named``: by material name)."""
     found = {}
     active = next((layer.name for layer in obj.data.uv_layers if layer.active_render), None) \
-        if obj.type == "MESH" else None
+        if obj.original.type == "MESH" else None
     for slot in obj.material_slots:
         material = slot.material
         if material is None:
@@ -363,7 +363,7 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
     done: set[str] = set()
     for inst in depsgraph.object_instances:
         obj = inst.object
-        if obj.type != "MESH" or inst.is_instance or obj.original.name_full in done:
+        if obj.original.type != "MESH" or inst.is_instance or obj.original.name_full in done:
             continue
         done.add(obj.original.name_full)
         reasons = needed(obj, fallback_reasons(obj), {slot.material.name: named_uv_maps(
@@ -412,13 +412,15 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
           notes: list[str], warnings: list[str]) -> tuple[Mesh, list[Material]]:
     """An exported object's mesh and materials with its cached bake applied (the bake's UV
     mesh and textures), or unchanged with a warning per material when the bake is missing."""
-    reasons = needed(obj, fallbacks, named) if obj.type == "MESH" else {}
+    reasons = needed(obj, fallbacks, named)
     if not reasons:
         return mesh, materials
-    entry = CACHE.entries.get(bake_key(obj, resolution))
+    entry = CACHE.entries.get(bake_key(obj, resolution)) if obj.original.type == "MESH" else None
     if not _valid(entry, obj):
+        why = NOT_BAKED if obj.original.type == "MESH" else \
+            f"not baked: {obj.original.type.lower()} objects are not baked"
         for name, reason in reasons.items():
-            message = f"material '{name}': {reason}; using its viewport colour ({NOT_BAKED})"
+            message = f"material '{name}': {reason}; using its viewport colour ({why})"
             if message not in warnings:
                 warnings.append(message)
         return mesh, materials

@@ -241,6 +241,13 @@ def test_missing_bake_and_memory_cap(blender):
     exported = export_scene(bpy.context.evaluated_depsgraph_get())
     assert exported.instances[0].materials[0].base_color_texture is None
     assert len(exported.warnings) == 1 and "Noise Texture" in exported.warnings[0]
+    text = bpy.data.objects.new("Text", bpy.data.curves.new("Text", "FONT"))
+    text.data.materials.append(bpy.data.materials["Noise"])
+    scene.collection.objects.link(text)
+    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+    about = [w for w in warnings if w.startswith("material 'Noise'")]
+    assert len(about) == 2 and about[1].endswith("(not baked: font objects are not baked)")
+    bpy.data.objects.remove(text)
     assert "not baked: bakes run before background renders" in exported.warnings[0]
     scene.vpl_gi.bake_resolution = "4096"
     scene.vpl_gi.bake_memory = 16
