@@ -10,10 +10,10 @@ bakes run before the render: in a ``render_pre`` handler when it is called on th
 bake is missing keeps the viewport-colour fallback with a warning saying why.
 
 Nothing of the user's is changed: the bake works on a temporary scene holding a temporary
-object with an evaluated copy of the mesh (triangulated, with an xatlas UV map, when the
-mesh has no suitable UV map) and copies of its materials, all removed afterwards (errors and Ctrl-C
-included). Bakes are cached by object, material node-tree hashes, mesh content and
-resolution, within a memory cap."""
+object with an evaluated copy of the mesh (triangulated, with an xatlas UV map, when the mesh
+has no suitable UV map) and copies of its materials, all removed afterwards (errors and
+Ctrl-C included). Bakes are cached by object, material node-tree hashes, original mesh and
+modifier settings, and resolution, within a memory cap."""
 
 from __future__ import annotations
 
@@ -63,6 +63,7 @@ class BakeCache:
     generation: int = 0
     baked: list[tuple[str, Baked]] = field(default_factory=list)  # the last pass's new bakes
     problems: list[str] = field(default_factory=list)  # the last pass's failures
+    failed: dict[tuple, str] = field(default_factory=dict)  # key -> why that bake failed
 
     @property
     def nbytes(self) -> int:
@@ -80,6 +81,7 @@ class BakeCache:
 
     def clear(self) -> None:
         self.entries.clear()
+        self.failed.clear()
 
 
 CACHE = BakeCache()
@@ -123,8 +125,8 @@ def _active_uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
 
 
 def mesh_hash(mesh: bpy.types.Mesh) -> str:
-    """A hash of an evaluated mesh's content that a bake depends on: positions, faces,
-    material indices, the active render UV map and the other attributes' values."""
+    """A hash of a mesh's content that a bake depends on: positions, faces, material
+    indices, the active render UV map and colour and float attributes' values."""
     digest = hashlib.blake2b(digest_size=16)
     digest.update(_array(mesh.vertices, "co", len(mesh.vertices) * 3, np.float32).tobytes())
     digest.update(_array(mesh.loops, "vertex_index", len(mesh.loops), np.int32).tobytes())
@@ -231,6 +233,8 @@ def _bake_uvs(mesh: bpy.types.Mesh, resolution: int) -> bool:
     positions = _array(mesh.vertices, "co", len(mesh.vertices) * 3, np.float32).reshape(-1, 3)
     corners = _array(mesh.loops, "vertex_index", len(mesh.loops), np.int32).reshape(-1, 3)
     layer = mesh.uv_layers.new(name="VPL GI bake", do_init=False)
+    if layer is None:
+        raise RuntimeError("the mesh has no room for another UV map (8 at most)")
     layer.uv.foreach_set("vector", unwrap(positions, corners, resolution).ravel())
     mesh.uv_layers.active = layer
     layer.active_render = True
@@ -352,6 +356,12 @@ def needed(obj: bpy.types.Object, fallbacks: dict[str, str],
     return found
 
 
+def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
+    """Record why the object's bake (``key``) was not made, for the export and the report."""
+    CACHE.failed[key] = why
+    CACHE.problems.append(f"object '{obj.original.name}': not baked: {why}")
+
+
 def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
     """Bake every mesh object of the evaluated scene whose materials need it and whose bake
     is not cached; returns the cache, with this pass's bakes and problems."""
@@ -359,11 +369,12 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
 
     resolution, cap = settings_of(depsgraph.scene)
     CACHE.generation += 1
-    CACHE.baked, CACHE.problems = [], []
+    CACHE.baked, CACHE.problems, CACHE.failed = [], [], {}
     done: set[str] = set()
     for inst in depsgraph.object_instances:
         obj = inst.object
-        if obj.original.type != "MESH" or inst.is_instance or obj.original.name_full in done:
+        if obj.original.type != "MESH" or inst.is_instance or not obj.data.polygons or \
+                obj.original.name_full in done:
             continue
         done.add(obj.original.name_full)
         reasons = needed(obj, fallback_reasons(obj), {slot.material.name: named_uv_maps(
@@ -374,19 +385,17 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
         if _valid(CACHE.entries.get(key), obj):
             CACHE.entries[key].used = CACHE.generation
             continue
-        label = f"object '{obj.original.name}'"
         channels = channels_for([slot.material for slot in obj.material_slots])
         nbytes = len(channels) * resolution * resolution * TEXEL_BYTES
         if not CACHE.make_room(nbytes, cap):
-            CACHE.problems.append(
-                f"{label}: not baked: its {nbytes / 2**20:.0f} MiB bake does not fit the bake "
-                f"memory cap of {cap >> 20} MiB ({CACHE.nbytes / 2**20:.0f} MiB in use): "
-                f"lower Bake Resolution or raise Bake Memory")
+            _failed(obj, key, f"its {nbytes / 2**20:.0f} MiB bake does not fit the bake memory cap "
+                         f"of {cap >> 20} MiB ({CACHE.nbytes / 2**20:.0f} MiB in use): lower "
+                         f"Bake Resolution or raise Bake Memory")
             continue
         try:
             entry = bake_object(obj, depsgraph, resolution, reasons)
         except (RuntimeError, ValueError) as exc:
-            CACHE.problems.append(f"{label}: the bake failed: {str(exc).strip()}")
+            _failed(obj, key, f"the bake failed: {str(exc).strip()}")
             continue
         entry.used = CACHE.generation
         CACHE.entries[key] = entry
@@ -412,13 +421,15 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
           notes: list[str], warnings: list[str]) -> tuple[Mesh, list[Material]]:
     """An exported object's mesh and materials with its cached bake applied (the bake's UV
     mesh and textures), or unchanged with a warning per material when the bake is missing."""
-    reasons = needed(obj, fallbacks, named)
+    reasons = needed(obj, fallbacks, named) if mesh.triangle_count else {}
     if not reasons:
         return mesh, materials
-    entry = CACHE.entries.get(bake_key(obj, resolution)) if obj.original.type == "MESH" else None
+    key = bake_key(obj, resolution) if obj.original.type == "MESH" else None
+    entry = CACHE.entries.get(key)
     if not _valid(entry, obj):
-        why = NOT_BAKED if obj.original.type == "MESH" else \
-            f"not baked: {obj.original.type.lower()} objects are not baked"
+        why = NOT_BAKED if key not in CACHE.failed else f"not baked: {CACHE.failed[key]}"
+        if key is None:
+            why = f"not baked: {obj.original.type.lower()} objects are not baked"
         for name, reason in reasons.items():
             message = f"material '{name}': {reason}; using its viewport colour ({why})"
             if message not in warnings:

@@ -254,6 +254,9 @@ def test_missing_bake_and_memory_cap(blender):
     cache = bake.bake_scene(bpy.context.evaluated_depsgraph_get())
     assert cache.baked == [] and len(cache.problems) == 1
     assert "Bake Resolution" in cache.problems[0] and "16 MiB" in cache.problems[0]
+    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+    assert len(warnings) == 1 and "not baked: its 256 MiB bake does not fit the bake memory " \
+        "cap of 16 MiB" in warnings[0]
 
 
 def test_command_line_bakes_once_and_reports_it(blender, tmp_path):
