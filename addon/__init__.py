@@ -11,8 +11,9 @@ ENGINE_ID = "VPL_GI"
 
 def register() -> None:
     """Register the engine, its properties and its panels with Blender."""
-    from . import bake, engine, properties, ui, viewport
+    from . import bake, engine, preferences, properties, ui, viewport
 
+    preferences.register()
     properties.register()
     ui.register()
     bake.register()
@@ -22,10 +23,11 @@ def register() -> None:
 
 def unregister() -> None:
     """Undo register(); a bpy process must call this before it exits, or it hangs."""
-    from . import bake, engine, properties, ui, viewport
+    from . import bake, engine, preferences, properties, ui, viewport
 
     engine.unregister()
     viewport.unregister()
     bake.unregister()
     ui.unregister()
     properties.unregister()
+    preferences.unregister()

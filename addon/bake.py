@@ -406,14 +406,17 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
 # -- what the export uses -------------------------------------------------------------------
 
 def baked_material(material: Material, source: bpy.types.Material, entry: Baked) -> Material:
-    """The exported material with the bake's textures for its baked channels."""
+    """The exported material with the bake's textures for its baked channels, and the
+    specular inputs of a Principled surface where they are constants (a Diffuse BSDF or a
+    mix is diffuse: the bake holds the diffuse colour only)."""
     emission_constant = bake_tree.constant_channel(source, "emission")
     emission_texture = entry.textures.get("emission") if emission_constant is None else None
     emission = (1.0, 1.0, 1.0) if emission_texture is not None else \
         (emission_constant.constant if emission_constant is not None else (0.0, 0.0, 0.0))
-    return Material(material.name, (1.0, 1.0, 1.0), emission, roughness=material.roughness,
-                    metallic=material.metallic, base_color_texture=entry.textures["albedo"],
-                    emission_texture=emission_texture)
+    return Material(material.name, (1.0, 1.0, 1.0), emission,
+                    base_color_texture=entry.textures["albedo"],
+                    emission_texture=emission_texture,
+                    **bake_tree.specular_constants(source))  # type: ignore[arg-type]
 
 
 def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],

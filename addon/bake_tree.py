@@ -154,6 +154,26 @@ def linked_inputs(node) -> list[str]:
     return found
 
 
+def specular_constants(material: bpy.types.Material) -> dict[str, object]:
+    """The specular inputs of a surface that is one Principled BSDF, where they are
+    constants (a baked material keeps them; linked ones keep the Material's defaults)."""
+    node = surface(material)
+    while node is not None and node.type == "REROUTE":
+        node = _node_of(node.inputs[0])
+    if node is None or node.type != "BSDF_PRINCIPLED":
+        return {}
+    found: dict[str, object] = {}
+    for name, key in (("Roughness", "roughness"), ("Metallic", "metallic"), ("IOR", "ior"),
+                      ("Specular IOR Level", "specular_ior_level")):
+        socket = node.inputs[name]
+        if not socket.is_linked:
+            found[key] = float(socket.default_value)
+    tint = node.inputs["Specular Tint"]
+    if not tint.is_linked:
+        found["specular_tint"] = tuple(float(c) for c in tint.default_value[:3])
+    return found
+
+
 # -- the Emission tree in a copy ------------------------------------------------------------
 
 class _Builder:

@@ -3,9 +3,10 @@ place: the add-on asks here instead of comparing versions where it reads Blender
 
 Measured with bpy 4.2.23, 4.5.15 and 5.3.0:
 
-- Render pass names: 5.0 renamed DiffDir, DiffInd, DiffCol and Emit to "Diffuse Direct",
-  "Diffuse Indirect", "Diffuse Color" and "Emission" (Cycles, EEVEE, the compositor's Render
-  Layers node and multilayer EXR channels); Combined, Depth and Normal kept their names.
+- Render pass names: 5.0 renamed DiffDir, DiffInd, DiffCol, GlossDir, GlossInd, GlossCol and
+  Emit to "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Glossy Direct", "Glossy
+  Indirect", "Glossy Color" and "Emission" (Cycles, EEVEE, the compositor's Render Layers node
+  and multilayer EXR channels); Combined, Depth and Normal kept their names.
 - Shader nodes: 5.0 removed ``use_nodes`` from materials and worlds (still readable, always
   True, deprecated for 6.0): every material and world has a node tree, and 4.x files whose
   materials or worlds had nodes off are converted on load to node trees with a Cycles-only
@@ -28,6 +29,9 @@ _PASS_NAMES_5 = {
     "DiffDir": "Diffuse Direct",
     "DiffInd": "Diffuse Indirect",
     "DiffCol": "Diffuse Color",
+    "GlossDir": "Glossy Direct",
+    "GlossInd": "Glossy Indirect",
+    "GlossCol": "Glossy Color",
     "Emit": "Emission",
 }
 
@@ -38,7 +42,8 @@ DEFAULT_SURFACE_IS_PRINCIPLED = BLENDER_5
 
 def pass_name(name: str) -> str:
     """Blender's name, in the running version, of the render pass VPL GI calls ``name`` (its
-    4.x name: Combined, Depth, Normal, DiffDir, DiffInd, DiffCol, Emit)."""
+    4.x name: Combined, Depth, Normal, DiffDir, DiffInd, DiffCol, GlossDir, GlossInd, GlossCol,
+    Emit)."""
     return _PASS_NAMES_5.get(name, name) if BLENDER_5 else name
 
 

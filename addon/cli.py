@@ -164,7 +164,12 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="override a VPL GI setting, e.g. --set light_samples=64 "
                              "(repeatable; names as in core/settings.py)")
+    render.add_argument("--gpu", type=int, metavar="N",
+                        help="render on EGL device N where there are several (default: "
+                             "$VPLGI_GPU, else the first); `gpus` lists them")
     render.set_defaults(run=run_render)
+    gpus = sub.add_parser("gpus", help="list the OpenGL (EGL) devices VPL GI can render on")
+    gpus.set_defaults(run=run_gpus)
     from .blender_args import add_subcommand  # after CliError and run_render exist
     add_subcommand(sub)
     return parser
@@ -187,6 +192,32 @@ def parse_overrides(pairs: list[str]) -> dict[str, int | float | str | bool]:
     return overrides
 
 
+def run_gpus(_args: argparse.Namespace) -> int:
+    """Print one line per EGL device; the first is the default."""
+    from .core.gpu.gl import GLUnavailableError, list_devices
+
+    try:
+        devices = list_devices()
+    except GLUnavailableError as exc:
+        raise CliError(str(exc)) from None
+    if not devices:
+        raise CliError("EGL finds no device: no GPU driver and no Mesa software renderer "
+                       "(install libegl-mesa0 and libgl1-mesa-dri)")
+    print("\n".join(devices))
+    return 0
+
+
+def select_gpu(device: int | None) -> None:
+    """Make ``device`` the EGL device of this process's renders (before the first render)."""
+    if device is None:
+        return
+    from .core.gpu.gl import GPU_VARIABLE
+
+    if device < 0:
+        raise CliError(f"--gpu {device}: device numbers start at 0 (`gpus` lists them)")
+    os.environ[GPU_VARIABLE] = str(device)
+
+
 def run_render(args: argparse.Namespace) -> int:
     scene_file: Path = args.scene
     if not scene_file.is_file():
@@ -200,6 +231,7 @@ def run_render(args: argparse.Namespace) -> int:
     if Path(args.output).suffix.lower() == ".blend":
         raise CliError(f"refusing to write an image to a .blend path: {args.output}")
     check_output_pattern(args.output)
+    select_gpu(getattr(args, "gpu", None))
 
     import bpy  # imported late: argument errors are reported without starting Blender
 

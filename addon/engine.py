@@ -14,9 +14,10 @@ from .blender_compat import pass_name
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats
-from .core.gpu.gl import GLUnavailableError
+from .core.gpu.gl import GLUnavailableError, shared_context
 from .core.settings import SettingsError
 from .export import export_scene
+from .preferences import chosen_device
 from .viewport import ViewportState
 
 DENOISING_DATA = "cycles.denoising_store_passes"
@@ -31,6 +32,9 @@ OPTIONAL_PASSES = {
     "DiffDir": (3, "RGB", "COLOR", "use_pass_diffuse_direct"),
     "DiffInd": (3, "RGB", "COLOR", "use_pass_diffuse_indirect"),
     "DiffCol": (3, "RGB", "COLOR", "use_pass_diffuse_color"),
+    "GlossDir": (3, "RGB", "COLOR", "use_pass_glossy_direct"),
+    "GlossInd": (3, "RGB", "COLOR", "use_pass_glossy_indirect"),
+    "GlossCol": (3, "RGB", "COLOR", "use_pass_glossy_color"),
     "Emit": (3, "RGB", "COLOR", "use_pass_emit"),
     "Denoising Normal": (3, "XYZ", "VECTOR", DENOISING_DATA),
     "Denoising Albedo": (3, "RGB", "COLOR", DENOISING_DATA),
@@ -66,7 +70,7 @@ def shared_renderer() -> Renderer:
     """One Renderer (and GL context) per Blender process, created on first render."""
     global _renderer
     if _renderer is None:
-        _renderer = Renderer()
+        _renderer = Renderer(shared_context(chosen_device()))
     return _renderer
 
 

@@ -361,25 +361,24 @@ def _emissive(name: str, base, base_texture, color, color_texture, strength: flo
                     emission_texture=color_texture if strength != 0 else None, **values)
 
 
-def _shader(node, name: str, glossy: set[str], images: ImageReader) -> Material:
-    """Diffuse values of a shader node (recursing through Mix and Add Shader): constants, or
-    image textures linked to a colour.
+def _shader(node, name: str, images: ImageReader) -> Material:
+    """Values of a shader node (recursing through Mix and Add Shader): constants, or image
+    textures linked to a colour; the Principled BSDF's specular inputs as constants.
 
-    An empty shader socket is black, as in Cycles. Materials with a specular or metallic
-    (glossy) part are added to ``glossy``."""
+    An empty shader socket is black, as in Cycles."""
     if node is None:
         return Material(name, (0.0, 0.0, 0.0))
     if node.type == "REROUTE":
-        return _shader(_linked_shader(node.inputs[0]), name, glossy, images)
+        return _shader(_linked_shader(node.inputs[0]), name, images)
     if node.type == "BSDF_PRINCIPLED":
-        if _input_value(node, "Metallic", 0.0) > 0 or \
-                _input_value(node, "Specular IOR Level", 0.0) > 0:
-            glossy.add(name)
         return _emissive(name, *images.color(node, "Base Color", (0.8,) * 3, name),
                          *images.color(node, "Emission Color", (0, 0, 0), name),
                          float(_constant(node, "Emission Strength", 0.0)),
                          roughness=float(_constant(node, "Roughness", 0.5)),
-                         metallic=float(_constant(node, "Metallic", 0.0)))
+                         metallic=float(_constant(node, "Metallic", 0.0)),
+                         ior=float(_constant(node, "IOR", 1.5)),
+                         specular_ior_level=float(_constant(node, "Specular IOR Level", 0.5)),
+                         specular_tint=_rgb(_constant(node, "Specular Tint", (1, 1, 1))))
     if node.type == "BSDF_DIFFUSE":
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
         return Material(name, base, roughness=1.0, base_color_texture=texture)
@@ -390,8 +389,8 @@ def _shader(node, name: str, glossy: set[str], images: ImageReader) -> Material:
     if node.type in ("MIX_SHADER", "ADD_SHADER"):
         first_socket, second_socket = (node.inputs[1], node.inputs[2]) \
             if node.type == "MIX_SHADER" else (node.inputs[0], node.inputs[1])
-        a = _shader(_linked_shader(first_socket), name, glossy, images)
-        b = _shader(_linked_shader(second_socket), name, glossy, images)
+        a = _shader(_linked_shader(first_socket), name, images)
+        b = _shader(_linked_shader(second_socket), name, images)
         if any((m.base_color_texture, m.emission_texture) != (None, None) for m in (a, b)):
             raise _Unsupported(f"image textures inside '{node.bl_label}' are not supported")
         if node.type == "ADD_SHADER":
@@ -402,22 +401,27 @@ def _shader(node, name: str, glossy: set[str], images: ImageReader) -> Material:
         mix = [tuple(wa * np.array(x) + wb * np.array(y)) for x, y in
                ((a.base_color, b.base_color), (a.emission, b.emission))]
         weight = max(wa + wb, 1e-30)
+        glossy = a if a.specular_ior_level >= b.specular_ior_level else b
         return Material(name, mix[0], mix[1],
                         roughness=(wa * a.roughness + wb * b.roughness) / weight,
-                        metallic=(wa * a.metallic + wb * b.metallic) / weight)
+                        metallic=(wa * a.metallic + wb * b.metallic) / weight,
+                        ior=glossy.ior, specular_tint=glossy.specular_tint,
+                        specular_ior_level=(wa * a.specular_ior_level
+                                            + wb * b.specular_ior_level) / weight)
     raise _Unsupported(f"shader '{node.bl_label}' is not supported")
 
 
-def _default_surface(glossy: set[str] | None) -> Material:
+DEFAULT_PRINCIPLED = Material(DEFAULT_MATERIAL.name, specular_ior_level=0.5)
+
+
+def _default_surface() -> Material:
     """An empty slot or an object without slots: Cycles 4.x renders it diffuse 0.8 grey,
-    Cycles 5.x as a default Principled BSDF (whose glossy part VPL GI does not render)."""
-    if DEFAULT_SURFACE_IS_PRINCIPLED and glossy is not None:
-        glossy.add(DEFAULT_MATERIAL.name)
-    return DEFAULT_MATERIAL
+    Cycles 5.x as a default Principled BSDF."""
+    return DEFAULT_PRINCIPLED if DEFAULT_SURFACE_IS_PRINCIPLED else DEFAULT_MATERIAL
 
 
 def export_material(material: bpy.types.Material | None, warnings: list[str],
-                    glossy: set[str] | None = None, images: ImageReader | None = None,
+                    images: ImageReader | None = None,
                     fallbacks: dict[str, str] | None = None) -> Material:
     """Base colour, emission, roughness and metallic of a material's surface (constant values
     or image textures, read by ``images``).
@@ -425,10 +429,9 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
     A material without nodes (Blender 4.x) is diffuse in its viewport colour (as in Cycles),
     with a warning;
     an unsupported node tree falls back to the viewport colour with one warning (none where
-    the tree can be baked: ``fallbacks`` gets the reason, and bake.apply says what it did).
-    Names of materials with a glossy part are added to ``glossy``."""
+    the tree can be baked: ``fallbacks`` gets the reason, and bake.apply says what it did)."""
     if material is None:
-        return _default_surface(glossy)
+        return _default_surface()
     viewport = Material(material.name, _rgb(material.diffuse_color),
                         roughness=float(material.roughness), metallic=float(material.metallic))
     if not uses_nodes(material):
@@ -437,8 +440,7 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
         return viewport
     node = _surface_node(material.node_tree, "OUTPUT_MATERIAL")
     try:
-        return _shader(node, material.name, set() if glossy is None else glossy,
-                       images or ImageReader(warnings))
+        return _shader(node, material.name, images or ImageReader(warnings))
     except (_Unsupported, UnsupportedLink) as reason:
         if fallbacks is not None:
             fallbacks[material.name] = str(reason)
@@ -458,9 +460,17 @@ def fallback_reasons(obj: bpy.types.Object) -> dict[str, str]:
 
 # -- lights, world, camera ------------------------------------------------------------------
 
+def is_portal(obj: bpy.types.Object) -> bool:
+    """An area light marked Portal (Cycles' light portal): an opening that guides world
+    light, not a light."""
+    cycles = getattr(obj.data, "cycles", None)
+    return obj.data.type == "AREA" and bool(getattr(cycles, "is_portal", False))
+
+
 def export_light(obj: bpy.types.Object, matrix) -> Light:
     """A light with its ray visibility: camera (area-light shapes) and diffuse are honoured;
-    glossy, transmission and volume scatter reach only closures VPL GI does not render, and
+    glossy is not (its highlights stay), transmission and volume scatter reach only closures
+    VPL GI does not render, and
     a light object's shadow visibility changes nothing in Cycles (measured, 4.5)."""
     data = obj.data
     kind = LightKind(data.type)
@@ -599,7 +609,6 @@ class _Export:
         self.meshes: dict[tuple, _Entry] = {}
         self.materials: dict[str, Material] = {}
         self.visibility: dict[int, bool] = {}
-        self.glossy: set[str] = set()
         self.images = ImageReader(result.warnings)
         self.generated: dict[str, dict[int, int]] = {}
         self.fallbacks: dict[str, str] = {}
@@ -683,13 +692,13 @@ class _Export:
 
     def materials_of(self, obj: bpy.types.Object) -> list[Material]:
         if not obj.material_slots:
-            _default_surface(self.glossy)
+            return [_default_surface()]
         found = []
         for slot in obj.material_slots:
             key = slot.material.name_full if slot.material else ""
             if key not in self.materials:
                 self.materials[key] = export_material(slot.material, self.result.warnings,
-                                                      self.glossy, self.images, self.fallbacks)
+                                                      self.images, self.fallbacks)
                 named = bake.named_uv_maps(slot.material)
                 if named:
                     self.named_uvs[slot.material.name] = named
@@ -731,6 +740,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             problem, = transform_problems(matrix[None])
             if problem:
                 result.warnings.append(f"light '{obj.name}' {problem} and was skipped")
+            elif is_portal(obj):
+                result.portals.append(export_light(obj, matrix))
             else:
                 result.lights.append(export_light(obj, matrix))
             continue
@@ -757,10 +768,6 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         else:
             result.instances.append(Instance(mesh, matrix, materials))
     cache._entries = state.used
-    if state.glossy:
-        result.notes.append(f"specular and metallic reflection is not rendered yet: "
-                            f"{len(state.glossy)} material(s) with a glossy part (e.g. "
-                            f"'{min(state.glossy)}') are lit as diffuse in their base colour")
     result.world = export_world(scene_eval.world, result.warnings)
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),

@@ -2,9 +2,12 @@
 
 Supported: an Image Texture's Color output linked (directly or through reroutes) to a colour
 input, its Vector input unlinked (the active render UV map) or linked to a UV Map node or a
-Texture Coordinate node's UV output. Pixels of byte images are in the image's colour space:
-sRGB ones are decoded by the renderer after interpolation, as Cycles does; float images are
-linear already.
+Texture Coordinate node's UV output; every interpolation (Smart is Cubic, as Cycles' SVM
+samples it) and extension, Flat projection. Pixels of byte images are in the image's colour
+space: sRGB ones are decoded by the renderer after interpolation, as Cycles does; float
+images are linear already. As Cycles, the Color output of a byte image with Straight alpha in
+a colour (not data) space is associated — multiplied by alpha — unless the node's Alpha output
+is linked; float images' pixels are associated as Blender stores them.
 """
 
 from __future__ import annotations
@@ -12,11 +15,11 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from .core.scene.model import Texture
-from .core.scene.textures import missing_texture
+from .core.scene.model import EXTENSIONS, Texture
+from .core.scene.textures import associate_bytes, missing_texture
 
 RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear"}
-SUPPORTED_MODES = {"interpolation": "Linear", "extension": "REPEAT", "projection": "FLAT"}
+INTERPOLATION = {"Closest": "Closest", "Linear": "Linear", "Cubic": "Cubic", "Smart": "Cubic"}
 
 
 class UnsupportedLink(Exception):
@@ -72,12 +75,13 @@ def read_pixels(image: bpy.types.Image, warnings: list[str]) -> np.ndarray | Non
 
 
 class ImageReader:
-    """Textures of one export, one per image, and the warnings about them."""
+    """Textures of one export, one per image and sampling mode, and the warnings about them."""
 
     def __init__(self, warnings: list[str]) -> None:
         self.warnings = warnings
-        self._textures: dict[str, Texture] = {}
-        self._missing: set[str] = set()
+        self._pixels: dict[str, tuple[np.ndarray, bool, bool] | None] = {}
+        self._associated: dict[str, np.ndarray] = {}
+        self._textures: dict[tuple[str, bool, str, str], Texture] = {}
 
     def _warn(self, message: str) -> None:
         if message not in self.warnings:
@@ -98,33 +102,59 @@ class ImageReader:
         return (1.0, 1.0, 1.0), self.texture(source, material)
 
     def texture(self, node, material: str) -> Texture:
-        """The node's image as a Texture; magenta, with a warning, when it cannot be read."""
+        """The node's image as a Texture with the node's interpolation and extension; magenta,
+        with a warning, when it cannot be read."""
         image = node.image
-        modes = [f"{attr} {getattr(node, attr).title()}" for attr, supported in
-                 SUPPORTED_MODES.items() if getattr(node, attr) != supported]
         label = f"image '{image.name}'" if image is not None else "an image texture"
-        if modes:
-            self._warn(f"material '{material}': {label}: {', '.join(modes)} not supported "
-                       f"(rendered as Linear, Repeat, Flat)")
+        if node.projection != "FLAT":
+            self._warn(f"material '{material}': {label}: projection "
+                       f"{node.projection.title()} not supported (rendered as Flat)")
         if image is None:
             self._warn(f"material '{material}': an image texture has no image: shown in "
                        f"magenta (1, 0, 1) as Cycles does")
             return missing_texture("(none)")
         key = image.name_full
-        if key not in self._textures:
+        read = self._read(image, material)
+        if read is None:
+            return self._textures.setdefault((key, False, "", ""), missing_texture(image.name))
+        pixels, srgb, translucent = read
+        interpolation, extension = self._sampling(node, material, label)
+        associate = (translucent and not image.is_float and image.alpha_mode == "STRAIGHT"
+                     and not image.colorspace_settings.is_data
+                     and not node.outputs["Alpha"].is_linked)
+        mode = (key, associate, interpolation, extension)
+        if mode not in self._textures:
+            if associate:
+                pixels = self._associated.setdefault(key, associate_bytes(pixels))
+            self._textures[mode] = Texture(image.name, pixels, srgb, interpolation, extension)
+        return self._textures[mode]
+
+    def _read(self, image, material: str) -> tuple[np.ndarray, bool, bool] | None:
+        """The image's pixels, sRGB flag and whether some alpha is below 1 (read once per
+        export), None when unreadable; the warnings about them, once per material."""
+        key = image.name_full
+        if key not in self._pixels:
             pixels = read_pixels(image, self.warnings)
-            if pixels is None:
-                self._missing.add(key)
-                self._textures[key] = missing_texture(image.name)
-            else:
-                srgb = not image.is_float and image.colorspace_settings.name == "sRGB"
-                self._textures[key] = Texture(image.name, pixels, srgb)
+            srgb = not image.is_float and image.colorspace_settings.name == "sRGB"
+            self._pixels[key] = None if pixels is None else \
+                (pixels, srgb, bool((pixels[..., 3] < 1).any()))
         space = image.colorspace_settings.name
-        if key in self._missing:
+        if self._pixels[key] is None:
             self._warn(f"material '{material}': image '{image.name}' is missing or cannot be "
                        f"read ({image.filepath or 'no file'}): shown in magenta (1, 0, 1) as "
                        f"Cycles does")
         elif not image.is_float and space not in RAW_SPACES | {"sRGB"}:
             self._warn(f"material '{material}': image '{image.name}': colour space '{space}' "
                        f"is not supported (read as Non-Color)")
-        return self._textures[key]
+        return self._pixels[key]
+
+    def _sampling(self, node, material: str, label: str) -> tuple[str, str]:
+        """The node's interpolation (Smart as Cubic) and extension; Linear/Repeat, with a
+        warning, for a value this add-on does not know (a newer Blender's)."""
+        interpolation = INTERPOLATION.get(node.interpolation, "Linear")
+        extension = node.extension if node.extension in EXTENSIONS else "REPEAT"
+        if (interpolation, extension) != (INTERPOLATION.get(node.interpolation), node.extension):
+            self._warn(f"material '{material}': {label}: interpolation "
+                       f"{node.interpolation.title()}, extension {node.extension.title()} not "
+                       f"supported (rendered as {interpolation}, {extension.title()})")
+        return interpolation, extension

@@ -12,10 +12,13 @@ import bpy
 import numpy as np
 
 from . import bake
+from .core.frame.renderer import Renderer
+from .core.gpu.gl import create_context
 from .core.scene.model import Camera
 from .core.settings import SettingsError
 from .core.viewport_session import Changes, Update, ViewportSession, classify, view_camera
 from .export import ExportCache, export_scene
+from .preferences import chosen_device
 
 _sessions: weakref.WeakSet[ViewportSession] = weakref.WeakSet()
 _states: weakref.WeakSet[ViewportState] = weakref.WeakSet()
@@ -52,7 +55,9 @@ class ViewportState:
 
     def __init__(self, engine: bpy.types.RenderEngine) -> None:
         self.new_frame = threading.Event()
-        self.session = ViewportSession(on_frame=self.new_frame.set)
+        device = chosen_device()
+        self.session = ViewportSession(on_frame=self.new_frame.set,
+                                       renderer_factory=lambda: Renderer(create_context(device)))
         _sessions.add(self.session)
         self.cache = ExportCache()
         self.exported = False

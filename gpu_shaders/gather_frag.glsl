@@ -4,8 +4,21 @@
 // 2004): short cosine-distributed rays from the pixel find surfaces y closer than the clamp
 // distance, whose outgoing radiance (this batch's light, gathered at y) arrives with weight
 // 1 - d²/clamp².
+// With GLOSSY a second target gets the glossy radiance towards the camera, summed over the
+// same samples with the pixel's lobe from the g-buffer (VPLs are still diffuse emitters; bias
+// compensation adds no glossy light).
 #include "lights_lib.glsl"
 #include "interleave_lib.glsl"
+#ifdef GLOSSY
+#include "principled_lib.glsl"
+uniform sampler2D u_lobe_a;
+uniform sampler2D u_lobe_b;
+uniform sampler2D u_lobe_c;
+uniform vec3 u_camera_position;
+uniform vec3 u_camera_forward;
+uniform bool u_orthographic;
+layout(location = 1) out vec4 out_glossy;
+#endif
 
 in vec2 v_uv;
 
@@ -15,21 +28,41 @@ uniform sampler2D u_geometric;
 uniform int u_first;
 uniform int u_count;
 
-out vec4 out_light;
+layout(location = 0) out vec4 out_light;
+
+// The pixel's glossy lobe and view direction (lobe_a.w = alpha is 0 on diffuse pixels).
+struct Lobe {
+    vec4 a;
+    vec4 b;
+    vec4 c;
+    vec3 view;
+};
 
 // Sum over this draw's samples; with interleaving (u_interleave = K > 1) each pixel of a K×K
-// pattern takes every K²-th sample and scales by K², so the expectation is unchanged.
-vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation) {
+// pattern takes every K²-th sample and scales by K², so the expectation is unchanged. With a
+// lobe (a.w > 0) the glossy radiance of the same samples goes into ``glossy``.
+vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lobe,
+            out vec3 glossy) {
     vec3 irradiance = vec3(0.0);
+    glossy = vec3(0.0);
     ivec2 px = ivec2(gl_FragCoord.xy);
     for (int i = interleave_first(u_first, px); i < u_first + u_count;
          i += interleave_stride()) {
         LightSample s = light_sample(i);
         if (s.generation <= max_generation) {
-            irradiance += sample_irradiance(s, world, normal, geometric);
+            vec3 e = sample_irradiance(s, world, normal, geometric);
+            irradiance += e;
+#ifdef GLOSSY
+            if (lobe.a.w > 0.0 && any(greaterThan(e, vec3(0.0)))) {
+                vec3 l = s.kind == KIND_DIRECTIONAL ? -s.axis : normalize(s.position - world);
+                glossy += e * glossy_brdf(lobe.a, lobe.b, lobe.c, normal, lobe.view, l);
+            }
+#endif
         }
     }
-    return irradiance * interleave_weight();
+    float weight = interleave_weight();
+    glossy *= weight;
+    return irradiance * weight;
 }
 
 #ifdef BIAS_COMPENSATION
@@ -84,8 +117,11 @@ vec3 compensation(vec3 world, vec3 normal, vec3 geometric) {
         if (dot(n_y, dir) > 0.0) n_y = -n_y;
         float weight = 1.0 - (t * t) / (u_clamp_distance * u_clamp_distance);
         vec3 y = origin + dir * t;
+        vec3 unused;
         vec3 radiance = material_of(triangle).albedo.rgb / PI
-                        * gather(y, n_y, n_y, u_max_generation);
+                        * gather(y, n_y, n_y, u_max_generation, Lobe(vec4(0.0), vec4(0.0),
+                                                                      vec4(0.0), vec3(0.0)),
+                                 unused);
         sum += weight * radiance;
     }
     return sum / float(u_bias_samples);
@@ -98,9 +134,20 @@ void main() {
     if (normal.w == 0.0) discard;
     vec3 world = texelFetch(u_position, px, 0).xyz;
     vec3 geometric = texelFetch(u_geometric, px, 0).xyz;
+    Lobe lobe = Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
+#ifdef GLOSSY
+    out_glossy = vec4(0.0);
+    lobe = Lobe(texelFetch(u_lobe_a, px, 0), texelFetch(u_lobe_b, px, 0),
+                texelFetch(u_lobe_c, px, 0),
+                u_orthographic ? -u_camera_forward : normalize(u_camera_position - world));
+#endif
 #ifdef BIAS_COMPENSATION
     out_light = vec4(compensation(world, normal.xyz, geometric), 0.0);
 #else
-    out_light = vec4(gather(world, normal.xyz, geometric, 1 << 30) / PI, 0.0);
+    vec3 glossy;
+    out_light = vec4(gather(world, normal.xyz, geometric, 1 << 30, lobe, glossy) / PI, 0.0);
+#ifdef GLOSSY
+    out_glossy = vec4(glossy, 0.0);
+#endif
 #endif
 }

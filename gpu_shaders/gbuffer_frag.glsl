@@ -1,7 +1,14 @@
 // Writes the g-buffer. Normals are turned to face the camera (surfaces are two-sided, as in
 // Cycles). With ONE_SIDED (visible light shapes) the back side is not drawn. With TEXTURED the
-// albedo (capped to 1, as base colours are) and the emission come from image textures.
+// albedo (capped to 1, as base colours are) and the emission come from image textures. With
+// GLOSSY (some material has a specular layer) the albedo is the diffuse layer's colour (Cycles'
+// DiffCol) and three more layers hold the pixel's glossy lobe (principled_lib.glsl); the glossy
+// colour (Cycles' GlossCol) is (lobe_c.w, albedo.w, emission.w), as OpenGL guarantees only
+// eight colour attachments.
 #include "materials_lib.glsl"
+#ifdef GLOSSY
+#include "principled_lib.glsl"
+#endif
 
 in vec3 v_world;
 in vec3 v_normal;
@@ -22,6 +29,11 @@ layout(location = 1) out vec4 out_normal;    // shading normal, w = 1 where ther
 layout(location = 2) out vec4 out_geometric; // geometric normal
 layout(location = 3) out vec4 out_albedo;
 layout(location = 4) out vec4 out_emission;
+#ifdef GLOSSY
+layout(location = 5) out vec4 out_lobe_a;
+layout(location = 6) out vec4 out_lobe_b;
+layout(location = 7) out vec4 out_lobe_c;
+#endif
 
 void main() {
     vec3 to_camera = u_orthographic ? -u_camera_forward : normalize(u_camera_position - v_world);
@@ -46,6 +58,16 @@ void main() {
         emission = max(layers.z * texture_color(int(layers.y), v_uv), 0.0);
     }
 #endif
-    out_albedo = vec4(albedo, 1.0);
-    out_emission = vec4(emission, 1.0);
+    vec3 gloss = vec3(0.0);
+#ifdef GLOSSY
+    out_lobe_a = out_lobe_b = out_lobe_c = vec4(0.0);
+    if (material.tint.w > 0.0) {
+        albedo *= principled_layers(albedo, material.specular, material.tint,
+                                    dot(shading, to_camera), gloss, out_lobe_a, out_lobe_b,
+                                    out_lobe_c);
+        out_lobe_c.w = gloss.r;
+    }
+#endif
+    out_albedo = vec4(albedo, gloss.g);
+    out_emission = vec4(emission, gloss.b);
 }

@@ -1,30 +1,88 @@
-// Image textures packed by core/textures.py: one layer per image, the image in the layer's
-// lower-left corner; u_texture_sizes holds (width, height, sRGB flag) per layer. Bilinear
-// between texel centres with Repeat extension, decoded from sRGB after interpolation (Cycles).
+// Image textures packed by core/scene/textures.py: one layer per texture, the image in the
+// layer's lower-left corner; u_texture_sizes holds (width, height, sRGB flag, mode) per layer,
+// mode = interpolation (0 Closest, 1 Linear, 2 Cubic) + 4 × extension (0 Repeat, 1 Extend,
+// 2 Clip, 3 Mirror). Sampled as Cycles samples (the CPU twin is textures.sample): values
+// interpolated as stored, then decoded from sRGB.
 #ifndef TEXTURES_LIB_GLSL
 #define TEXTURES_LIB_GLSL
 
 uniform sampler2DArray u_textures;
 uniform sampler2D u_texture_sizes;
 
+const int EXTENSION_REPEAT = 0;
+const int EXTENSION_EXTEND = 1;
+const int EXTENSION_CLIP = 2;
+const int EXTENSION_MIRROR = 3;
+
 vec3 srgb_to_linear(vec3 c) {
     return mix(c / 12.92, pow((max(c, 0.04045) + 0.055) / 1.055, vec3(2.4)),
                step(vec3(0.04045), c));
 }
 
+// A texel coordinate (float) brought to a small integer with the same taps: Repeat and
+// Mirror reduced by their period, Extend and Clip clamped a few texels outside the image.
+int texture_base(float p, float size, int extension) {
+    if (extension == EXTENSION_REPEAT) return int(p - size * floor(p / size));
+    if (extension == EXTENSION_MIRROR) return int(p - 2.0 * size * floor(p / (2.0 * size)));
+    return int(clamp(p, -4.0, size + 3.0));
+}
+
+// Tap index i (>= -5) inside [0, size) for the extension; -1 for Clip outside the image.
+int texture_wrap(int i, int size, int extension) {
+    if (extension == EXTENSION_REPEAT) return (i + 8 * size) % size;
+    if (extension == EXTENSION_MIRROR) {
+        int m = (i + 8 * size) % (2 * size);
+        return m < size ? m : 2 * size - 1 - m;
+    }
+    if (extension == EXTENSION_EXTEND) return clamp(i, 0, size - 1);
+    return (i < 0 || i >= size) ? -1 : i;
+}
+
+vec4 cubic_weights(float t) {
+    float s = 1.0 - t;
+    return vec4(s * s * s, 3.0 * t * t * t - 6.0 * t * t + 4.0,
+                3.0 * s * s * s - 6.0 * s * s + 4.0, t * t * t) / 6.0;
+}
+
 vec3 texture_color(int layer, vec2 uv) {
     vec4 info = texelFetch(u_texture_sizes, ivec2(layer, 0), 0);
     ivec2 size = ivec2(info.xy);
-    vec2 p = uv * info.xy - 0.5;
-    vec2 base = floor(p);
-    vec2 f = p - base;
-    ivec2 i0 = min(ivec2(mod(base, info.xy)), size - 1);
-    ivec2 i1 = (i0 + 1) % size;
-    vec3 c00 = texelFetch(u_textures, ivec3(i0.x, i0.y, layer), 0).rgb;
-    vec3 c10 = texelFetch(u_textures, ivec3(i1.x, i0.y, layer), 0).rgb;
-    vec3 c01 = texelFetch(u_textures, ivec3(i0.x, i1.y, layer), 0).rgb;
-    vec3 c11 = texelFetch(u_textures, ivec3(i1.x, i1.y, layer), 0).rgb;
-    vec3 c = mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
+    int mode = int(info.w + 0.5);
+    int interpolation = mode % 4;
+    int extension = mode / 4;
+    vec2 p = uv * info.xy;
+    int taps = 1;
+    vec4 wx = vec4(1.0, 0.0, 0.0, 0.0);
+    vec4 wy = wx;
+    ivec2 first;
+    if (interpolation == 0) {
+        p = floor(p);
+    } else {
+        p -= 0.5;  // texel centres at half-integers
+        vec2 f = p - floor(p);
+        p = floor(p);
+        if (interpolation == 1) {
+            taps = 2;
+            wx.xy = vec2(1.0 - f.x, f.x);
+            wy.xy = vec2(1.0 - f.y, f.y);
+        } else {
+            taps = 4;
+            wx = cubic_weights(f.x);
+            wy = cubic_weights(f.y);
+            p -= 1.0;
+        }
+    }
+    first = ivec2(texture_base(p.x, info.x, extension), texture_base(p.y, info.y, extension));
+    vec3 c = vec3(0.0);
+    for (int b = 0; b < taps; ++b) {
+        int y = texture_wrap(first.y + b, size.y, extension);
+        for (int a = 0; a < taps; ++a) {
+            int x = texture_wrap(first.x + a, size.x, extension);
+            if (x >= 0 && y >= 0) {
+                c += wx[a] * wy[b] * texelFetch(u_textures, ivec3(x, y, layer), 0).rgb;
+            }
+        }
+    }
     return info.z > 0.5 ? srgb_to_linear(c) : c;
 }
 

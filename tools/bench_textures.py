@@ -33,7 +33,7 @@ def textured(scene: Scene, size: int = 512) -> Scene:
     rng = np.random.default_rng(0)
     for inst in scene.instances:
         mesh = inst.mesh
-        mesh.uvs = mesh.positions[:, :2].astype(np.float32)
+        mesh.uvs, mesh.uv_index = mesh.positions[:, :2].astype(np.float32), mesh.position_index
         for material in inst.materials:
             if material.base_color_texture is None:
                 noise = rng.uniform(0.8, 1.2, size=(size, size, 1))
@@ -59,7 +59,8 @@ def measure(renderer: Renderer, scenes: dict[str, Scene], settings: Settings, re
             _, stats = renderer.render(scene, settings)
             times[name]["frame"].append(time.perf_counter() - start)
             for stage in STAGES:
-                times[name][stage].append(stats.timings.get(stage, 0.0))
+                times[name][stage].append(sum(  # with variants: 'vpl generation (…)'
+                    t for k, t in stats.timings.items() if k.split(" (")[0] == stage))
     return {name: {k: statistics.median(v) for k, v in t.items()} for name, t in times.items()}
 
 

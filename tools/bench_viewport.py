@@ -19,14 +19,15 @@ Run: ``.venv/bin/python tools/bench_viewport.py [--scenes cornell_box interior] 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+import traceback
 from pathlib import Path
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 HEAVY_STAGES = ("ray tracing setup", "vpl generation", "vpl generation (incremental)",
                 "ism splat", "ism pull_push")
@@ -60,7 +61,7 @@ def replay(scene_file: Path, size: int) -> None:
     settings = bpy.context.scene.vpl_gi.to_settings()
     cache = ExportCache()
     height = max(1, size * 9 // 16)
-    camera = export_camera(depsgraph, bpy.context.scene.camera, size, height)
+    camera = export_camera(depsgraph, bpy.context.scene.camera, size, height, [])
     session = ViewportSession()
     rows = []
 
@@ -139,16 +140,26 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", nargs="+", default=["cornell_box", "interior"])
     parser.add_argument("--size", type=int, default=640, help="viewport width in pixels")
+    parser.add_argument("--repo", type=Path, default=REPO,
+                        help="the VPL GI checkout to measure (default: this one)")
     args = parser.parse_args()
+    sys.path.insert(0, str(args.repo.resolve()))
 
     from addon import register, unregister
 
+    code = 1
     register()
     try:
         for name in args.scenes:
-            replay(REPO / "sample_scenes" / f"{name}.blend", args.size)
+            replay(args.repo / "sample_scenes" / f"{name}.blend", args.size)
+        code = 0
+    except Exception:
+        traceback.print_exc()
     finally:
         unregister()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)  # bpy can hang in its exit handlers after an error
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import os
 import signal
 import subprocess
 import sys
@@ -18,9 +19,11 @@ REPO = Path(__file__).resolve().parents[2]
 CORNELL = SAMPLE_SCENES / "cornell_box.blend"
 
 
-def run_cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+def run_cli(*args: str, timeout: float = 120,
+            env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    """``python -m addon ARGS`` in the repository, with ``env`` added to the environment."""
     return subprocess.run([sys.executable, "-m", "addon", *args], cwd=REPO, capture_output=True,
-                          text=True, timeout=timeout)
+                          text=True, timeout=timeout, env={**os.environ, **(env or {})})
 
 
 def digest(path: Path) -> str:

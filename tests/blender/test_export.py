@@ -382,6 +382,9 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
         node.inputs["Base Color"].default_value = (0.2, 0.4, 0.6, 1)
         node.inputs["Roughness"].default_value = 0.3
         node.inputs["Metallic"].default_value = 0.7
+        node.inputs["IOR"].default_value = 1.45
+        node.inputs["Specular IOR Level"].default_value = 0.3
+        node.inputs["Specular Tint"].default_value = (1.0, 0.5, 0.25, 1)
         return node
     metal = shader_material(bpy, "Metal", principled)
 
@@ -406,6 +409,9 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
     assert got["Mix"].base_color == pytest.approx((0.6, 0.15, 0.075))
     assert got["Mix"].emission == pytest.approx((0.05, 0.5, 0.1))
     assert (got["Metal"].roughness, got["Metal"].metallic) == pytest.approx((0.3, 0.7))
+    assert (got["Metal"].ior, got["Metal"].specular_ior_level) == pytest.approx((1.45, 0.3))
+    assert got["Metal"].specular_tint == pytest.approx((1.0, 0.5, 0.25))
+    assert got["Shiny"].specular_ior_level == 0.0  # a fallback is diffuse
     assert got["Metal"].base_color == pytest.approx((0.2, 0.4, 0.6))
     assert got["Shiny"].base_color == pytest.approx((0.3, 0.2, 0.1))
     assert got["Checker"].base_color == pytest.approx((0.5, 0.6, 0.7))
@@ -418,10 +424,9 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
         *(["material 'Plain' has no shader nodes: rendered as a diffuse surface in its "
            "viewport colour (as Cycles does)"] if plain_warned else []),
         "material 'Shiny': shader 'Glossy BSDF' is not supported; using its viewport colour"]
-    # Cycles 5.x renders an empty slot as a default Principled BSDF: glossy, like 'Metal'
-    glossy = ["(no material)", "Metal"] if BLENDER_5 else ["Metal"]
-    assert len(scene.notes) == 1
-    assert f"{len(glossy)} material(s) with a glossy part (e.g. '{glossy[0]}')" in scene.notes[0]
+    # Cycles 5.x renders an empty slot as a default Principled BSDF (specular level 0.5)
+    assert got["(no material)"].specular_ior_level == (0.5 if BLENDER_5 else 0.0)
+    assert scene.notes == []
 
 
 def test_material_is_read_from_the_output_cycles_renders(blender):
@@ -554,3 +559,16 @@ def test_unit_scale_is_ignored_as_cycles_ignores_it(blender, tmp_path):
     for label in ("m", "mm"):
         ours, cycles = images[label, "VPL_GI"], images[label, "CYCLES"]
         assert ours.mean() == pytest.approx(cycles.mean(), rel=0.02)
+
+
+def test_light_portal_guides_world_light_and_emits_nothing(blender):
+    bpy = blender
+    new_scene(bpy)
+    add_plane(bpy, "Floor", 4.0)
+    portal = add_light(bpy, "AREA", 1000.0, location=(0, 0, 2), size=1.5)
+    portal.data.cycles.is_portal = True
+    add_light(bpy, "AREA", 50.0, location=(1, 0, 2))
+    scene = export_scene(bpy.context.evaluated_depsgraph_get())
+    assert [light.name for light in scene.lights] == ["AreaLight.001"]
+    assert [p.name for p in scene.portals] == ["AreaLight"]
+    assert scene.portals[0].world_area == pytest.approx(1.5**2)

@@ -218,6 +218,14 @@ try:
     monitor = sys.modules[MODULE + ".addon.engine"].monitor
     result["warnings"] = list(monitor.last_warnings)
     result["stages"] = sorted(monitor.last_stats.timings) if monitor.last_stats else []
+    prefs = bpy.context.preferences.addons[MODULE].preferences
+    result["gpu_default"] = prefs.gpu_device
+    prefs.gpu_device = 7  # no such GPU here: the next render says so
+    try:
+        bpy.ops.render.render(write_still=False)
+    except RuntimeError as exc:
+        result["gpu_error"] = str(exc)
+    prefs.gpu_device = -1
 
     exrs = sorted(f for f in os.listdir(WORK) if f.endswith(".exr"))
     result["exr_files"] = exrs
@@ -299,6 +307,8 @@ def test_install_enable_and_render(extension_zip: Path, tmp_path: Path) -> None:
     assert result["engine_set"] == "VPL_GI", context
     assert "denoise" in result["stages"] and not result["warnings"], context
     assert result["render"] == ["FINISHED"], context
+    assert result["gpu_default"] == -1, context  # the preference: first device unless chosen
+    assert "GPU 7 does not exist" in result.get("gpu_error", ""), context
     assert result["exr_files"], context
     assert result["image_size"] == [32, 32], context
     assert result["all_finite"], context

@@ -1,5 +1,5 @@
-"""Image textures through UV maps: against Cycles, packed and external files, a missing file,
-and colour bleeding from a textured wall."""
+"""Image textures through UV maps: against Cycles (every interpolation and extension too),
+packed and external files, a missing file, and colour bleeding from a textured wall."""
 
 from __future__ import annotations
 
@@ -97,6 +97,103 @@ def test_textured_planes_match_cycles(blender, tmp_path):
             reference[inside].mean()
         print(f"{name}: relRMSE {error:.4f}")
         assert error < TEXTURE_BOUND
+
+
+INTERPOLATIONS = ("Closest", "Linear", "Cubic", "Smart")
+EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
+# 40 pixels per plane's cell, planes 30 pixels wide showing 7.5 texels: texel edges fall on
+# pixel edges (a Closest texel's edge inside a pixel would be anti-aliased by the AA × AA
+# supersampling grid, coverage quantised to 1/AA, like any geometric edge).
+MODES_SIZE, CELL, PLANE = 160, 1.0, 0.75
+UV_LOW, UV_SPAN = -0.75, 2.5  # UVs from −0.75 to 1.75: the extension shows on every side
+# Measured (bpy 4.5, llvmpipe, Cycles 64 samples; docs/measurements.md, "Image texture modes"):
+# every plane within 0.1 % in energy and 1.3 % relRMSE; with the mode ignored (Linear, Repeat:
+# the add-on before it sampled modes) each other plane was off by 4.4–719 % in energy and
+# 52–962 % in relRMSE.
+MODES_ENERGY_BOUND = 0.01
+MODES_RMSE_BOUND = 0.03
+
+
+def modes_scene(bpy):
+    """A 4 × 4 grid of planes lit by a point light: rows Closest, Linear, Cubic, Smart
+    (bottom to top), columns Repeat, Extend, Clip, Mirror; each plane shows a 3×3 checker of
+    distinct colours (no symmetry, so Mirror differs from Repeat) through UVs beyond 0..1."""
+    scene = new_scene(bpy, MODES_SIZE, ortho_scale=4 * CELL)
+    stored = np.array([[(0.9, 0.9, 0.9), (0.1, 0.1, 0.1), (0.8, 0.2, 0.1)],
+                       [(0.1, 0.3, 0.9), (0.95, 0.95, 0.6), (0.15, 0.1, 0.1)],
+                       [(0.7, 0.9, 0.2), (0.2, 0.05, 0.4), (1.0, 1.0, 1.0)]])
+    image = byte_image(bpy, "Checker", stored)
+    uvs = [(UV_LOW + UV_SPAN * u, UV_LOW + UV_SPAN * v) for u, v in SQUARE_UVS]
+    for row, interpolation in enumerate(INTERPOLATIONS):
+        for column, extension in enumerate(EXTENSIONS):
+            material = textured_material(bpy, f"{interpolation} {extension}", image,
+                                         **{"Specular IOR Level": 0.0})
+            node = next(n for n in material.node_tree.nodes if n.type == "TEX_IMAGE")
+            node.interpolation, node.extension = interpolation, extension
+            plane = with_uvs(add_plane(bpy, material.name, PLANE * CELL), uvs)
+            plane.location = ((column - 1.5) * CELL, (row - 1.5) * CELL, 0.0)
+            plane.data.materials.append(material)
+    add_light(bpy, "POINT", 400.0, location=(0.3, -0.2, 2.5))
+    return scene
+
+
+def mode_errors(ours: np.ndarray, reference: np.ndarray) -> dict[tuple[str, str], tuple]:
+    """(energy error, relRMSE) per plane of modes_scene, over its pixels 2 pixels inside."""
+    cell = MODES_SIZE // 4
+    margin = round((1 - PLANE) / 2 * cell) + 2
+    errors = {}
+    for row, interpolation in enumerate(INTERPOLATIONS):
+        for column, extension in enumerate(EXTENSIONS):
+            window = (slice(row * cell + margin, (row + 1) * cell - margin),
+                      slice(column * cell + margin, (column + 1) * cell - margin))
+            got, expected = ours[window], reference[window]
+            energy = got.sum() / expected.sum() - 1
+            rmse = np.sqrt(np.mean((got - expected) ** 2)) / expected.mean()
+            errors[interpolation, extension] = (float(energy), float(rmse))
+    return errors
+
+
+def test_texture_modes_match_cycles(blender, tmp_path):
+    """Every interpolation × extension against Cycles (0 bounces): each plane's energy and
+    relRMSE within bounds that the add-on's former Linear/Repeat sampling exceeds."""
+    scene = modes_scene(blender)
+    configure_cycles(scene, 64)
+    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")[..., :3]
+    scene.vpl_gi.antialiasing = 4
+    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")[..., :3]
+    errors = mode_errors(ours, reference)
+    for (interpolation, extension), (energy, rmse) in errors.items():
+        print(f"{interpolation:8s} {extension:7s} energy {energy:+.4f} relRMSE {rmse:.4f}")
+    for mode, (energy, rmse) in errors.items():
+        assert abs(energy) < MODES_ENERGY_BOUND and rmse < MODES_RMSE_BOUND, mode
+
+
+def test_image_alpha_colours_like_cycles(blender, tmp_path):
+    """Texels of alpha 0, 0.5 and 1 in an 8-bit image (Closest) on Emission planes: Cycles
+    multiplies the stored colour by alpha for a Straight sRGB image (measured: 0.13 instead
+    of 0.60 in red at alpha 0.5) and not for a Non-Color one; each texel within 0.5 %."""
+    bpy = blender
+    scene = new_scene(bpy, 48, ortho_scale=4.0)
+    for k, space in enumerate(("sRGB", "Non-Color")):
+        image = bpy.data.images.new(f"Alpha {space}", 3, 1, alpha=True)
+        image.pixels.foreach_set(np.array([[0.8, 0.6, 0.4, a] for a in (0.0, 0.5, 1.0)],
+                                          np.float32).ravel())
+        image.pack()
+        image.colorspace_settings.name = space
+        material = textured_material(bpy, f"Glass {space}", image, "ShaderNodeEmission",
+                                     "Color", Strength=1.0)
+        next(n for n in material.node_tree.nodes if n.type == "TEX_IMAGE").interpolation = \
+            "Closest"
+        with_uvs(add_plane(bpy, space, 1.8, x=-1.0 + 2.0 * k)).data.materials.append(material)
+    configure_cycles(scene, 4)
+    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")[..., :3]
+    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")[..., :3]
+    for k in range(2):
+        for texel in range(3):  # plane k spans pixels 1.2 + 24k to 22.8 + 24k, 7.2 per texel
+            x = round(1.2 + 24 * k + (texel + 0.5) * 7.2)
+            window = (slice(20, 28), slice(x - 1, x + 2))
+            got, expected = ours[window].mean(axis=(0, 1)), reference[window].mean(axis=(0, 1))
+            np.testing.assert_allclose(got, expected, rtol=5e-3, atol=1e-4)
 
 
 def test_external_and_missing_image_files(blender, engine_export, tmp_path):
@@ -202,15 +299,15 @@ def test_textured_wall_bleeds_its_texels_colours(blender):
 
 
 def test_unsupported_texture_settings_warn_once_per_material(blender):
-    """Closest/Clip on an image is rendered as Linear/Repeat with one warning; a texture in a
-    Mix Shader or behind a Mapping node falls back to the viewport colour; UVs are read per
-    corner from the active render UV map."""
+    """Closest/Clip is exported as such, silently; Box projection is rendered as Flat with one
+    warning; a texture in a Mix Shader or behind a Mapping node falls back to the viewport
+    colour; UVs are read per corner from the active render UV map."""
     bpy = blender
     new_scene(bpy)
     image = byte_image(bpy, "Tiles", gradient(2, 2, 5))
     closest = textured_material(bpy, "Closest", image)
     node = next(n for n in closest.node_tree.nodes if n.type == "TEX_IMAGE")
-    node.interpolation, node.extension = "Closest", "CLIP"
+    node.interpolation, node.extension, node.projection = "Closest", "CLIP", "BOX"
     mixed = textured_material(bpy, "Mixed", image)
     tree = mixed.node_tree
     principled = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
@@ -227,8 +324,7 @@ def test_unsupported_texture_settings_warn_once_per_material(blender):
         obj.data.materials.append(material)
     scene = export_scene(bpy.context.evaluated_depsgraph_get())
     assert sorted(scene.warnings) == [
-        "material 'Closest': image 'Tiles': interpolation Closest, extension Clip not "
-        "supported (rendered as Linear, Repeat, Flat)",
+        "material 'Closest': image 'Tiles': projection Box not supported (rendered as Flat)",
         "material 'Mapped': input 'Vector' of 'Image Texture' is linked to 'Mapping' (nodes: "
         "Image Texture, Mapping); using its viewport colour (not baked: bakes run before "
         "background renders, in the viewport and by Bake Materials)",
@@ -238,4 +334,6 @@ def test_unsupported_texture_settings_warn_once_per_material(blender):
     mesh = scene.instances[0].mesh
     # triangles (0, 1, 2) and (0, 2, 3) of the quad (Blender's split of this one)
     np.testing.assert_allclose(mesh.corner_uvs(), np.array(uvs)[[0, 1, 2, 0, 2, 3]])
-    assert scene.instances[0].materials[0].base_color_texture.pixels.shape == (2, 2, 4)
+    texture = scene.instances[0].materials[0].base_color_texture
+    assert texture.pixels.shape == (2, 2, 4)
+    assert (texture.interpolation, texture.extension) == ("Closest", "CLIP")

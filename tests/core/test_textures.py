@@ -1,5 +1,6 @@
-"""Image textures: CPU sampling, the g-buffer's texture path against it, the texture variant
-compiled only when needed, and textures' average colour for light sampling and VPLs."""
+"""Image textures: CPU sampling in every interpolation and extension, the g-buffer's texture
+path against it, the texture variant compiled only when needed, and textures' average colour
+for light sampling and VPLs."""
 
 from __future__ import annotations
 
@@ -9,9 +10,25 @@ import pytest
 from addon.core.frame.renderer import Renderer
 from addon.core.scene import textures as tex
 from addon.core.scene.geometry import flatten_instances
-from addon.core.scene.model import Instance, LightKind, Material, Mesh, Scene, Texture
+from addon.core.scene.model import (
+    EXTENSIONS,
+    INTERPOLATIONS,
+    Instance,
+    LightKind,
+    Material,
+    Mesh,
+    Scene,
+    Texture,
+)
 from addon.core.settings import Settings
-from tests.core.builders import floor_scene, light, pixel_centres, quad, top_down_camera
+from tests.core.builders import (
+    floor_scene,
+    light,
+    pixel_centres,
+    quad,
+    top_down_camera,
+    translation,
+)
 
 SIZE = 64
 EXTENT = 6.0
@@ -43,6 +60,72 @@ def test_bilinear_repeat_decodes_srgb_after_interpolation():
     np.testing.assert_allclose(got, expected, rtol=1e-6)
     assert tex.decode_srgb(np.array([1.0]))[0] == pytest.approx(1.0)
     assert tex.decode_srgb(np.array([0.5]))[0] == pytest.approx(0.21404, abs=1e-5)
+
+
+ROW = (0.1, 0.5, 0.9)  # a 1×3 image's red values, left to right
+# u → red value per (interpolation, extension), worked out by hand from Cycles' rules (v is the
+# row's centre): Closest takes texel floor(3u); Linear blends the texels around 3u − 0.5;
+# Cubic is the B-spline (1/6, 4/6, 1/6) at a texel centre, whose rows above and below are
+# outside the image with Clip (a factor 4/6).
+HAND_VALUES = {
+    ("Closest", "REPEAT"): {0.1: 0.1, 0.4: 0.5, -0.1: 0.9, 1.5: 0.5},
+    ("Closest", "EXTEND"): {-0.5: 0.1, 1.7: 0.9, 0.4: 0.5},
+    ("Closest", "CLIP"): {-0.1: 0.0, 1.01: 0.0, 0.9: 0.9},
+    ("Closest", "MIRROR"): {-0.1: 0.1, 1.1: 0.9, -0.5: 0.5, 1.5: 0.5},
+    ("Linear", "REPEAT"): {0.0: 0.5, 0.5: 0.5, 1 / 3: 0.3},
+    ("Linear", "EXTEND"): {0.0: 0.1, -2.0: 0.1, 1.0: 0.9},
+    ("Linear", "CLIP"): {0.0: 0.05, 1.0: 0.45, -0.2: 0.0},
+    ("Linear", "MIRROR"): {0.0: 0.1, 1.0: 0.9, -1 / 6: 0.1, -1 / 3: 0.3},
+    ("Cubic", "REPEAT"): {1 / 6: 0.3, 0.5: 0.5},
+    ("Cubic", "EXTEND"): {1 / 6: 1 / 6, 5 / 6: 5 / 6},
+    ("Cubic", "CLIP"): {1 / 6: 0.1, 5 / 6: 4.1 / 6 * 4 / 6, -1.0: 0.0},
+    ("Cubic", "MIRROR"): {1 / 6: 1 / 6, 5 / 6: 5 / 6, -1 / 6: 1 / 6, 0.5: 0.5},
+}
+
+
+@pytest.mark.parametrize(("interpolation", "extension"), list(HAND_VALUES))
+def test_cpu_sampling_follows_cycles_rules(interpolation, extension):
+    pixels = np.ones((1, 3, 4), np.float32)
+    pixels[0, :, 0] = ROW
+    texture = Texture("row", pixels, interpolation=interpolation, extension=extension)
+    cases = HAND_VALUES[interpolation, extension]
+    uv = np.array([(u, 0.5) for u in cases])
+    np.testing.assert_allclose(tex.sample(texture, uv)[:, 0], list(cases.values()), atol=1e-6)
+
+
+def test_unknown_sampling_mode_is_refused():
+    with pytest.raises(ValueError, match="interpolation 'Smart'"):
+        Texture("t", image(0, 2, 2), interpolation="Smart")
+
+
+def test_gbuffer_samples_every_mode_like_the_cpu(renderer):
+    """Twelve quads, one per interpolation and extension, with UVs from −0.8 to 1.9 (so the
+    extension matters) on a 5×3 sRGB image: DiffCol equals the CPU sampler at each pixel's
+    UV, and the modes give different images."""
+    size, extent, half, spacing = 96, 6.0, 0.6, 1.5  # spacing: 24 pixels
+    pixels = image(7, 3, 5)
+    modes = [(i, e) for i in INTERPOLATIONS for e in EXTENSIONS]
+    textures = [Texture(f"{i} {e}", pixels, True, i, e) for i, e in modes]
+    mesh = quad(half, half)
+    mesh.uvs = ((mesh.positions[:, :2] / half + 1) / 2 * 2.7 - 0.8).astype(np.float32)
+    centres = [((k % 4 - 1.5) * spacing, (k // 4 - 1) * spacing) for k in range(len(modes))]
+    instances = [Instance(mesh, translation(x, y, 0), [Material(t.name, base_color_texture=t)])
+                 for t, (x, y) in zip(textures, centres, strict=True)]
+    scene = Scene(instances, [], camera=top_down_camera(size, extent))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
+    x, y = pixel_centres(size, extent)
+    colours = []
+    for texture, (cx, cy) in zip(textures, centres, strict=True):
+        inside = (np.abs(x - cx) < half - 0.03) & (np.abs(y - cy) < half - 0.03)
+        local = np.stack([x[inside] - cx, y[inside] - cy], axis=1)
+        uv = (local / half + 1) / 2 * 2.7 - 0.8
+        expected = tex.sample(texture, uv)
+        got = frame.passes["DiffCol"][inside]
+        np.testing.assert_allclose(got, expected, atol=2e-5, err_msg=texture.name)
+        colours.append(got)
+    for a in range(len(colours)):  # every mode differs from every other one somewhere
+        for b in range(a):
+            assert np.abs(colours[a] - colours[b]).max() > 0.05, (modes[a], modes[b])
 
 
 def test_gbuffer_samples_albedo_and_emission_like_the_cpu():
@@ -122,3 +205,42 @@ def test_vpls_take_the_albedo_of_the_texel_they_hit():
     got = geometry.albedo_at(np.array([1, 0, 0]), points)
     np.testing.assert_allclose(got[:2], [(0.9, 0.1, 0.1), (0.1, 0.9, 0.1)], atol=1e-6)
     np.testing.assert_allclose(got[2], (0.5, 0.5, 0.1), atol=1e-6)  # halfway between texels
+
+
+def test_vpls_take_the_albedo_of_the_mode_they_sample():
+    """albedo_at follows the texture's extension and interpolation: Clip is black outside
+    0..1, Closest takes whole texels."""
+    pixels = np.ones((1, 2, 4), np.float32)
+    pixels[0, 0, :3], pixels[0, 1, :3] = (0.9, 0.1, 0.1), (0.1, 0.9, 0.1)
+    points = np.array([[-0.7, -0.8, 0.0], [0.4, -0.8, 0.0]])  # u = x + 1: 0.3 and 1.4; v = 0.2
+    albedo = {}
+    for interpolation, extension in (("Closest", "CLIP"), ("Linear", "REPEAT")):
+        texture = Texture("rg", pixels, interpolation=interpolation, extension=extension)
+        floor = Instance(textured_quad(1.0, repeat=2.0), np.eye(4),
+                         [Material("m", base_color_texture=texture)])
+        geometry = flatten_instances(Scene([floor]), [])
+        albedo[interpolation] = geometry.albedo_at(np.array([0, 0]), points)
+    np.testing.assert_allclose(albedo["Closest"], [(0.9, 0.1, 0.1), (0, 0, 0)], atol=1e-6)
+    # Linear, Repeat: u = 0.3 is 0.9 of texel 0 and 0.1 of texel 1; u = 1.4 (0.4) 0.7 and 0.3
+    np.testing.assert_allclose(albedo["Linear"], [(0.82, 0.18, 0.1), (0.66, 0.34, 0.1)],
+                               atol=1e-6)
+
+
+def test_byte_alpha_is_associated_in_integer_bytes_as_cycles():
+    """c·a/255 rounded down in byte codes: 204·128/255 = 102.4 → 102, 153·128/255 → 76."""
+    pixels = np.array([[[204, 153, 255, 128], [204, 153, 255, 0], [10, 20, 30, 255]]],
+                      np.float32) / 255
+    got = np.rint(tex.associate_bytes(pixels) * 255)
+    np.testing.assert_array_equal(got, [[[102, 76, 128, 128], [0, 0, 0, 0], [10, 20, 30, 255]]])
+
+
+def test_a_new_sampling_mode_makes_new_vpls():
+    """The scene version VPLs are keyed by changes when only a texture's extension does."""
+    from addon.core.frame.reuse import SceneVersions
+
+    versions = SceneVersions()
+    for extension, expected in (("REPEAT", 1), ("REPEAT", 1), ("CLIP", 2)):
+        texture = Texture("t", image(5, 2, 2), extension=extension)
+        floor = Instance(textured_quad(1.0), np.eye(4), [Material("m", base_color_texture=texture)])
+        versions.note(flatten_instances(Scene([floor]), []))
+        assert versions.geometry == expected

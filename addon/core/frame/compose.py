@@ -19,14 +19,35 @@ def downsample(image: np.ndarray, factor: int) -> np.ndarray:
     return image.reshape(h // factor, factor, w // factor, factor, c).mean(axis=(1, 3))
 
 
+def _glossy(gbuffer: dict[str, np.ndarray], direct: np.ndarray, indirect: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """GlossCol and the glossy radiance, direct and indirect (zeros without glossy layers)."""
+    if direct.shape[-1] == 4:
+        zero = np.zeros_like(direct[..., :3])
+        return zero, zero, zero
+    color = np.stack([gbuffer["lobe_c"][..., 3], gbuffer["albedo"][..., 3],
+                      gbuffer["emission"][..., 3]], axis=-1)
+    return color, direct[..., 4:7], indirect[..., 4:7]
+
+
+def _per_colour(radiance: np.ndarray, color: np.ndarray) -> np.ndarray:
+    """Blender's light pass: radiance / colour where the colour is not 0."""
+    safe = np.where(color > 0, color, 1.0)
+    return np.where(color > 0, radiance / safe, 0.0)
+
+
 def compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray], direct: np.ndarray,
             indirect: np.ndarray, scene: Scene, aa: int, x0: int, y0: int,
             passes: frozenset[str]) -> None:
-    """Write one supersampled tile's ``passes`` into ``output`` at output resolution."""
+    """Write one supersampled tile's ``passes`` into ``output`` at output resolution.
+    ``direct`` and ``indirect`` are (h, w, 4) diffuse light, or (h, w, 8) with glossy
+    radiance in channels 4-6."""
     covered = gbuffer["normal"][..., 3:4]
     albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
     diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
-    combined = np.concatenate([(diff_dir + diff_ind) * albedo + emission, covered], axis=-1)
+    gloss_col, gloss_dir, gloss_ind = _glossy(gbuffer, direct, indirect)
+    combined = np.concatenate([(diff_dir + diff_ind) * albedo + gloss_dir + gloss_ind
+                               + emission, covered], axis=-1)
     if not scene.film_transparent:
         combined[..., 3:] += 1.0 - covered
         combined[..., :3] += (1.0 - covered) * background(
@@ -35,7 +56,10 @@ def compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray], direc
     region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
     images = {"Combined": lambda: combined, "DiffDir": lambda: diff_dir,
               "DiffInd": lambda: diff_ind, "DiffCol": lambda: albedo,
-              "Emit": lambda: emission, "Normal": lambda: gbuffer["normal"][..., :3]}
+              "Emit": lambda: emission, "Normal": lambda: gbuffer["normal"][..., :3],
+              "GlossDir": lambda: _per_colour(gloss_dir, gloss_col),
+              "GlossInd": lambda: _per_colour(gloss_ind, gloss_col),
+              "GlossCol": lambda: gloss_col}
     for name, image in images.items():
         if name in passes:
             output[name][region] = downsample(image(), aa)

@@ -14,13 +14,14 @@ from ..gpu.ism import ISM_BIAS_TEXELS
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.shadow_atlas import near_far
 from .batches import Batch
-from .gbuffer import GBuffer
+from .gbuffer import GLOSSY_LAYERS, GBuffer
 from .gpu_scope import GpuScope
 
 if TYPE_CHECKING:
     from .visibility import Visibility
 
 SURFACE_VERTICES_BINDING = 4  # the position stream as gather_frag.glsl's storage buffer
+LOBE_UNITS = 9, 10, 11  # the g-buffer's glossy lobe layers (units 6-8: the scene's tables)
 
 
 @dataclass
@@ -57,19 +58,23 @@ def samples_per_draw(rays_per_sample: int, compensation: Compensation | None) ->
     return 4096 if rays_per_sample == 0 else max(1, 48 // rays_per_sample)
 
 
-def new_accumulator(ctx: moderngl.Context, size: tuple[int, int], scope: GpuScope
-                    ) -> moderngl.Framebuffer:
-    """A cleared float32 RGBA target of ``size`` that light is added to."""
-    fbo = scope.own(ctx.framebuffer([scope.own(ctx.texture(size, 4, dtype="f4"))]))
+def new_accumulator(ctx: moderngl.Context, size: tuple[int, int], scope: GpuScope,
+                    glossy: bool = False) -> moderngl.Framebuffer:
+    """A cleared float32 RGBA target of ``size`` that light is added to; with ``glossy`` a
+    second one for glossy radiance."""
+    targets = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in range(1 + glossy)]
+    fbo = scope.own(ctx.framebuffer(targets))
     fbo.clear(0.0, 0.0, 0.0, 0.0)
     return fbo
 
 
 def read_accumulator(accumulator: moderngl.Framebuffer) -> np.ndarray:
-    """The accumulator as (h, w, 4) float32."""
+    """The accumulator as (h, w, 4) float32, or (h, w, 8) with its glossy target after."""
     w, h = accumulator.size
-    return np.frombuffer(accumulator.read(components=4, dtype="f4"),
-                         dtype=np.float32).reshape(h, w, 4)
+    return np.concatenate([np.frombuffer(accumulator.read(components=4, dtype="f4",
+                                                          attachment=k),
+                                         dtype=np.float32).reshape(h, w, 4)
+                           for k in range(len(accumulator.color_attachments))], axis=-1)
 
 
 def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
@@ -92,6 +97,12 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         visibility = light_pass.visibility
         defines: dict[str, object] = dict(visibility.defines)
         uniforms: dict[str, object] = {}
+        if gbuffer.glossy:
+            defines.update(GLOSSY=1)
+            for unit, name in zip(LOBE_UNITS, GLOSSY_LAYERS, strict=True):
+                gbuffer.textures[name].use(unit)
+                uniforms[f"u_{name}"] = unit
+            uniforms.update(gbuffer.view)
         if compensation is not None:
             defines.update(BIAS_COMPENSATION=1, SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
             uniforms.update(u_clamp_distance=compensation.clamp_distance,

@@ -1,8 +1,9 @@
-"""The g-buffer of one image tile: position, normals, albedo and emission per supersample."""
+"""The g-buffer of one image tile: position, normals, albedo and emission per supersample, and
+with specular materials each pixel's glossy lobe (gpu_shaders/principled_lib.glsl)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import moderngl
 import numpy as np
@@ -13,6 +14,8 @@ from ..scene.model import Camera
 from .gpu_scope import GpuScope
 
 LAYERS = ("position", "normal", "geometric", "albedo", "emission")
+GLOSSY_LAYERS = ("lobe_a", "lobe_b", "lobe_c")  # with specular materials; the glossy colour
+# is (lobe_c.w, albedo.w, emission.w): OpenGL guarantees eight colour attachments only
 TEXTURE_UNITS = 0, 1  # the image textures' array texture and its table of sizes
 
 
@@ -34,10 +37,16 @@ class Tile:
 
 @dataclass
 class GBuffer:
-    """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays."""
+    """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays;
+    ``view``: the camera uniforms a glossy gather needs (empty without GLOSSY_LAYERS)."""
 
     textures: dict[str, moderngl.Texture]
     images: dict[str, np.ndarray]
+    view: dict[str, object] = field(default_factory=dict)
+
+    @property
+    def glossy(self) -> bool:
+        return GLOSSY_LAYERS[0] in self.textures
 
 
 def tile_projection(projection: np.ndarray, tile: Tile) -> np.ndarray:
@@ -56,7 +65,9 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
     """Rasterise the scene's triangles and the lights' outlines into the tile's g-buffer,
     whose textures ``scope`` owns."""
     size = tile.size
-    layers = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in LAYERS]
+    glossy = scene is not None and scene.has_specular
+    names = LAYERS + GLOSSY_LAYERS if glossy else LAYERS
+    layers = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in names]
     fbo = scope.own(ctx.framebuffer(layers, scope.own(ctx.depth_renderbuffer(size))))
     fbo.use()
     fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -72,8 +83,11 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
                                   np.linalg.norm(camera_to_world[:3, 2])),
         "u_orthographic": camera.is_orthographic,
     }
-    scene_defines = {"TEXTURED": 1} if textures else None
-    for buffers, defines in ((scene, scene_defines), (shapes, {"ONE_SIDED": 1})):
+    scene_defines = {"TEXTURED": 1} if textures else {}
+    shape_defines = {"ONE_SIDED": 1}
+    if glossy:
+        scene_defines["GLOSSY"] = shape_defines["GLOSSY"] = 1
+    for buffers, defines in ((scene, scene_defines), (shapes, shape_defines)):
         if buffers is None:
             continue
         program = programs.get("gbuffer_vert.glsl", "gbuffer_frag.glsl", defines)
@@ -86,10 +100,14 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
             sizes.use(TEXTURE_UNITS[1])
             set_uniforms(program, u_textures=TEXTURE_UNITS[0], u_texture_sizes=TEXTURE_UNITS[1])
         buffers.bind_materials(program)
+        if glossy:
+            scene.bind_specular(program)
         vao = scope.own(ctx.vertex_array(program, streams, skip_errors=True))
         vao.render(moderngl.TRIANGLES, vertices=buffers.vertex_count)
     ctx.disable(moderngl.DEPTH_TEST)
-    by_name = dict(zip(LAYERS, layers, strict=True))
+    by_name = dict(zip(names, layers, strict=True))
     images = {name: np.frombuffer(tex.read(), dtype=np.float32).reshape(size[1], size[0], 4)
               for name, tex in by_name.items()}
-    return GBuffer(by_name, images)
+    view = {name: uniforms[name] for name in ("u_camera_position", "u_camera_forward",
+                                              "u_orthographic")} if glossy else {}
+    return GBuffer(by_name, images, view)

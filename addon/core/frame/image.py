@@ -85,8 +85,9 @@ class GBufferStage(TileStage):
             work.gbuffer = render_gbuffer(self.gpu.ctx, self.gpu.programs, data.scene,
                                           data.shapes, data.textures, frame.camera, work.tile,
                                           work.scope)
-        work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope)
-        work.indirect = new_accumulator(self.gpu.ctx, work.tile.size, work.scope)
+        glossy = work.gbuffer.glossy
+        work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
+        work.indirect = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
 
 
 class GatherStage(TileStage):
@@ -129,12 +130,13 @@ class BlurStage(TileStage):
             return
         with frame.stats.timed(self.name):
             textures = work.gbuffer.textures
-            result = work.scope.own(self.gpu.blur.apply(
-                work.indirect.color_attachments[0], textures["position"], textures["normal"],
-                frame.blur_radius))
-            w, h = result.size
-            work.indirect_light = np.frombuffer(result.read(), dtype=np.float32
-                                                ).reshape(h, w, 4)
+            blurred = []
+            for target in work.indirect.color_attachments:  # diffuse, then glossy light
+                result = work.scope.own(self.gpu.blur.apply(
+                    target, textures["position"], textures["normal"], frame.blur_radius))
+                w, h = result.size
+                blurred.append(np.frombuffer(result.read(), dtype=np.float32).reshape(h, w, 4))
+            work.indirect_light = np.concatenate(blurred, axis=-1)
 
 
 class ComposeStage(TileStage):

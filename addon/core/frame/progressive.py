@@ -21,7 +21,7 @@ from ..settings import Settings
 from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
 
-LIGHT_PASSES = ("Combined", "DiffDir", "DiffInd")
+LIGHT_PASSES = ("Combined", "DiffDir", "DiffInd", "GlossDir", "GlossInd")
 """Passes that differ from pass to pass (the others are the same in every pass)."""
 SEED_STRIDE = 0x9E3779B1  # pass k's seed: seed + k × stride (mod 2³¹)
 MIN_PASSES_FOR_NOISE = 4  # passes before the noise estimate may stop a render

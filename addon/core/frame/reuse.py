@@ -12,6 +12,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..scene.geometry import WorldGeometry
+from ..scene.textures import mode_code
 from ..settings import Settings
 from ..transport.incremental import IncrementalVPLs
 from .ism_reuse import ReusedISMAtlas
@@ -28,10 +29,12 @@ def content_key(*parts: object) -> bytes:
 
 
 def _texture_state(geometry: WorldGeometry) -> tuple[np.ndarray, ...]:
-    """What VPLs read from textures: UVs, texture attributes and pixels (none untextured)."""
+    """What VPLs read from textures: UVs, texture attributes, sampling modes and pixels (none
+    untextured)."""
     if not geometry.has_textures:
         return ()
-    return geometry.uv, geometry.texture, *(t.pixels for t in geometry.textures)
+    modes = np.array([mode_code(t) for t in geometry.textures])
+    return geometry.uv, geometry.texture, modes, *(t.pixels for t in geometry.textures)
 
 
 class SceneVersions:

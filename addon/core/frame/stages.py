@@ -68,7 +68,8 @@ class FlattenGeometry(Stage):
 
     def run(self, frame: FrameState) -> None:
         with frame.stats.timed(self.name):
-            frame.geometry = flatten_instances(frame.scene, frame.stats.warnings)
+            frame.geometry = flatten_instances(frame.scene, frame.stats.warnings,
+                                               frame.stats.notes)
             frame.shapes = light_shapes(frame.scene)
             frame.centre, frame.radius, outliers = robust_bounds(
                 frame.geometry.positions, frame.camera, frame.scene.instances)

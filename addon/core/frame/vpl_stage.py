@@ -95,7 +95,7 @@ class MakeVPLs(Stage):
         scene, settings, stats, kept = frame.scene, frame.settings, frame.stats, self.kept
         guided = settings.vpl_guidance == "camera" and settings.vpl_source == "paths" \
             and not settings.incremental
-        key = (kept.versions.geometry, content_key(scene.lights, scene.world),
+        key = (kept.versions.geometry, content_key(scene.lights, scene.world, scene.portals),
                *settings_key(settings, VPL_FIELDS),
                content_key(frame.camera) if guided else None)
         reused = kept.get("vpls", key)
@@ -105,9 +105,8 @@ class MakeVPLs(Stage):
             return reused
         try:
             tracer = upload_triangles(self.gpu, kept, frame.geometry, stats)
-        except GLUnavailableError as exc:
-            stats.warnings.append(f"indirect light skipped: {exc}")
-            return VPLs.empty()
+        except GLUnavailableError as exc:  # a frame without its indirect light is wrong
+            raise RenderError(str(exc)) from None
         geometry, centre, radius = frame.geometry, frame.centre, frame.radius
         if settings.vpl_source == "rsm":
             with stats.timed("vpl generation (rsm)"):

@@ -3,6 +3,7 @@ the GLSL files in ``gpu_shaders/`` with ``#include`` and ``#define`` support."""
 
 from __future__ import annotations
 
+import os
 import re
 from functools import cache
 from pathlib import Path
@@ -13,36 +14,111 @@ SHADER_DIR = Path(__file__).resolve().parents[3] / "gpu_shaders"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 
 
+GPU_VARIABLE = "VPLGI_GPU"
+"""Environment variable naming the EGL device (0, 1, …) to render on, for machines with
+several GPUs; ``python -m addon render --gpu N`` sets it, ``python -m addon gpus`` lists them."""
+MAX_DEVICES = 16
+REMEDY = ("update the graphics driver (Mesa 20.2 or newer gives OpenGL 4.5 without a GPU), "
+          f"or choose another device (--gpu N or {GPU_VARIABLE}=N; `python -m addon gpus` "
+          "lists them)")
+
+
 class GLUnavailableError(RuntimeError):
     """No OpenGL 4.1 context, or no OpenGL feature a step needs, is available on this machine."""
 
 
-def create_context() -> moderngl.Context:
-    """A new standalone context, current in the calling thread (EGL first, then the platform
-    default; OpenGL 4.3 where there is one, else 4.1, as on macOS), so Blender's own context is
-    never touched."""
+def requested_device() -> int | None:
+    """The EGL device ``VPLGI_GPU`` names, or None where it is unset (the first device)."""
+    text = os.environ.get(GPU_VARIABLE, "").strip()
+    if not text:
+        return None
+    if not text.isdigit():
+        raise GLUnavailableError(f"{GPU_VARIABLE}={text!r} is not a device number (0, 1, …); "
+                                 "`python -m addon gpus` lists the devices")
+    return int(text)
+
+
+def create_context(device: int | None = None) -> moderngl.Context:
+    """A new standalone context, current in the calling thread, so Blender's own context is
+    never touched: on EGL ``device`` (default: ``requested_device()``, else the first), else
+    the platform default; OpenGL 4.3 where there is one, else 4.1 (as on macOS)."""
+    device = requested_device() if device is None else device
+    backends = [{"backend": "egl"}, {}] if device is None else \
+        [{"backend": "egl", "device_index": device}]
     errors = []
     for require in (430, 410):
-        for kwargs in ({"backend": "egl"}, {}):
+        for kwargs in backends:
             try:
                 return moderngl.create_standalone_context(require=require, **kwargs)
             except Exception as exc:  # glcontext raises plain Exceptions per backend
-                errors.append(f"{kwargs.get('backend', 'default')} {require}: {exc}")
-    raise GLUnavailableError("could not create an OpenGL 4.1 context (" + "; ".join(errors) + ")")
+                errors.append(str(exc))
+    raise GLUnavailableError(explain_failure(errors, device))
+
+
+def explain_failure(errors: list[str], device: int | None) -> str:
+    """What is missing, from the backends' errors, and what to do about it."""
+    details = "; ".join(dict.fromkeys(errors))
+    for error in errors:
+        found = re.search(r"requested device index (\d+), but found (\d+) devices", error)
+        if found:
+            count = int(found.group(2))
+            numbers = "0" if count == 1 else f"0–{count - 1}"
+            return (f"GPU {device} does not exist: EGL finds {count} device"
+                    f"{'s' if count != 1 else ''} ({numbers}); `python -m addon gpus` lists "
+                    "them")
+    if any("libEGL" in e and "not loaded" in e for e in errors):
+        return ("no OpenGL: libEGL (headless OpenGL) is not installed"
+                + (" and there is no X display" if any("XOpenDisplay" in e for e in errors)
+                   else "")
+                + "; install libegl1 with libegl-mesa0 (Mesa, works without a GPU) or the GPU "
+                f"driver's EGL library (details: {details})")
+    if any("eglCreateContext failed" in e for e in errors):
+        return ("no OpenGL 4.1 core context: the driver offers an older OpenGL; " + REMEDY
+                + f" (details: {details})")
+    return f"could not create an OpenGL 4.1 context ({details})"
+
+
+def list_devices() -> list[str]:
+    """One line per EGL device: its index, renderer and OpenGL version (or why it cannot
+    render)."""
+    lines = []
+    for index in range(MAX_DEVICES):
+        try:
+            ctx = moderngl.create_standalone_context(backend="egl", device_index=index)
+        except Exception as exc:  # glcontext raises plain Exceptions
+            if "requested device index" in str(exc):
+                break
+            if "not loaded" in str(exc):
+                raise GLUnavailableError(explain_failure([str(exc)], None)) from None
+            lines.append(f"{index}: unusable ({exc})")
+            continue
+        try:
+            major, minor = divmod(ctx.version_code // 10, 10)
+            note = "" if ctx.version_code >= 430 else " (VPL GI needs 4.3)"
+            lines.append(f"{index}: {ctx.info['GL_RENDERER']}, OpenGL {major}.{minor}{note}")
+        finally:
+            ctx.release()
+    return lines
+
+
+def shared_context(device: int | None = None) -> moderngl.Context:
+    """One standalone context per process and device for final renders, made on first use."""
+    return _context_of(device)
 
 
 @cache
-def shared_context() -> moderngl.Context:
-    """One standalone context per process for final renders, created on first use."""
-    return create_context()
+def _context_of(device: int | None) -> moderngl.Context:
+    return create_context(device)
 
 
 def require_compute(ctx: moderngl.Context) -> None:
     """Raise GLUnavailableError unless ``ctx`` has OpenGL 4.3 (compute shaders, SSBOs)."""
     if ctx.version_code < 430:
         major, minor = divmod(ctx.version_code // 10, 10)
-        raise GLUnavailableError("ray tracing needs OpenGL 4.3 compute shaders; this context has "
-                                 f"{major}.{minor}")
+        raise GLUnavailableError(
+            "indirect light and ray-traced shadows need OpenGL 4.3 (compute shaders); "
+            f"{ctx.info['GL_RENDERER']} offers {major}.{minor}: " + REMEDY
+            + "; or render direct light only (bounces=0, direct_shadows=shadow_maps)")
 
 
 def load_source(name: str, defines: dict[str, object] | None = None, version: int = 410) -> str:

@@ -6,10 +6,12 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from ..scene import principled
 from ..scene.geometry import WorldGeometry
 
 MATERIAL_UNITS = 6, 7  # texture units of the triangles' rows and the material table (units
 # 0-5 are the passes' own)
+GGX_TABLES_UNIT = 8  # the glossy lobe's tables (principled_lib.glsl)
 TABLE_WIDTH = 4096  # texels per line of both tables
 
 
@@ -40,9 +42,16 @@ class SceneBuffers:
             self.normals = self._own(ctx.buffer(geometry.normals))
             rows = geometry.triangle_material.astype(np.int32, copy=False)[:, None]
             self.triangle_material = self._own(_table_texture(ctx, rows, 1, "i4"))
-            table = geometry.materials.reshape(-1, 4)  # three RGBA texels a row
+            table = geometry.materials.reshape(-1, 4)  # five RGBA texels a row
             self.materials = self._own(_table_texture(ctx, table, 4, "f4"))
             self.uv = None if geometry.uv is None else self._own(ctx.buffer(geometry.uv))
+            self.has_specular = geometry.has_specular
+            self.ggx_tables = None
+            if self.has_specular:
+                values = principled.tables()
+                self.ggx_tables = self._own(ctx.texture(values.shape[::-1], 1, values.tobytes(),
+                                                        dtype="f4"))
+                self.ggx_tables.filter = moderngl.NEAREST, moderngl.NEAREST
         except Exception:
             self.release()
             raise
@@ -63,6 +72,11 @@ class SceneBuffers:
         self.materials.use(MATERIAL_UNITS[1])
         program["u_triangle_materials"].value = MATERIAL_UNITS[0]
         program["u_materials"].value = MATERIAL_UNITS[1]
+
+    def bind_specular(self, program: moderngl.Program) -> None:
+        """Bind the glossy lobe's tables for principled_lib.glsl (scenes with specular)."""
+        self.ggx_tables.use(GGX_TABLES_UNIT)
+        program["u_ggx_tables"].value = GGX_TABLES_UNIT
 
     def release(self) -> None:
         for obj in self._objects:

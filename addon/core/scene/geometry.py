@@ -8,6 +8,7 @@ from functools import cached_property
 
 import numpy as np
 
+from . import principled
 from . import textures as tex
 from .model import DEFAULT_MATERIAL, Light, LightKind, Material, Mesh, Scene, Texture
 
@@ -15,7 +16,8 @@ DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
 
 
-MATERIAL_COLUMNS = 12  # albedo, 0, emission, 0, texture attribute, 0: three RGBA texels
+MATERIAL_COLUMNS = 20  # albedo, 0, emission, 0, texture attribute, 0, specular: five texels
+SPECULAR = 12  # first column of the specular texels (principled.specular_row)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 
@@ -26,12 +28,14 @@ class WorldGeometry:
     vertex stream of its own as the GPU reads them), and a row of the material table per
     triangle.
 
-    A material row holds the albedo, the emission and the texture attribute (albedo layer,
-    emission layer — NO_TEXTURE for none — and the strength the emission texture is multiplied
-    by), laid out as three RGBA texels (gpu_shaders/materials_lib.glsl). Textured materials
+    A material row holds the albedo (base colour), the emission, the texture attribute (albedo
+    layer, emission layer — NO_TEXTURE for none — and the strength the emission texture is
+    multiplied by) and the Principled BSDF's specular parameters (principled.specular_row),
+    laid out as five RGBA texels (gpu_shaders/materials_lib.glsl). Textured materials
     have their textures' average colour as albedo and emission (the per-triangle values light
     sampling and path termination use); ``uv`` (per vertex) is set only when some material has
-    a texture."""
+    a texture. ``albedo`` and ``albedo_at`` are what light paths keep at a bounce: the base
+    colour, or for materials with a specular layer its cosine-weighted total reflectance."""
 
     positions: np.ndarray  # (V, 3) C-contiguous float32
     normals: np.ndarray  # (V, 3) C-contiguous float32
@@ -55,8 +59,23 @@ class WorldGeometry:
 
     @cached_property
     def albedo(self) -> np.ndarray:
-        """Each triangle's albedo, (T, 3) float32."""
-        return self._per_triangle(0)
+        """Each triangle's reflectance for light paths, (T, 3) float32."""
+        glossy = np.flatnonzero(self.materials[:, SPECULAR + 7] > 0)
+        if len(glossy) == 0:
+            return self._per_triangle(0)
+        table = self.materials[:, 0:3].copy()  # never a view: rows change below
+        for row in glossy:
+            table[row] = self._path_albedo(table[row][None], row)[0]
+        return np.take(table, self.triangle_material, axis=0)
+
+    def _path_albedo(self, base: np.ndarray, row: int) -> np.ndarray:
+        return np.clip(principled.path_albedo(base.astype(np.float64),
+                                              self.materials[row, SPECULAR:]), 0.0, MAX_ALBEDO)
+
+    @property
+    def has_specular(self) -> bool:
+        """Whether some material has a glossy lobe (the shaders' GLOSSY path)."""
+        return bool(np.any(self.materials[:, SPECULAR + 7] > 0))
 
     @cached_property
     def emission(self) -> np.ndarray:
@@ -86,9 +105,42 @@ class WorldGeometry:
         return bool(self.textures)
 
     def albedo_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
-        """Albedo (m, 3) at points on triangles: the base colour, or the texture sampled at the
-        interpolated UV (bilinear, Repeat), capped like base colours."""
-        albedo = self.albedo[triangle].astype(np.float64)
+        """Reflectance for light paths (m, 3) at points on triangles (``albedo``'s, with the
+        base colour from ``base_at``)."""
+        if not self.has_textures or len(triangle) == 0:
+            return self.albedo[triangle].astype(np.float64)
+        albedo = self.base_at(triangle, position)
+        material = self.triangle_material[triangle]
+        for row in np.unique(material):
+            if self.materials[row, SPECULAR + 7] > 0:
+                group = np.flatnonzero(material == row)
+                albedo[group] = self._path_albedo(albedo[group], row)
+        return albedo
+
+    def reflectance_split(self, triangle: np.ndarray, position: np.ndarray,
+                          mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What a light path arriving at cosine ``mu`` (m,) keeps at points on triangles: the
+        diffuse reflectance (m, 3) (base colour × the diffuse weight averaged over outgoing
+        directions), the glossy albedo (m, 3) at ``mu``, and the lobe's roughness (m,)."""
+        diffuse = self.base_at(triangle, position)
+        gloss, rough = np.zeros_like(diffuse), np.zeros(len(triangle))
+        material = self.triangle_material[triangle]
+        for row in np.unique(material):
+            params = self.materials[row, SPECULAR:]
+            if params[7] <= 0:
+                continue
+            group = np.flatnonzero(material == row)
+            _, gloss[group] = principled.layer_weights(
+                diffuse[group], *principled.specular_parameters(params), mu[group])
+            diffuse[group] *= principled.diffuse_average(params)
+            rough[group] = params[0]
+        return diffuse, gloss, rough
+
+    def base_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
+        """Base colour (m, 3) at points on triangles: the material's, or the texture sampled
+        at the interpolated UV (with its interpolation and extension), capped like base
+        colours."""
+        albedo = np.clip(self._per_triangle(0)[triangle].astype(np.float64), 0.0, MAX_ALBEDO)
         if not self.has_textures or len(triangle) == 0:
             return albedo
         layer = self.materials[self.triangle_material[triangle], 8].astype(int)
@@ -148,10 +200,11 @@ def _albedo_table(materials: list[Material], warnings: list[str]) -> np.ndarray:
 
 
 def _material_rows(materials: list[Material], warnings: list[str],
-                   textures: tex.TextureSet) -> np.ndarray:
+                   textures: tex.TextureSet, clamped: set[str]) -> np.ndarray:
     """Material-table rows (n, MATERIAL_COLUMNS) of one material list: albedo (capped, see
     ``_albedo_table``), emission (finite, >= 0) and texture attribute; textures count with
-    their average colour."""
+    their average colour; names of glossy materials whose roughness is clamped go into
+    ``clamped``."""
     albedo = _albedo_table(materials, warnings)
     emission = np.array([m.emission for m in materials], np.float64)
     for material, row in zip(materials, emission, strict=True):
@@ -169,6 +222,18 @@ def _material_rows(materials: list[Material], warnings: list[str],
     rows = np.zeros((len(materials), MATERIAL_COLUMNS), np.float32)
     rows[:, 0:3], rows[:, 4:7] = albedo, emission
     rows[:, 8:11] = [textures.columns(m) for m in materials]
+    for row, m in enumerate(materials):
+        values = np.array([m.roughness, m.metallic, m.ior, m.specular_ior_level,
+                           *m.specular_tint], np.float64)
+        if not np.isfinite(values).all():
+            message = f"material '{m.name}': specular values are not finite: rendered diffuse"
+            if message not in warnings:
+                warnings.append(message)
+            continue
+        rows[row, SPECULAR:] = principled.specular_row(m.roughness, m.metallic, m.ior,
+                                                       m.specular_ior_level, m.specular_tint)
+        if rows[row, SPECULAR + 7] > 0 and m.roughness < principled.MIN_ROUGHNESS:
+            clamped.add(m.name)
     return rows
 
 
@@ -179,6 +244,7 @@ class _MaterialTable:
     def __init__(self, warnings: list[str]) -> None:
         self.warnings = warnings
         self.textures = tex.TextureSet()
+        self.clamped: set[str] = set()
         self.blocks: list[np.ndarray] = []
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
@@ -188,7 +254,8 @@ class _MaterialTable:
         key = tuple(id(m) for m in materials)
         if key not in self._first:
             self._first[key] = self.row_count
-            self.blocks.append(_material_rows(materials, self.warnings, self.textures))
+            self.blocks.append(_material_rows(materials, self.warnings, self.textures,
+                                              self.clamped))
             self.row_count += len(materials)
         return self._first[key], len(materials)
 
@@ -279,13 +346,15 @@ def _flatten_group(group: _Group, warnings: list[str], positions_out: np.ndarray
     return keep
 
 
-def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
+def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None = None
+                      ) -> WorldGeometry:
     """All instances in world space with each triangle's material row, written straight into
     the vertex streams. Instances of one mesh are transformed together (the order is
     by each mesh's first instance).
 
     Triangles whose world positions are not finite (NaN/Inf vertices or transforms) are left
-    out, with one warning per instance."""
+    out, with one warning per instance. Glossy materials smoother than
+    principled.MIN_ROUGHNESS get one line in ``notes``."""
     table = _MaterialTable(warnings)
     found: dict[int, _Group] = {}
     blocks: dict[int, tuple[int, int]] = {}  # by material list: instances of an object share it
@@ -319,6 +388,10 @@ def flatten_instances(scene: Scene, warnings: list[str]) -> WorldGeometry:
         uv = None if uv is None else uv[keep]
         triangle_material = triangle_material[keep[::3]]
     textures = table.textures.textures
+    if table.clamped and notes is not None:
+        notes.append(f"glossy roughness below {principled.MIN_ROUGHNESS:g} is rendered at "
+                     f"{principled.MIN_ROUGHNESS:g}: {len(table.clamped)} material(s), e.g. "
+                     f"'{min(table.clamped)}'")
     return WorldGeometry(positions, normals, triangle_material, table.rows(),
                          uv if textures else None, textures)
 
@@ -357,8 +430,7 @@ def light_shapes(scene: Scene) -> WorldGeometry:
         fan = np.stack([np.zeros((n, 2)), ring, np.roll(ring, -1, axis=0)], axis=1).reshape(-1, 2)
         local = np.hstack([fan, np.zeros((len(fan), 1))])
         world = _transform_points(light.matrix, local)
-        axis_x, axis_y = light.matrix[:3, 0], light.matrix[:3, 1]
-        area = light.local_area * float(np.linalg.norm(np.cross(axis_x, axis_y)))
+        area = light.world_area
         if area <= 0:
             continue
         facing = -light.matrix[:3, 2] / max(np.linalg.norm(light.matrix[:3, 2]), 1e-300)

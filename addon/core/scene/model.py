@@ -15,9 +15,15 @@ import numpy as np
 Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
 
 
+INTERPOLATIONS = ("Closest", "Linear", "Cubic")  # Image Texture node names (Smart: Cubic)
+EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
+
+
 @dataclass(eq=False)
 class Texture:
-    """An image sampled through the mesh's UVs: Linear interpolation, Repeat extension.
+    """An image sampled through the mesh's UVs as Cycles samples it: ``interpolation`` one of
+    INTERPOLATIONS, ``extension`` one of EXTENSIONS (Blender's names; see
+    ``scene/textures.py``).
 
     ``pixels`` are as Blender stores them, rows bottom-up (UV (0, 0) is the first texel);
     with ``srgb`` they are sRGB-encoded and decoded after interpolation, as Cycles does with
@@ -26,22 +32,35 @@ class Texture:
     name: str
     pixels: np.ndarray  # (h, w, 4) float32 RGBA
     srgb: bool = False
+    interpolation: str = "Linear"
+    extension: str = "REPEAT"
+
+    def __post_init__(self) -> None:
+        if self.interpolation not in INTERPOLATIONS or self.extension not in EXTENSIONS:
+            raise ValueError(f"texture '{self.name}': interpolation {self.interpolation!r} "
+                             f"or extension {self.extension!r} is not one of "
+                             f"{INTERPOLATIONS} / {EXTENSIONS}")
 
 
 @dataclass
 class Material:
-    """A diffuse material: base colour (albedo) and emitted radiance (colour × strength).
+    """A material: base colour (albedo), emitted radiance (colour × strength) and the
+    Principled BSDF's specular layers (core/scene/principled.py).
 
     With ``base_color_texture`` the texture is the base colour (``base_color`` is unused);
     with ``emission_texture`` the emitted radiance is the texture times ``emission`` (the
-    strength per channel). Roughness and metallic are Principled BSDF's values, carried for
-    glossy transport; the renderer is diffuse only and does not use them yet."""
+    strength per channel). Roughness, metallic, IOR, specular IOR level and specular tint are
+    the Principled BSDF's inputs; with level 0 and metallic 0 (the defaults here, as for a
+    Diffuse BSDF) the material is pure Lambert."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     roughness: float = 0.5
     metallic: float = 0.0
+    ior: float = 1.5
+    specular_ior_level: float = 0.0
+    specular_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
     base_color_texture: Texture | None = None
     emission_texture: Texture | None = None
 
@@ -153,6 +172,12 @@ class Light:
         width, height = self.area_size
         return (np.pi / 4 if self.is_round else 1.0) * width * height
 
+    @property
+    def world_area(self) -> float:
+        """Area of the shape in the world (the light's matrix may scale it)."""
+        m = np.asarray(self.matrix, dtype=np.float64)
+        return self.local_area * float(np.linalg.norm(np.cross(m[:3, 0], m[:3, 1])))
+
 
 @dataclass
 class EnvironmentMap:
@@ -205,6 +230,8 @@ class Scene:
     instances: list[Instance] = field(default_factory=list)
     lights: list[Light] = field(default_factory=list)
     world: World = field(default_factory=World)
+    portals: list[Light] = field(default_factory=list)  # area lights marked Portal (Cycles):
+    # openings that world light enters through; they emit nothing themselves
     camera: Camera | None = None
     film_transparent: bool = False
     warnings: list[str] = field(default_factory=list)

@@ -1,11 +1,19 @@
-"""Image textures on the CPU: sRGB decoding, mean colours, bilinear sampling for light paths,
-and the frame's set of distinct textures (their GPU packing is in ``gpu/texture_array.py``).
+"""Image textures on the CPU: sRGB decoding, mean colours, sampling for light paths as Cycles
+samples (``intern/cycles/kernel/device/cpu/image.h``), and the frame's set of distinct textures
+(their GPU packing is in ``gpu/texture_array.py``; ``gpu_shaders/textures_lib.glsl`` samples
+them the same way).
+
+Sampling: Closest takes the texel under the point; Linear blends the 2×2 texels around it
+(texel centres at half-integers); Cubic is Cycles' uniform cubic B-spline over 4×4 texels (a
+smoothing spline: it does not pass through the texel values). Extension: Repeat wraps, Extend
+clamps to the edge texel, Mirror reflects (the edge texel repeated), Clip reads transparent
+black outside the image (so Linear and Cubic fade to black across the edge).
 
 Packing: one ``sampler2DArray`` whose layers are as large as the largest image; each image
 lies unresampled in its layer's lower-left corner and the shader interpolates it itself
-(``texelFetch``, Repeat), so there is no precision loss, at the cost of memory when sizes
-differ (layers × largest width × largest height × 16 bytes, float32 RGBA). Interpolation is
-done on the stored values and sRGB images are decoded afterwards, as Cycles does.
+(``texelFetch``), so there is no precision loss, at the cost of memory when sizes differ
+(layers × largest width × largest height × 16 bytes, float32 RGBA). Interpolation is done on
+the stored values and sRGB images are decoded afterwards, as Cycles does.
 """
 
 from __future__ import annotations
@@ -14,7 +22,7 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from .model import Material, Texture
+from .model import EXTENSIONS, INTERPOLATIONS, Material, Texture
 
 MISSING_COLOR = (1.0, 0.0, 1.0)  # Blender's colour for an image it cannot read
 NO_TEXTURE = -1.0
@@ -31,6 +39,15 @@ def decode_srgb(values: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.04045, v / 12.92, ((np.maximum(v, 0.04045) + 0.055) / 1.055) ** 2.4)
 
 
+def associate_bytes(pixels: np.ndarray) -> np.ndarray:
+    """8-bit RGBA pixels (values k/255) with colour multiplied by alpha as Cycles loads byte
+    images whose alpha it associates: integer byte arithmetic, c·a/255 rounded down."""
+    codes = np.rint(np.clip(pixels, 0, 1) * 255).astype(np.int32)
+    out = pixels.copy()
+    out[..., :3] = (codes[..., :3] * codes[..., 3:]) // 255 / 255
+    return out
+
+
 _MEANS: WeakKeyDictionary[Texture, np.ndarray] = WeakKeyDictionary()
 
 
@@ -45,19 +62,62 @@ def mean_color(texture: Texture) -> np.ndarray:
     return _MEANS[texture]
 
 
+def mode_code(texture: Texture) -> int:
+    """The texture's interpolation and extension as one number for the GPU's table:
+    interpolation index + 4 × extension index (INTERPOLATIONS, EXTENSIONS)."""
+    return INTERPOLATIONS.index(texture.interpolation) + 4 * EXTENSIONS.index(texture.extension)
+
+
+def _cubic_weights(t: np.ndarray) -> list[np.ndarray]:
+    """Uniform cubic B-spline weights of the four texels around fraction t (they sum to 1)."""
+    s = 1 - t
+    return [s ** 3 / 6, (3 * t ** 3 - 6 * t ** 2 + 4) / 6, (3 * s ** 3 - 6 * s ** 2 + 4) / 6,
+            t ** 3 / 6]
+
+
+def _taps(coordinate: np.ndarray, size: int, interpolation: str
+          ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Texel indices (unwrapped) and weights along one axis for texture coordinates (n,)."""
+    p = coordinate.astype(np.float32) * np.float32(size)  # float32, as Cycles
+    if interpolation == "Closest":
+        return [np.floor(p).astype(np.int64)], [np.ones(len(p))]
+    p = p - np.float32(0.5)  # texel centres at half-integers
+    base = np.floor(p)
+    t = (p - base).astype(np.float64)
+    i = base.astype(np.int64)
+    if interpolation == "Linear":
+        return [i, i + 1], [1 - t, t]
+    return [i - 1, i, i + 1, i + 2], _cubic_weights(t)
+
+
+def _wrap(i: np.ndarray, size: int, extension: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Indices inside [0, size) for the extension, and for Clip the mask of those inside."""
+    if extension == "REPEAT":
+        return i % size, None
+    if extension == "MIRROR":  # period 2·size, the edge texel repeated at each reflection
+        m = i % (2 * size)
+        return np.where(m < size, m, 2 * size - 1 - m), None
+    inside = (i >= 0) & (i < size) if extension == "CLIP" else None
+    return np.clip(i, 0, size - 1), inside
+
+
 def sample(texture: Texture, uv: np.ndarray) -> np.ndarray:
-    """Linear RGB (n, 3) at UVs (n, 2): bilinear between texel centres, Repeat extension."""
+    """Linear RGB (n, 3) at UVs (n, 2), with the texture's interpolation and extension."""
     pixels = texture.pixels
     h, w = pixels.shape[:2]
-    x = np.asarray(uv[:, 0], np.float64) * w - 0.5
-    y = np.asarray(uv[:, 1], np.float64) * h - 0.5
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-    x0, y0 = x0.astype(np.int64) % w, y0.astype(np.int64) % h
-    x1, y1 = (x0 + 1) % w, (y0 + 1) % h
-    rgb = pixels[..., :3]
-    value = ((1 - fy) * ((1 - fx) * rgb[y0, x0] + fx * rgb[y0, x1])
-             + fy * ((1 - fx) * rgb[y1, x0] + fx * rgb[y1, x1]))
+    uv = np.nan_to_num(np.asarray(uv, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    uv = np.clip(uv, -1e6, 1e6)  # keeps indices small; float32 holds no texel fraction there
+    xs, wx = _taps(uv[:, 0], w, texture.interpolation)
+    ys, wy = _taps(uv[:, 1], h, texture.interpolation)
+    value = np.zeros((len(uv), 3))
+    for y, weight_y in zip(ys, wy, strict=True):
+        row, row_inside = _wrap(y, h, texture.extension)
+        for x, weight_x in zip(xs, wx, strict=True):
+            column, column_inside = _wrap(x, w, texture.extension)
+            weight = weight_x * weight_y
+            if row_inside is not None:
+                weight = weight * (row_inside & column_inside)
+            value += weight[:, None] * pixels[row, column, :3]
     return decode_srgb(value) if texture.srgb else value
 
 

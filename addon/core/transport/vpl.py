@@ -20,9 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.environment import EnvironmentSampler
+from ..scene import principled
+from ..scene.environment import EnvironmentSampler, lookup
 from ..scene.geometry import WorldGeometry
-from ..scene.model import Light, LightKind, Scene
+from ..scene.model import Light, LightKind, Scene, World
 from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
 from .lights import (
@@ -185,10 +186,13 @@ def _parallel_sampler(travel_and_flux, centre: np.ndarray, radius: float):
 
 def _world_emitter(scene: Scene, centre: np.ndarray, radius: float) -> _Emitter | None:
     """Parallel rays from every direction: uniform for a constant colour, importance-sampled
-    from the environment map otherwise (flux L / pdf × π R² per path)."""
+    from the environment map otherwise (flux L / pdf × π R² per path); through the light
+    portals instead where the scene has any."""
     radiance = scene.world.radiance
     if not np.any(radiance > 0):
         return None
+    if scene.portals:
+        return _portal_emitter(scene.world, scene.portals)
     disk = np.pi * radius**2
     flux = radiance * 4 * np.pi * disk
     env = scene.world.environment
@@ -202,6 +206,32 @@ def _world_emitter(scene: Scene, centre: np.ndarray, radius: float) -> _Emitter 
         sky, ratio = sampler.sample(u[:, 3:5])
         return -sky, ratio * disk
     return _Emitter(flux, _parallel_sampler(importance, centre, radius))
+
+
+def _portal_emitter(world: World, portals: list[Light]) -> _Emitter | None:
+    """World light entering through Cycles' light portals (area lights marked Portal, facing
+    into the room along their -Z): a path starts on a portal chosen by area, travels
+    cosine-distributed into the room and carries L_world(-d) π A (A: all portals' area), the
+    flux through the openings; light entering elsewhere is not traced (as portals mean)."""
+    areas = np.array([portal.world_area for portal in portals])
+    total = float(areas.sum())
+    if total <= 0:
+        return None
+    cdf = np.cumsum(areas) / total
+    inward = [unit(-portal.matrix[:3, 2][None])[0] for portal in portals]
+
+    def sample(u: np.ndarray) -> _Paths:
+        pick = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), len(portals) - 1)
+        origin, direction = np.zeros((len(u), 3)), np.zeros((len(u), 3))
+        for index, portal in enumerate(portals):
+            rows = np.flatnonzero(pick == index)
+            origin[rows] = area_light_points(portal, u[rows, 1:3])
+            direction[rows] = cosine_directions(np.repeat(inward[index][None], len(rows), 0),
+                                                u[rows, 3:5])
+        radiance = np.repeat(world.radiance[None], len(u), 0) if world.environment is None \
+            else lookup(world.environment, -direction)
+        return _Paths(origin, direction, radiance * np.pi * total)
+    return _Emitter(world.radiance * np.pi * total, sample)
 
 
 def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
@@ -281,6 +311,7 @@ class SurfaceHits:
     flux: np.ndarray  # (m, 3) incident flux carried by the path
     rank: np.ndarray  # (m,) int in [0, n)
     triangle: np.ndarray | None = None  # (m,) int, the triangle hit (where known)
+    incoming: np.ndarray | None = None  # (m, 3) direction of travel (where known)
 
 
 def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
@@ -295,7 +326,19 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
     normal = unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
     normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
     return SurfaceHits(position, normal, geometry.albedo_at(tri, position), flux[hit], rank[hit],
-                       tri)
+                       tri, direction[hit])
+
+
+def _lobes(hits: SurfaceHits, geometry: WorldGeometry
+           ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """What a VPL at the hits emits diffusely (reflectance (m, 3)), and the glossy albedo
+    (m, 3) and roughness (m,) of the paths' glossy continuation (None where no material is
+    glossy or the incoming direction is not known: the path albedo is then all diffuse)."""
+    if hits.incoming is None or hits.triangle is None or not geometry.has_specular:
+        return hits.albedo, None, np.zeros(len(hits.rank))
+    mu = np.clip(-(hits.incoming * hits.normal).sum(axis=1), 0.0, 1.0)
+    diffuse, gloss, rough = geometry.reflectance_split(hits.triangle, hits.position, mu)
+    return diffuse, gloss, rough
 
 
 def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: Settings,
@@ -305,11 +348,13 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
     of the cosine-distributed reflections, per rank."""
     rho_bar = float(np.clip(average_reflectance(geometry), 1e-3, 1.0))
     roulette = np.random.default_rng(settings.seed + 1).uniform(size=(count, settings.bounces))
+    lobe_choice = np.random.default_rng(settings.seed + 2).uniform(size=(count, settings.bounces))
     epsilon = 1e-5 * radius
     hits, survivors = first, count
     out: list[tuple[np.ndarray, ...]] = []
     for generation in range(1, settings.bounces + 1):
-        out.append((hits.position, hits.normal, hits.flux * hits.albedo / np.pi,
+        diffuse, gloss, rough = _lobes(hits, geometry)
+        out.append((hits.position, hits.normal, hits.flux * diffuse / np.pi,
                     np.full(len(hits.rank), generation), hits.rank))
         if generation == settings.bounces or len(hits.rank) == 0:
             break
@@ -323,8 +368,19 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
             keep = roulette[hits.rank, generation] < q
             weight = 1.0 / np.maximum(q, 1e-12)
         k = 2 * (generation - 1)
-        direction = cosine_directions(hits.normal, directions[hits.rank, k:k + 2])
+        samples = directions[hits.rank, k:k + 2]
+        direction = cosine_directions(hits.normal, samples)
         flux = hits.flux * hits.albedo * weight[:, None]
+        if gloss is not None:  # a diffuse or a glossy reflection, by their luminance
+            total = np.maximum((diffuse + gloss) @ LUMINANCE, 1e-30)
+            p_gloss = np.clip(gloss @ LUMINANCE / total, 0.0, 1.0)
+            glossy = lobe_choice[hits.rank, generation] < p_gloss
+            if glossy.any():
+                direction[glossy] = principled.sample_reflection(
+                    hits.normal[glossy], hits.incoming[glossy], rough[glossy], samples[glossy])
+            lobe = np.where(glossy[:, None], gloss / np.maximum(p_gloss, 1e-12)[:, None],
+                            diffuse / np.maximum(1.0 - p_gloss, 1e-12)[:, None])
+            flux = hits.flux * lobe * weight[:, None]
         keep &= np.any(flux > 0, axis=1)
         hits = trace_hits(tracer, geometry, (hits.position + hits.normal * epsilon)[keep],
                       direction[keep], flux[keep], hits.rank[keep], epsilon)

@@ -1,0 +1,297 @@
+"""The Principled BSDF's reflection layers as Cycles 4.x/5.x builds them (svm/closure.h):
+
+- a dielectric GGX lobe (alpha = roughness²) whose Fresnel is the real dielectric Fresnel of
+  ``eta`` remapped from [F0(eta), 1] to [F0 × Specular Tint, 1] (generalized Schlick with a
+  negative exponent), where Specular IOR Level scales F0 (level 0.5 keeps the IOR's F0);
+- a metallic GGX lobe of weight ``metallic`` with Schlick's Fresnel from the base colour;
+- both with multiple-scattering energy compensation (Kulla & Conty: the lobe scaled by
+  (1 + Fms (1 − E)/E) for the single-scattering albedo E and the Fresnel's cosine average);
+- a diffuse base of weight (1 − metallic)(1 − max over channels of the dielectric lobe's
+  albedo), the energy-conserving layering.
+
+The albedos come from tables of the GGX lobe, computed here by stratified sampling of visible
+normals (Heitz 2018), as Cycles precomputes its own (``ggx_E``, ``ggx_Eavg``,
+``ggx_gen_schlick_ior_s``, ``ggx_gen_schlick_s``). The shaders read the same tables
+(gpu_shaders/principled_lib.glsl) and interpolate them as ``lookup`` does.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+E_SIZE = 32  # roughness × cos(view) nodes of the single-scattering albedo E
+S_SIZE = 16  # roughness × cos(view) × IOR nodes of the Fresnel factors s
+SAMPLES = 32  # stratified visible-normal samples per axis and table entry
+MIN_ROUGHNESS = 0.2
+"""Glossy lobes narrower than this (Principled Roughness) are rendered at this roughness: light
+samples and VPLs are points, and a narrower lobe turns each into a visible speck."""
+
+# Rows of the table texture (width E_SIZE): E by roughness, then E_avg, then s_ior by
+# (IOR, roughness), then s for Schlick's exponent 5 by roughness.
+ROW_E, ROW_EAVG = 0, E_SIZE
+ROW_S_IOR = ROW_EAVG + 1
+ROW_S5 = ROW_S_IOR + S_SIZE * S_SIZE
+TABLE_ROWS = ROW_S5 + S_SIZE
+
+
+def f0_from_ior(eta: np.ndarray | float) -> np.ndarray:
+    """Reflectance at normal incidence of a dielectric interface."""
+    return ((np.asarray(eta) - 1.0) / (np.asarray(eta) + 1.0)) ** 2
+
+
+def ior_from_f0(f0: float) -> float:
+    """The IOR whose normal-incidence reflectance is ``f0`` (< 1)."""
+    root = np.sqrt(np.clip(f0, 0.0, 1.0 - 1e-7))
+    return float((1.0 + root) / (1.0 - root))
+
+
+def fresnel_dielectric(cos_i: np.ndarray, eta: np.ndarray | float) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of light arriving at cosine ``cos_i`` (eta = n2/n1)."""
+    c = np.abs(cos_i)
+    g2 = np.asarray(eta) ** 2 - 1.0 + c * c
+    g = np.sqrt(np.maximum(g2, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (g - c) / (g + c)
+        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+        f = 0.5 * a * a * (1.0 + b * b)
+    return np.where(g2 > 0, np.nan_to_num(f, nan=1.0), 1.0)
+
+
+def _lambda(alpha2: np.ndarray, cos: np.ndarray) -> np.ndarray:
+    tan2 = np.maximum(1.0 / np.maximum(cos * cos, 1e-12) - 1.0, 0.0)
+    return 0.5 * (np.sqrt(1.0 + alpha2 * tan2) - 1.0)
+
+
+def _visible_normal_samples(rough: np.ndarray, mu: np.ndarray, n: int = SAMPLES
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """cos(view, half vector) and the estimator weight G2/G1 (0 below the horizon) of n×n
+    stratified visible-normal samples, for every (rough, mu) pair: arrays (..., n*n). The mean
+    of the weight is the lobe's albedo without Fresnel."""
+    alpha = np.maximum(np.asarray(rough, float) ** 2, 1e-4)
+    mu = np.clip(np.asarray(mu, float), 1e-3, 1.0)
+    alpha, mu = np.broadcast_arrays(alpha, mu)
+    u = (np.arange(n) + 0.5) / n
+    u1, u2 = (x.ravel() for x in np.meshgrid(u, u))
+    sin = np.sqrt(1.0 - mu * mu)
+    # the view (sin, 0, mu) stretched by alpha; T1 = y, T2 = stretched × y (Heitz 2018)
+    length = np.sqrt((alpha * sin) ** 2 + mu * mu)
+    sx, sz = (alpha * sin / length)[..., None], (mu / length)[..., None]
+    r, phi = np.sqrt(u1), 2.0 * np.pi * u2
+    t1, t2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + sz)
+    t2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - t1 * t1, 0.0)) + s * t2
+    t3 = np.sqrt(np.maximum(1.0 - t1 * t1 - t2 * t2, 0.0))
+    # T2 = (sx, 0, sz) × (0, 1, 0) = (-sz, 0, sx)
+    a = alpha[..., None]
+    hx, hy, hz = a * (-t2 * sz + t3 * sx), a * t1, np.maximum(t2 * sx + t3 * sz, 0.0)
+    norm = np.maximum(np.sqrt(hx * hx + hy * hy + hz * hz), 1e-30)
+    hx, hz = hx / norm, hz / norm
+    cos_vh = sin[..., None] * hx + mu[..., None] * hz
+    cos_l = 2.0 * cos_vh * hz - mu[..., None]
+    a2 = a * a
+    lv = _lambda(a2, mu[..., None])
+    weight = np.where(cos_l > 0, (1.0 + lv) / (1.0 + lv + _lambda(a2, np.maximum(cos_l, 1e-6))),
+                      0.0)
+    return np.clip(cos_vh, 0.0, 1.0), weight
+
+
+def _nodes(size: int) -> np.ndarray:
+    return np.linspace(0.0, 1.0, size)
+
+
+def eta_of_z(z: np.ndarray) -> np.ndarray:
+    """The table's IOR parameter: z = sqrt((eta − 1)/(eta + 1)), so z⁴ = F0 (as in Cycles)."""
+    z2 = np.minimum(np.asarray(z, float) ** 2, 0.999)
+    return (1.0 + z2) / (1.0 - z2)
+
+
+@lru_cache(maxsize=1)
+def tables() -> np.ndarray:
+    """The lobe tables, (TABLE_ROWS, E_SIZE) float32 (layout: the ROW_* constants; entries of
+    the S_SIZE-wide rows past S_SIZE are 0). Computed once per process (about 1 s)."""
+    out = np.zeros((TABLE_ROWS, E_SIZE), np.float32)
+    rough, mu = np.meshgrid(_nodes(E_SIZE), _nodes(E_SIZE), indexing="ij")
+    out[ROW_E:ROW_E + E_SIZE] = _visible_normal_samples(rough, mu)[1].mean(-1)
+    gauss_mu, gauss_w = np.polynomial.legendre.leggauss(16)
+    gauss_mu, gauss_w = 0.5 * (gauss_mu + 1.0), 0.5 * gauss_w
+    r, m = np.meshgrid(_nodes(E_SIZE), gauss_mu, indexing="ij")
+    e = _visible_normal_samples(r, m)[1].mean(-1)
+    out[ROW_EAVG] = 2.0 * (e * gauss_mu * gauss_w).sum(-1)
+    rough, mu = np.meshgrid(_nodes(S_SIZE), _nodes(S_SIZE), indexing="ij")
+    cos_vh, weight = _visible_normal_samples(rough, mu)
+    albedo = np.maximum(weight.mean(-1), 1e-12)
+    for k, eta in enumerate(eta_of_z(_nodes(S_SIZE))):
+        f0 = f0_from_ior(eta)
+        s = (fresnel_dielectric(cos_vh, eta) - f0) / (1.0 - f0)
+        rows = slice(ROW_S_IOR + k * S_SIZE, ROW_S_IOR + (k + 1) * S_SIZE)
+        out[rows, :S_SIZE] = (weight * s).mean(-1) / albedo
+    out[ROW_S5:ROW_S5 + S_SIZE, :S_SIZE] = (weight * (1.0 - cos_vh) ** 5).mean(-1) / albedo
+    return out
+
+
+def _lerp_row(table: np.ndarray, row: np.ndarray, x: np.ndarray, size: int) -> np.ndarray:
+    f = np.clip(x, 0.0, 1.0) * (size - 1)
+    i = np.minimum(np.floor(f).astype(int), size - 2)
+    t = f - i
+    return (1 - t) * table[row, i] + t * table[row, i + 1]
+
+
+def _lerp_2d(table: np.ndarray, first: int, rough: np.ndarray, mu: np.ndarray, size: int
+             ) -> np.ndarray:
+    f = np.clip(rough, 0.0, 1.0) * (size - 1)
+    i = np.minimum(np.floor(f).astype(int), size - 2)
+    t = f - i
+    return (1 - t) * _lerp_row(table, first + i, mu, size) \
+        + t * _lerp_row(table, first + i + 1, mu, size)
+
+
+def lookup(rough: np.ndarray, mu: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, ...]:
+    """E, E_avg, s_ior and s5 at (roughness, cos view, IOR parameter), interpolated linearly
+    between table nodes (as the shader does)."""
+    t = tables().astype(np.float64)
+    rough, mu, z = np.broadcast_arrays(*(np.asarray(a, float) for a in (rough, mu, z)))
+    e = _lerp_2d(t, ROW_E, rough, mu, E_SIZE)
+    e_avg = _lerp_row(t, np.full(rough.shape, ROW_EAVG), rough, E_SIZE)
+    f = np.clip(z, 0.0, 1.0) * (S_SIZE - 1)
+    k = np.minimum(np.floor(f).astype(int), S_SIZE - 2)
+    w = f - k
+    s_ior = (1 - w) * _lerp_2d(t, ROW_S_IOR + k * S_SIZE, rough, mu, S_SIZE) \
+        + w * _lerp_2d(t, ROW_S_IOR + (k + 1) * S_SIZE, rough, mu, S_SIZE)
+    s5 = _lerp_2d(t, ROW_S5, rough, mu, S_SIZE)
+    return e, e_avg, s_ior, s5
+
+
+def fresnel_cosine_average(eta: float) -> float:
+    """2 ∫ F(μ) μ dμ of the dielectric Fresnel (Cycles' ``fresnel_dielectric_Fss``)."""
+    x, w = np.polynomial.legendre.leggauss(64)
+    mu = 0.5 * (x + 1.0)
+    return float((fresnel_dielectric(mu, eta) * mu * w).sum())
+
+
+def layer_weights(base: np.ndarray, rough: float, metallic: float, eta: float,
+                  f0: np.ndarray, s_avg: float, mu: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The diffuse weight (n,) and the glossy albedo (Cycles' GlossCol) (n, 3) of base colours
+    (n, 3) seen at cosines ``mu`` (n,), for a material's specular parameters (see
+    ``specular_row``). The shader computes the same per pixel."""
+    z = np.sqrt(np.abs((eta - 1.0) / (eta + 1.0)))
+    e, e_avg, s_ior, s5 = (x[:, None] for x in lookup(np.full(len(mu), rough), mu,
+                                                      np.full(len(mu), z)))
+    diffuse, gloss = np.full(len(mu), 1.0 - metallic), np.zeros((len(mu), 3))
+    if eta != 1.0:
+        darkening = _darkening(np.broadcast_to(f0, (len(mu), 3)), s_avg, e, e_avg)
+        albedo = darkening * (f0 + (1.0 - f0) * s_ior)
+        diffuse = diffuse * np.clip(1.0 - albedo.max(axis=1), 0.0, 1.0)
+        gloss += (1.0 - metallic) * albedo
+    if metallic > 0:
+        metal_f0 = np.clip(base, 0.0, 1.0)
+        darkening = _darkening(metal_f0, 1.0 / 21.0, e, e_avg)
+        gloss += metallic * darkening * (metal_f0 + (1.0 - metal_f0) * s5)
+    return diffuse, gloss
+
+
+def _darkening(f0: np.ndarray, s_avg: float, e: np.ndarray, e_avg: np.ndarray) -> np.ndarray:
+    """E (1 + Fms (1 − E)/E): the energy-compensated lobe's albedo factor (Kulla & Conty)."""
+    fss = f0 + (1.0 - f0) * s_avg
+    fms = fss * e_avg / (1.0 - fss * (1.0 - e_avg))
+    return e + fms * (1.0 - e)
+
+
+def path_albedo(base: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """Reflectance of light arriving from a cosine-weighted direction (what a light path keeps
+    at a bounce, the glossy part re-emitted diffusely): ∫ (diffuse weight × base + GlossCol)
+    2μ dμ, for base colours (n, 3) of one material's specular row."""
+    x, w = np.polynomial.legendre.leggauss(8)
+    mu, weight = 0.5 * (x + 1.0), 0.5 * w * (x + 1.0)  # 2μ dμ on [0, 1]
+    n = len(base)
+    repeated = np.repeat(base, len(mu), axis=0)
+    diffuse, gloss = layer_weights(repeated, *specular_parameters(row), np.tile(mu, n))
+    per = diffuse[:, None] * repeated + gloss
+    return (per.reshape(n, len(mu), 3) * weight[None, :, None]).sum(axis=1)
+
+
+SPECULAR_COLUMNS = 8  # two RGBA texels: (roughness, metallic, eta, s_avg), (tint F0 rgb, flag)
+
+
+def specular_row(roughness: float, metallic: float, ior: float, level: float,
+                 tint: tuple[float, float, float]) -> np.ndarray:
+    """A material's specular texels: clamped roughness, metallic, the Fresnel's IOR (level
+    applied, as Cycles does), its remapped cosine average, F0 × tint (saturated) and a flag
+    (1 when there is any glossy lobe; 0 keeps the pure-Lambert path)."""
+    row = np.zeros(SPECULAR_COLUMNS, np.float32)
+    ior = max(float(ior), 1e-5)
+    level = max(float(level), 0.0)
+    metallic = float(np.clip(metallic, 0.0, 1.0))
+    eta, f0 = ior, float(f0_from_ior(ior))
+    if level != 0.5:
+        f0 *= 2.0 * level
+        eta = ior_from_f0(f0) if f0 < 1.0 else 1e5
+        if ior < 1.0:
+            eta = 1.0 / eta
+    eta = 1.0 / eta if eta < 1.0 else eta  # reflection from outside sees the same F0
+    if f0 <= 0.0:
+        eta = 1.0
+    dielectric = eta != 1.0 and metallic < 1.0
+    if not dielectric and metallic <= 0.0:
+        return row
+    real_f0 = float(f0_from_ior(eta))
+    s_avg = float(np.clip((fresnel_cosine_average(eta) - real_f0) / max(1.0 - real_f0, 1e-12),
+                          0.0, 1.0)) if dielectric else 0.0
+    rough = max(float(np.clip(roughness, 0.0, 1.0)), MIN_ROUGHNESS)
+    row[:4] = rough, metallic, eta if dielectric else 1.0, s_avg
+    row[4:7] = np.clip(f0 * np.maximum(np.asarray(tint, float), 0.0), 0.0, 1.0)
+    row[7] = 1.0
+    return row
+
+
+def specular_parameters(row: np.ndarray) -> tuple[float, float, float, np.ndarray, float]:
+    """(roughness, metallic, eta, F0 × tint, s_avg) of a specular row, for ``layer_weights``."""
+    return float(row[0]), float(row[1]), float(row[2]), np.asarray(row[4:7], float), \
+        float(row[3])
+
+
+def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarray,
+                      u: np.ndarray) -> np.ndarray:
+    """Directions (m, 3) a glossy lobe of roughness ``rough`` (m,) reflects light arriving
+    along ``incoming`` (m, 3, direction of travel) into, sampled from its visible normals
+    (Heitz 2018) with unit-square samples ``u`` (m, 2); those below the surface are mirrored
+    above it."""
+    alpha = np.maximum(np.asarray(rough, float) ** 2, 1e-4)[:, None]
+    view = -incoming
+    helper = np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t = np.cross(helper, normal)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(normal, t)
+    local = np.stack([(view * t).sum(1), (view * b).sum(1),
+                      np.maximum((view * normal).sum(1), 1e-6)], axis=1)
+    stretched = local * np.hstack([alpha, alpha, np.ones_like(alpha)])
+    stretched /= np.linalg.norm(stretched, axis=1, keepdims=True)
+    lensq = stretched[:, 0] ** 2 + stretched[:, 1] ** 2
+    t1 = np.where(lensq[:, None] > 1e-7,
+                  np.stack([-stretched[:, 1], stretched[:, 0], 0 * lensq], 1)
+                  / np.sqrt(np.maximum(lensq, 1e-30))[:, None], [[1.0, 0.0, 0.0]])
+    t2 = np.cross(stretched, t1)
+    r, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
+    p1, p2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + stretched[:, 2])
+    p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
+    p3 = np.sqrt(np.maximum(1.0 - p1 * p1 - p2 * p2, 0.0))
+    h = p1[:, None] * t1 + p2[:, None] * t2 + p3[:, None] * stretched
+    h = h * np.hstack([alpha, alpha, np.ones_like(alpha)])
+    h[:, 2] = np.maximum(h[:, 2], 0.0)
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-30)
+    out_local = 2.0 * (local * h).sum(1, keepdims=True) * h - local
+    out_local[:, 2] = np.abs(out_local[:, 2])
+    out = out_local[:, :1] * t + out_local[:, 1:2] * b + out_local[:, 2:] * normal
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-30)
+
+
+def diffuse_average(row: np.ndarray) -> float:
+    """The diffuse weight averaged over outgoing cosine-weighted directions (what a diffuse
+    VPL of this material emits per unit base colour): ∫ weight(μ) 2μ dμ."""
+    x, w = np.polynomial.legendre.leggauss(8)
+    mu, weight = 0.5 * (x + 1.0), 0.5 * w * (x + 1.0)
+    diffuse, _ = layer_weights(np.zeros((len(mu), 3)), *specular_parameters(row), mu)
+    return float((diffuse * weight).sum())

@@ -1,0 +1,51 @@
+"""Choosing the OpenGL device and saying what is missing when no context can be made."""
+
+from __future__ import annotations
+
+import pytest
+
+from addon.core.gpu.gl import (
+    GPU_VARIABLE,
+    GLUnavailableError,
+    create_context,
+    explain_failure,
+    list_devices,
+    requested_device,
+)
+
+
+def test_every_device_is_listed_with_its_renderer_and_version():
+    devices = list_devices()
+    assert devices and devices[0].startswith("0: ")
+    assert all("OpenGL" in line or "unusable" in line for line in devices)
+
+
+def test_a_device_that_does_not_exist_is_named_with_the_count():
+    count = len(list_devices())
+    with pytest.raises(GLUnavailableError, match=f"GPU {count + 3} does not exist: EGL finds "
+                                                 f"{count} device"):
+        create_context(count + 3)
+
+
+def test_the_environment_variable_chooses_the_device(monkeypatch):
+    monkeypatch.setenv(GPU_VARIABLE, "0")
+    assert requested_device() == 0
+    ctx = create_context()
+    try:
+        assert ctx.version_code >= 410
+    finally:
+        ctx.release()
+    monkeypatch.setenv(GPU_VARIABLE, "first")
+    with pytest.raises(GLUnavailableError, match="'first' is not a device number"):
+        create_context()
+
+
+def test_missing_egl_library_names_the_packages(monkeypatch):
+    monkeypatch.setenv("GLCONTEXT_LINUX_LIBEGL", "/nonexistent/libEGL.so.1")
+    with pytest.raises(GLUnavailableError, match=r"libEGL .* not installed.*libegl1"):
+        create_context(0)
+
+
+def test_a_driver_without_core_contexts_is_told_what_to_do():
+    message = explain_failure(["eglCreateContext failed (0x3009)"] * 2, None)
+    assert "older OpenGL" in message and "--gpu N" in message and "0x3009" in message

@@ -1,0 +1,88 @@
+"""Benchmark: the interior sample scene at 640×360 with default settings, with and without a
+light portal in its window (an area light marked Portal, as a Cycles user would place it),
+each rendered twice; error against the report's cached Cycles references (2 × 128 spp, made
+by `python -m devtools report sample_scenes/interior.blend`). Portals change Cycles' sampling,
+not its converged image, so the same references serve both.
+
+    .venv/bin/python tools/bench_portal.py [--cache .cache/references]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+BLEND = REPO / "sample_scenes" / "interior.blend"
+SIZE = (640, 360)
+
+
+def add_portal(bpy, scene) -> None:
+    """A portal filling the window (x -0.4..1.2, z 0.9..2.3 in the wall y = -2), facing in."""
+    data = bpy.data.lights.new("Portal", "AREA")
+    data.shape, data.size, data.size_y = "RECTANGLE", 1.6, 1.4
+    data.cycles.is_portal = True
+    portal = bpy.data.objects.new("Portal", data)
+    portal.location = (0.4, -2.0, 1.6)
+    portal.rotation_euler = (np.pi / 2, 0.0, 0.0)  # -Z (the portal's inside) along +y
+    scene.collection.objects.link(portal)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--cache", type=Path, default=REPO / ".cache" / "references")
+    args = parser.parse_args()
+
+    import bpy
+
+    from addon import register, unregister
+    from addon.engine import monitor
+    from devtools.report import (
+        cycles_settings,
+        error_metrics,
+        file_digest,
+        open_scene,
+        reference_key,
+        render_timed,
+    )
+
+    code = 1
+    register()
+    try:
+        refs = []
+        for seed in (1, 2):
+            key = reference_key(file_digest(BLEND), SIZE, cycles_settings(128, 4, seed),
+                                bpy.app.version_string)
+            path = args.cache / f"{key}.npy"
+            if not path.is_file():
+                print(f"no cached reference {path}: run `python -m devtools report "
+                      "sample_scenes/interior.blend` first", file=sys.stderr)
+                return
+            refs.append(np.load(path))
+        print("| portal | seconds | relRMSE | energy | VPLs lighting the view |")
+        print("|---|---|---|---|---|")
+        for portal in (False, True, False, True):
+            scene = open_scene(BLEND, SIZE)
+            scene.render.engine = "VPL_GI"
+            if portal:
+                add_portal(bpy, scene)
+            image, seconds = render_timed(scene, Path(f"/tmp/vplgi_portal_{portal}.exr"))
+            metrics = error_metrics(image, *refs)
+            share = monitor.last_stats.counts.get("vpls_in_view_pct", "–")
+            print(f"| {'yes' if portal else 'no'} | {seconds:.1f} | "
+                  f"{metrics['relative_rmse_unbiased']:.1%} | "
+                  f"{metrics['mean_relative_energy']:+.1%} | {share} % |", flush=True)
+        code = 0
+    finally:
+        unregister()
+        sys.stdout.flush()
+        os._exit(code)  # bpy can hang in its exit handlers
+
+
+if __name__ == "__main__":
+    main()
