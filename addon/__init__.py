@@ -11,21 +11,23 @@ ENGINE_ID = "VPL_GI"
 
 def register() -> None:
     """Register the engine, its properties and its panels with Blender."""
-    from . import engine, preferences, properties, ui, viewport
+    from . import bake, engine, preferences, properties, ui, viewport
 
     preferences.register()
     properties.register()
     ui.register()
+    bake.register()
     viewport.register()
     engine.register()
 
 
 def unregister() -> None:
     """Undo register(); a bpy process must call this before it exits, or it hangs."""
-    from . import engine, preferences, properties, ui, viewport
+    from . import bake, engine, preferences, properties, ui, viewport
 
     engine.unregister()
     viewport.unregister()
+    bake.unregister()
     ui.unregister()
     properties.unregister()
     preferences.unregister()

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from . import ENGINE_ID
+from . import ENGINE_ID, bake
 from .blender_compat import pass_name
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
@@ -159,8 +159,9 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
 
         _, stats = shared_renderer().render_progressive(exported, settings, progress, cancelled,
                                                         passes, on_pass=show)
+        bake.report(stats, exported.notes)
         monitor.last_stats, monitor.last_warnings = stats, list(stats.warnings)
-        for note in [*exported.notes, *stats.notes]:
+        for note in stats.notes:
             self.report({"INFO"}, f"VPL GI: {note}")
         for warning in stats.warnings:
             self.report({"WARNING"}, f"VPL GI: {warning}")

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from . import bake
 from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, cycles_output_node, uses_nodes
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
@@ -259,6 +260,11 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
                 None if uvs is None else corner), problems
 
 
+def read_mesh(mesh: bpy.types.Mesh, name: str) -> Mesh:
+    """The triangles of a mesh datablock (a bake's temporary copy), problems left out."""
+    return _mesh_arrays(mesh, name, f"mesh '{name}'", faces_expected=True)[0]
+
+
 def _uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
     """The active render UV map's coordinates per corner, (L, 2), or None without one."""
     layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
@@ -415,13 +421,15 @@ def _default_surface() -> Material:
 
 
 def export_material(material: bpy.types.Material | None, warnings: list[str],
-                    images: ImageReader | None = None) -> Material:
+                    images: ImageReader | None = None,
+                    fallbacks: dict[str, str] | None = None) -> Material:
     """Base colour, emission, roughness and metallic of a material's surface (constant values
     or image textures, read by ``images``).
 
     A material without nodes (Blender 4.x) is diffuse in its viewport colour (as in Cycles),
     with a warning;
-    an unsupported node tree falls back to the viewport colour with one warning."""
+    an unsupported node tree falls back to the viewport colour with one warning (none where
+    the tree can be baked: ``fallbacks`` gets the reason, and bake.apply says what it did)."""
     if material is None:
         return _default_surface()
     viewport = Material(material.name, _rgb(material.diffuse_color),
@@ -434,8 +442,20 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
     try:
         return _shader(node, material.name, images or ImageReader(warnings))
     except (_Unsupported, UnsupportedLink) as reason:
-        warnings.append(f"material '{material.name}': {reason}; using its viewport colour")
+        if fallbacks is not None:
+            fallbacks[material.name] = str(reason)
+        if fallbacks is None or bake.bake_reason(material, str(reason)) is None:
+            warnings.append(f"material '{material.name}': {reason}; using its viewport colour")
         return viewport
+
+
+def fallback_reasons(obj: bpy.types.Object) -> dict[str, str]:
+    """Why each of the object's materials falls back to its viewport colour (by name)."""
+    fallbacks: dict[str, str] = {}
+    for slot in obj.material_slots:
+        if slot.material is not None:
+            export_material(slot.material, [], fallbacks=fallbacks)
+    return fallbacks
 
 
 # -- lights, world, camera ------------------------------------------------------------------
@@ -591,6 +611,9 @@ class _Export:
         self.visibility: dict[int, bool] = {}
         self.images = ImageReader(result.warnings)
         self.generated: dict[str, dict[int, int]] = {}
+        self.fallbacks: dict[str, str] = {}
+        self.named_uvs: dict[str, frozenset[str]] = {}
+        self.bake_resolution = bake.settings_of(depsgraph.scene)[0]
 
     def include(self, obj: bpy.types.Object) -> bool:
         """False for geometry no ray sees; warns once per object about flags not honoured."""
@@ -675,9 +698,21 @@ class _Export:
             key = slot.material.name_full if slot.material else ""
             if key not in self.materials:
                 self.materials[key] = export_material(slot.material, self.result.warnings,
-                                                      self.images)
+                                                      self.images, self.fallbacks)
+                named = bake.named_uv_maps(slot.material)
+                if named:
+                    self.named_uvs[slot.material.name] = named
             found.append(self.materials[key])
         return found
+
+    def placed(self, inst, obj: bpy.types.Object) -> tuple[Mesh, list[Material], str]:
+        """The instance's mesh and materials (with its object's bake, if any) and name."""
+        mesh, materials = self.mesh(inst, obj), self.materials_of(obj)
+        if self.fallbacks or self.named_uvs:
+            mesh, materials = bake.apply(obj, mesh, materials, self.fallbacks, self.named_uvs,
+                                         self.bake_resolution, self.result.notes,
+                                         self.result.warnings)
+        return mesh, materials, obj.name
 
 
 def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = None) -> Scene:
@@ -715,8 +750,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         memo = (obj.original, obj.data)
         known = placements.get(memo)
         if known is None:
-            known = placements[memo] = (state.mesh(inst, obj), state.materials_of(obj),
-                                        obj.name) if state.include(obj) else None
+            known = placements[memo] = state.placed(inst, obj) if state.include(obj) else None
         elif known:
             cache.stats["meshes_reused"] += 1
         if known and known[0].triangle_count:

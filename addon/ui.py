@@ -78,6 +78,8 @@ class _SectionPanel(_RenderPanel):
                 col = layout.column()
                 col.active = applies(name, values)
                 col.prop(props, name)
+        if self.section == "bakes":
+            layout.operator("vpl_gi.bake_materials")
 
 
 class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):

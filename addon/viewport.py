@@ -4,12 +4,14 @@ only translates and draws (Blender's ``gpu`` module exists only with a window)."
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import weakref
 
 import bpy
 import numpy as np
 
+from . import bake
 from .core.frame.renderer import Renderer
 from .core.gpu.gl import create_context
 from .core.scene.model import Camera
@@ -62,7 +64,7 @@ class ViewportState:
         self.display = ""
         self._texture = None
         self._drawn = -1
-        engine_ref = weakref.ref(engine)
+        engine_ref = self._engine = weakref.ref(engine)
         session = self.session
         _states.add(self)
 
@@ -98,8 +100,18 @@ class ViewportState:
         scene = export_scene(depsgraph, self.cache) if changes.needs_export or not \
             self.exported else None
         self.exported = True
+        if scene is not None and any(bake.NOT_BAKED in w for w in scene.warnings):
+            bake.bake_soon(self._baked)
         self.session.edit(changes, scene=scene, camera=region_camera(context), settings=settings,
                           display=self.display)
+
+    def _baked(self) -> None:
+        """New bakes: export again at the next update (until then the viewport colour)."""
+        self.exported = False
+        engine = self._engine()
+        if engine is not None:
+            with contextlib.suppress(ReferenceError):  # Blender freed the engine
+                engine.tag_update()
 
     def draw(self, engine: bpy.types.RenderEngine, context: bpy.types.Context) -> None:
         """Hand over a moved view, then draw the latest frame (display colour management by

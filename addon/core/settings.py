@@ -32,6 +32,7 @@ SECTIONS = (
     Section("shadows", "Shadows"),
     Section("automatic", "Automatic Parameters"),
     Section("performance", "Performance"),
+    Section("bakes", "Material Bakes"),
 )
 
 
@@ -363,6 +364,19 @@ class Settings:
         "Leave out work the frame does not need (lights that cannot reach the view, a black "
         "world, pull-push levels the point density does not need, passes not asked for, work "
         "kept from the last frame). Off runs every stage: for comparisons only")
+
+    bake_resolution: int = setting(
+        512, "Bake Resolution", "bakes",
+        "Texels per edge of the image each object's material colours are baked into, where "
+        "they come from nodes read no other way (procedural textures, ColorRamp, Mapping …); "
+        "baked by Cycles before background renders and by Bake Materials",
+        choices=tuple(Choice(r, f"{r}²", f"{r}×{r} texels per baked object")
+                      for r in (64, 128, 256, 512, 1024, 2048, 4096)))
+    bake_memory: int = setting(
+        1024, "Bake Memory", "bakes",
+        "MiB that baked images may hold together (16 bytes per texel and channel); an object "
+        "whose bake does not fit keeps its viewport colour, with a warning",
+        low=16, high=65536, soft_high=8192)
 
     def validate(self) -> Settings:
         """Return self, or raise SettingsError naming the first setting out of range."""

@@ -175,6 +175,9 @@ class _Layout:
         assert hasattr(data, name) and name not in self.drawn, name
         self.drawn[name] = self.active
 
+    def operator(self, idname: str) -> None:
+        assert idname == "vpl_gi.bake_materials"  # the Material Bakes panel's button
+
 
 def _draw_panels(context) -> dict[str, bool]:
     from types import SimpleNamespace

@@ -418,8 +418,9 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
     assert got["Plain"].base_color == pytest.approx((0.9, 0.5, 0.1))
     assert got["(no material)"].base_color == pytest.approx((0.8, 0.8, 0.8))  # empty slot
     assert sorted(scene.warnings) == [
-        "material 'Checker': input 'Color' of 'Diffuse BSDF' is linked to 'Checker Texture'; "
-        "using its viewport colour",
+        "material 'Checker': input 'Color' of 'Diffuse BSDF' is linked to 'Checker Texture' "
+        "(nodes: Checker Texture); using its viewport colour (not baked: bakes run before "
+        "background renders, in the viewport and by Bake Materials)",
         *(["material 'Plain' has no shader nodes: rendered as a diffuse surface in its "
            "viewport colour (as Cycles does)"] if plain_warned else []),
         "material 'Shiny': shader 'Glossy BSDF' is not supported; using its viewport colour"]

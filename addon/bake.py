@@ -1,0 +1,531 @@
+"""Material bakes: surfaces whose colour comes from nodes the exporter cannot read (procedural
+textures, ColorRamp, Math, Mapping, Attribute, textures inside Mix Shader …) are evaluated by
+Cycles' Emit bake into an image per object, then rendered like any image texture.
+
+Where it runs: ``bpy.ops.object.bake`` inside ``RenderEngine.render`` runs with the rendering
+engine instead of Cycles and frees the running engine's Python object (measured, bpy 4.5), so
+bakes run before the render: in a ``render_pre`` handler when it is called on the main thread
+(background renders: ``blender -b``, the bpy module, ``python -m addon render``), or by
+``bake_scene`` directly. Renders and the viewport use what is in the cache; a material whose
+bake is missing keeps the viewport-colour fallback with a warning saying why.
+
+Nothing of the user's is changed: the bake works on a temporary scene holding a temporary
+object with an evaluated copy of the mesh (triangulated, with an xatlas UV map, when the mesh
+has no suitable UV map) and copies of its materials, all removed afterwards (errors and
+Ctrl-C included). Bakes are cached by object, material node-tree hashes, original mesh and
+modifier settings, and resolution, within a memory cap."""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+from bpy.app.handlers import persistent
+
+from . import ENGINE_ID, bake_tree
+from .blender_compat import ensure_nodes
+from .core.frame.result import Stats
+from .core.scene.model import Material, Mesh, Texture
+from .core.settings import DEFAULTS
+from .uv_unwrap import unsuitable, unwrap
+
+BAKE_SAMPLES = 4  # Cycles samples per texel: anti-aliases the texel's footprint
+BAKE_MARGIN = 4  # texels the bake extends past each UV island (bilinear lookups at edges)
+TEXEL_BYTES = 16  # float32 RGBA
+NOT_BAKED = "not baked: bakes run before background renders, in the viewport and by Bake Materials"
+
+
+@dataclass
+class Baked:
+    """One object's bake: a texture per channel baked, the mesh carrying the bake's UV map
+    when it is not the object's own (xatlas), and how it was made."""
+
+    textures: dict[str, Texture]
+    mesh: Mesh | None
+    seconds: float
+    reasons: dict[str, str]  # material name -> why it was baked
+    nbytes: int
+    evaluated: str | None = None  # with xatlas UVs: the hash of the mesh they were made on
+    used: int = 0  # the cache generation that last used it
+
+
+@dataclass
+class BakeCache:
+    """Bakes by (object, slots' material tree hashes, mesh hash, resolution), the memory they
+    hold, and what the last bake pass did."""
+
+    entries: dict[tuple, Baked] = field(default_factory=dict)
+    generation: int = 0
+    baked: list[tuple[str, Baked]] = field(default_factory=list)  # the last pass's new bakes
+    problems: list[str] = field(default_factory=list)  # the last pass's failures
+    failed: dict[tuple, str] = field(default_factory=dict)  # key -> why that bake failed
+
+    @property
+    def nbytes(self) -> int:
+        return sum(entry.nbytes for entry in self.entries.values())
+
+    def make_room(self, nbytes: int, cap: int) -> bool:
+        """Drop bakes the current pass has not used, oldest first, until ``nbytes`` more fit
+        under ``cap``; False if they cannot."""
+        for key in sorted((k for k, e in self.entries.items() if e.used < self.generation),
+                          key=lambda k: self.entries[k].used):
+            if self.nbytes + nbytes <= cap:
+                break
+            del self.entries[key]
+        return self.nbytes + nbytes <= cap
+
+    def clear(self) -> None:
+        self.entries.clear()
+        self.failed.clear()
+
+
+CACHE = BakeCache()
+
+
+# -- what an object needs -------------------------------------------------------------------
+
+def settings_of(scene: bpy.types.Scene) -> tuple[int, int]:
+    """The bake resolution (texels per edge) and memory cap (bytes) of a scene."""
+    values = getattr(scene, "vpl_gi", None)
+    resolution = getattr(values, "bake_resolution", DEFAULTS.bake_resolution)
+    memory = getattr(values, "bake_memory", DEFAULTS.bake_memory)
+    return int(resolution), int(memory) << 20
+
+
+def bake_reason(material: bpy.types.Material | None, fallback: str | None) -> str | None:
+    """Why a material's surface is baked (the exporter's reason for falling back, and the
+    nodes feeding the surface), or None when it is not bakeable or needs no bake."""
+    if material is None or fallback is None or material.node_tree is None:
+        return None
+    node = bake_tree.surface(material)
+    try:
+        bake_tree.check(node)
+    except bake_tree.NotBakeable:
+        return None
+    nodes = sorted(set(bake_tree.linked_inputs(node)))
+    return fallback + (f" (nodes: {', '.join(nodes)})" if nodes else "")
+
+
+def _array(collection, attribute: str, count: int, dtype) -> np.ndarray:
+    values = np.empty(count, dtype=dtype)
+    collection.foreach_get(attribute, values)
+    return values
+
+
+def _active_uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
+    layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
+    if layer is None:
+        return None
+    return _array(layer.uv, "vector", len(mesh.loops) * 2, np.float32)
+
+
+def mesh_hash(mesh: bpy.types.Mesh) -> str:
+    """A hash of a mesh's content that a bake depends on: positions, faces, material
+    indices, the active render UV map and colour and float attributes' values."""
+    digest = hashlib.blake2b(digest_size=16)
+    digest.update(_array(mesh.vertices, "co", len(mesh.vertices) * 3, np.float32).tobytes())
+    digest.update(_array(mesh.loops, "vertex_index", len(mesh.loops), np.int32).tobytes())
+    digest.update(_array(mesh.polygons, "loop_total", len(mesh.polygons), np.int32).tobytes())
+    digest.update(_array(mesh.polygons, "material_index", len(mesh.polygons),
+                         np.int32).tobytes())
+    uvs = _active_uvs(mesh)
+    digest.update(b"no uv" if uvs is None else uvs.tobytes())
+    for attribute in mesh.attributes:
+        if attribute.name.startswith(".") or attribute.name == "position":
+            continue
+        digest.update(f"{attribute.name}:{attribute.domain}:{attribute.data_type}".encode())
+        if attribute.data_type in ("FLOAT_COLOR", "BYTE_COLOR"):
+            digest.update(_array(attribute.data, "color", len(attribute.data) * 4,
+                                 np.float32).tobytes())
+        elif attribute.data_type == "FLOAT":
+            digest.update(_array(attribute.data, "value", len(attribute.data),
+                                 np.float32).tobytes())
+    return digest.hexdigest()
+
+
+def bake_key(obj: bpy.types.Object, resolution: int) -> tuple:
+    """The cache key of an evaluated mesh object's bake: its slots' node trees, its original
+    mesh and modifier settings (not the evaluated mesh, which differs between the viewport's
+    evaluation, where bakes run, and a final render's: a bake in the object's own UV map
+    holds for both) and the resolution."""
+    slots = tuple((slot.material.name_full, bake_tree.tree_hash(slot.material.node_tree))
+                  if slot.material is not None and slot.material.node_tree is not None
+                  else None for slot in obj.material_slots)
+    original = obj.original
+    shape_keys = original.data.shape_keys
+    shapes = tuple((k.name, k.value, k.mute) for k in shape_keys.key_blocks) \
+        if shape_keys is not None else ()
+    modifiers = tuple(bake_tree.struct_hash(modifier) for modifier in original.modifiers)
+    return (original.name_full, slots, mesh_hash(original.data), shapes, modifiers,
+            resolution)
+
+
+def _valid(entry: Baked | None, obj: bpy.types.Object) -> bool:
+    """Whether a cached bake fits the evaluated object: a bake in xatlas UVs only on the
+    geometry it was made on."""
+    return entry is not None and (entry.evaluated is None or
+                                  entry.evaluated == mesh_hash(obj.data))
+
+
+# -- the bake -------------------------------------------------------------------------------
+
+class _Temporary:
+    """Datablocks made for one bake, removed (in dependency order) on exit, whatever
+    happens."""
+
+    def __init__(self) -> None:
+        self.made: list[tuple[bpy.types.bpy_prop_collection, bpy.types.ID]] = []
+
+    def add(self, collection, datablock):
+        self.made.append((collection, datablock))
+        return datablock
+
+    def __enter__(self) -> _Temporary:
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        for kind in (bpy.types.Scene, bpy.types.Object, bpy.types.Mesh, bpy.types.Material,
+                     bpy.types.Image):
+            for collection, datablock in reversed(self.made):
+                if isinstance(datablock, kind):
+                    collection.remove(datablock)
+        self.made.clear()
+
+
+def _copy(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
+          temporary: _Temporary) -> bpy.types.Mesh:
+    """A new mesh of the evaluated object, every attribute kept."""
+    return temporary.add(bpy.data.meshes, bpy.data.meshes.new_from_object(
+        obj, preserve_all_data_layers=True, depsgraph=depsgraph))
+
+
+def _triangulate(mesh: bpy.types.Mesh) -> None:
+    """Split every face of the mesh into triangles (attributes kept)."""
+    import bmesh  # importable only once bpy is
+
+    work = bmesh.new()
+    try:
+        work.from_mesh(mesh)
+        bmesh.ops.triangulate(work, faces=work.faces[:])
+        work.to_mesh(mesh)
+    finally:
+        work.free()
+
+
+def _bake_uvs(mesh: bpy.types.Mesh, resolution: int) -> bool:
+    """Make the bake's UV map active: the mesh's own active render map when suitable
+    (the mesh is left as Blender tessellates it, as Cycles renders it), else a new xatlas
+    map on the mesh, triangulated first. True if xatlas made it."""
+    uvs = _active_uvs(mesh)
+    if uvs is not None:
+        mesh.calc_loop_triangles()
+        corners = _array(mesh.loop_triangles, "loops", len(mesh.loop_triangles) * 3, np.int32)
+        if unsuitable(uvs.reshape(-1, 2)[corners]) is None:
+            mesh.uv_layers.active = next(layer for layer in mesh.uv_layers
+                                         if layer.active_render)
+            return False
+    _triangulate(mesh)
+    positions = _array(mesh.vertices, "co", len(mesh.vertices) * 3, np.float32).reshape(-1, 3)
+    corners = _array(mesh.loops, "vertex_index", len(mesh.loops), np.int32).reshape(-1, 3)
+    layer = mesh.uv_layers.new(name="VPL GI bake", do_init=False)
+    if layer is None:
+        raise RuntimeError("the mesh has no room for another UV map (8 at most)")
+    layer.uv.foreach_set("vector", unwrap(positions, corners, resolution).ravel())
+    mesh.uv_layers.active = layer
+    layer.active_render = True
+    return True
+
+
+def _run_bake(scene: bpy.types.Scene, obj: bpy.types.Object) -> None:
+    """Cycles' Emit bake of ``obj`` in the temporary ``scene`` into its materials' active
+    image nodes."""
+    with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0],
+                                   active_object=obj, object=obj, selected_objects=[obj],
+                                   selected_editable_objects=[obj]):
+        result = bpy.ops.object.bake(type="EMIT", margin=BAKE_MARGIN, use_clear=True,
+                                     target="IMAGE_TEXTURES", save_mode="INTERNAL")
+    if "FINISHED" not in result:
+        raise RuntimeError(f"Cycles' bake returned {result}")
+
+
+def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolution: int,
+                reasons: dict[str, str]) -> Baked:
+    """Bake the diffuse colour (and emission, where it is not a constant) of every slot of an
+    evaluated mesh object into ``resolution``² images. RuntimeError if Cycles refuses."""
+    from .export import read_mesh  # the exporter imports this module
+
+    start = time.perf_counter()
+    materials = [slot.material for slot in obj.material_slots]
+    with _Temporary() as temporary:
+        mesh = _copy(obj, depsgraph, temporary)
+        unwrapped = _bake_uvs(mesh, resolution)
+        scene = temporary.add(bpy.data.scenes, bpy.data.scenes.new("VPL GI bake"))
+        scene.render.engine = "CYCLES"
+        scene.cycles.device = "CPU"
+        scene.cycles.samples = BAKE_SAMPLES
+        scene.render.bake.margin_type = "EXTEND"
+        proxy = temporary.add(bpy.data.objects, bpy.data.objects.new("VPL GI bake", mesh))
+        proxy.matrix_world = obj.matrix_world
+        scene.collection.objects.link(proxy)
+        textures = {}
+        for channel in channels_for(materials):
+            image = temporary.add(bpy.data.images, bpy.data.images.new(
+                f"VPL GI bake {channel}", resolution, resolution, alpha=False,
+                float_buffer=True))
+            mesh.materials.clear()
+            for material in materials:
+                copy = temporary.add(bpy.data.materials, _channel_copy(material, channel))
+                bake_tree.show_channel(copy, channel, image)
+                mesh.materials.append(copy)
+            _run_bake(scene, proxy)
+            pixels = np.empty(resolution * resolution * 4, np.float32)
+            image.pixels.foreach_get(pixels)
+            pixels = np.nan_to_num(pixels.reshape(resolution, resolution, 4), posinf=0.0)
+            textures[channel] = Texture(f"{obj.original.name} ({channel} bake)", pixels)
+        core_mesh = read_mesh(mesh, obj.name) if unwrapped else None
+    nbytes = sum(t.pixels.nbytes for t in textures.values())
+    return Baked(textures, core_mesh, time.perf_counter() - start, reasons, nbytes,
+                 mesh_hash(obj.data) if unwrapped else None)
+
+
+def _bakeable(material: bpy.types.Material | None) -> bool:
+    if material is None or material.node_tree is None:
+        return False
+    try:
+        bake_tree.check(bake_tree.surface(material))
+    except bake_tree.NotBakeable:
+        return False
+    return True
+
+
+def channels_for(materials: list[bpy.types.Material | None]) -> list[str]:
+    """The channels an object's bake holds: the diffuse colour, and the emission where a
+    bakeable slot's emission is not a constant."""
+    emissive = any(bake_tree.constant_channel(m, "emission") is None
+                   for m in materials if _bakeable(m))
+    return ["albedo", "emission"] if emissive else ["albedo"]
+
+
+def _channel_copy(material: bpy.types.Material | None, channel: str) -> bpy.types.Material:
+    """A copy of the material to rewire, or for an empty or unbakeable slot a new material
+    (black: such slots keep their own exported values)."""
+    if _bakeable(material):
+        return material.copy()
+    blank = bpy.data.materials.new(f"VPL GI bake {channel}")
+    ensure_nodes(blank)
+    blank.node_tree.nodes.clear()
+    blank.node_tree.nodes.new("ShaderNodeOutputMaterial")
+    return blank
+
+
+# -- a scene's bakes ------------------------------------------------------------------------
+
+def named_uv_maps(material: bpy.types.Material | None) -> frozenset[str]:
+    """The UV maps that UV Map nodes of a material's tree name (the exporter reads only the
+    active render map)."""
+    if material is None or material.node_tree is None:
+        return frozenset()
+    return frozenset(node.uv_map for node in material.node_tree.nodes
+                     if node.type == "UVMAP" and node.uv_map)
+
+
+def needed(obj: bpy.types.Object, fallbacks: dict[str, str],
+           named: dict[str, frozenset[str]]) -> dict[str, str]:
+    """Materials of an evaluated object that need a bake -> why: the exporter's fallback
+    reasons (by material name), or UV Map nodes naming another map than the object's active
+    render one (``named``: by material name)."""
+    found = {}
+    active = next((layer.name for layer in obj.data.uv_layers if layer.active_render), None) \
+        if obj.original.type == "MESH" else None
+    for slot in obj.material_slots:
+        material = slot.material
+        if material is None:
+            continue
+        other = sorted(named.get(material.name, frozenset()) - {active})
+        reason = fallbacks.get(material.name) or (
+            f"a UV Map node reads UV map '{other[0]}', not the active render map" if other
+            else None)
+        reason = bake_reason(material, reason)
+        if reason is not None:
+            found[material.name] = reason
+    return found
+
+
+def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
+    """Record why the object's bake (``key``) was not made, for the export and the report."""
+    CACHE.failed[key] = why
+    CACHE.problems.append(f"object '{obj.original.name}': not baked: {why}")
+
+
+def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
+    """Bake every mesh object of the evaluated scene whose materials need it and whose bake
+    is not cached; returns the cache, with this pass's bakes and problems."""
+    from .export import fallback_reasons  # the exporter imports this module
+
+    resolution, cap = settings_of(depsgraph.scene)
+    CACHE.generation += 1
+    CACHE.baked, CACHE.problems, CACHE.failed = [], [], {}
+    done: set[str] = set()
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.original.type != "MESH" or inst.is_instance or not obj.data.polygons or \
+                obj.original.name_full in done:
+            continue
+        done.add(obj.original.name_full)
+        reasons = needed(obj, fallback_reasons(obj), {slot.material.name: named_uv_maps(
+            slot.material) for slot in obj.material_slots if slot.material is not None})
+        if not reasons:
+            continue
+        key = bake_key(obj, resolution)
+        if _valid(CACHE.entries.get(key), obj):
+            CACHE.entries[key].used = CACHE.generation
+            continue
+        channels = channels_for([slot.material for slot in obj.material_slots])
+        nbytes = len(channels) * resolution * resolution * TEXEL_BYTES
+        if not CACHE.make_room(nbytes, cap):
+            _failed(obj, key, f"its {nbytes / 2**20:.0f} MiB bake does not fit the bake memory cap "
+                         f"of {cap >> 20} MiB ({CACHE.nbytes / 2**20:.0f} MiB in use): lower "
+                         f"Bake Resolution or raise Bake Memory")
+            continue
+        try:
+            entry = bake_object(obj, depsgraph, resolution, reasons)
+        except (RuntimeError, ValueError) as exc:
+            _failed(obj, key, f"the bake failed: {str(exc).strip()}")
+            continue
+        entry.used = CACHE.generation
+        CACHE.entries[key] = entry
+        CACHE.baked.append((obj.original.name, entry))
+    return CACHE
+
+
+# -- what the export uses -------------------------------------------------------------------
+
+def baked_material(material: Material, source: bpy.types.Material, entry: Baked) -> Material:
+    """The exported material with the bake's textures for its baked channels, and the
+    specular inputs of a Principled surface where they are constants (a Diffuse BSDF or a
+    mix is diffuse: the bake holds the diffuse colour only)."""
+    emission_constant = bake_tree.constant_channel(source, "emission")
+    emission_texture = entry.textures.get("emission") if emission_constant is None else None
+    emission = (1.0, 1.0, 1.0) if emission_texture is not None else \
+        (emission_constant.constant if emission_constant is not None else (0.0, 0.0, 0.0))
+    return Material(material.name, (1.0, 1.0, 1.0), emission,
+                    base_color_texture=entry.textures["albedo"],
+                    emission_texture=emission_texture,
+                    **bake_tree.specular_constants(source))  # type: ignore[arg-type]
+
+
+def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
+          fallbacks: dict[str, str], named: dict[str, frozenset[str]], resolution: int,
+          notes: list[str], warnings: list[str]) -> tuple[Mesh, list[Material]]:
+    """An exported object's mesh and materials with its cached bake applied (the bake's UV
+    mesh and textures), or unchanged with a warning per material when the bake is missing."""
+    reasons = needed(obj, fallbacks, named) if mesh.triangle_count else {}
+    if not reasons:
+        return mesh, materials
+    key = bake_key(obj, resolution) if obj.original.type == "MESH" else None
+    entry = CACHE.entries.get(key)
+    if not _valid(entry, obj):
+        why = NOT_BAKED if key not in CACHE.failed else f"not baked: {CACHE.failed[key]}"
+        if key is None:
+            why = f"not baked: {obj.original.type.lower()} objects are not baked"
+        for name, reason in reasons.items():
+            message = f"material '{name}': {reason}; using its viewport colour ({why})"
+            if message not in warnings:
+                warnings.append(message)
+        return mesh, materials
+    entry.used = CACHE.generation
+    sources = [slot.material for slot in obj.material_slots]
+    result = [baked_material(m, source, entry) if source is not None and (
+        source.name in reasons or (entry.mesh is not None and _bakeable(source) and
+        (m.base_color_texture, m.emission_texture) != (None, None))) else m
+        for m, source in zip(materials, sources, strict=True)]
+    note = (f"baked {', '.join(repr(n) for n in sorted(reasons))} on object "
+            f"'{obj.original.name}' ({entry.textures['albedo'].pixels.shape[0]} px, "
+            f"{entry.seconds:.2f} s{', xatlas UVs' if entry.mesh is not None else ''}): "
+            f"{'; '.join(sorted(set(reasons.values())))}")
+    if note not in notes:
+        notes.append(note)
+    return (entry.mesh if entry.mesh is not None else mesh), result
+
+
+def report(stats: Stats, notes: list[str]) -> None:
+    """Put the export's bake notes and the bake pass's problems into a frame's stats, and the
+    time of the bakes made since
+    the last report as its 'material bake' stage (a frame that reused its bakes has none)."""
+    stats.notes[:0] = [note for note in notes if note not in stats.notes]
+    stats.warnings.extend(p for p in CACHE.problems if p not in stats.warnings)
+    CACHE.problems = []
+    if CACHE.baked:
+        stats.timings["material bake"] = sum(entry.seconds for _, entry in CACHE.baked)
+        CACHE.baked = []
+
+
+# -- when bakes run -------------------------------------------------------------------------
+
+_baking = threading.Lock()
+
+
+@persistent
+def _before_render(scene: bpy.types.Scene, *_args) -> None:
+    """render_pre: bake what the frame needs, on the main thread only (a render started from
+    Blender's UI calls this from its render thread, where operators must not run)."""
+    if scene is None or scene.render.engine != ENGINE_ID or \
+            threading.current_thread() is not threading.main_thread() or \
+            not _baking.acquire(blocking=False):
+        return
+    try:
+        if bpy.context.scene != scene:
+            return
+        bake_scene(bpy.context.evaluated_depsgraph_get())
+    finally:
+        _baking.release()
+
+
+class VPLGI_OT_bake_materials(bpy.types.Operator):
+    """Bake the material colours VPL GI cannot read from nodes (for the viewport and renders
+    started from this window, which cannot bake while they render)"""
+
+    bl_idname = "vpl_gi.bake_materials"
+    bl_label = "Bake Materials"
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        cache = bake_scene(context.evaluated_depsgraph_get())
+        for problem in cache.problems:
+            self.report({"WARNING"}, f"VPL GI: {problem}")
+        seconds = sum(entry.seconds for _, entry in cache.baked)
+        self.report({"INFO"}, f"VPL GI: baked {len(cache.baked)} object(s) in {seconds:.2f} s")
+        return {"FINISHED"}
+
+
+def bake_soon(on_baked: Callable[[], None]) -> None:
+    """Bake the context's scene on a timer (the main thread, outside drawing: the viewport),
+    then call ``on_baked`` if anything was baked."""
+    def run() -> None:
+        if not _baking.acquire(blocking=False):
+            return
+        try:
+            cache = bake_scene(bpy.context.evaluated_depsgraph_get())
+        finally:
+            _baking.release()
+        if cache.baked:
+            on_baked()
+    bpy.app.timers.register(run, first_interval=0.0)
+
+
+def register() -> None:
+    """The Bake Materials operator (a button in the Material Bakes panel) and the
+    render_pre handler."""
+    bpy.utils.register_class(VPLGI_OT_bake_materials)
+    bpy.app.handlers.render_pre.append(_before_render)
+
+
+def unregister() -> None:
+    if _before_render in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.remove(_before_render)
+    bpy.utils.unregister_class(VPLGI_OT_bake_materials)
+    CACHE.clear()
