@@ -10,15 +10,16 @@ from dataclasses import asdict, replace
 import pytest
 
 from addon.core.frame import autotune
-from addon.core.frame.budget import fixed_seconds
+from addon.core.frame.budget import split_seconds
 from addon.core.frame.result import Stats
 from addon.core.settings import Settings
 from tests.core.builders import floor_scene, light, translation
 from tests.core.test_planner import wall
 
 COST = autotune.CostModel("", paths=2e-5, splat=5e-7, texels=3e-7, gather=2e-7, blur=2.5e-7,
-                          pixels=2.5e-6, maps=4e-6, pool=7e-7)
-"""This machine's coefficients, roughly (the cost_model.json of llvmpipe on 2 cores)."""
+                          pixels=8.5e-4, maps=4e-6, pool=7e-7)
+"""llvmpipe's coefficients on 2 cores, roughly, but per pixel 340 times too dear: a model that
+over-predicts the work it does not choose (2 s for these 48² pixels), as on the interior."""
 BASE = Settings(antialiasing=1, auto_parameters="time")
 
 
@@ -38,24 +39,28 @@ def cached_cost(renderer, tmp_path):
     renderer.cost_cache = previous
 
 
-def test_fixed_seconds_leave_out_the_chosen_and_the_one_off_stages():
+def test_a_pass_splits_into_chosen_and_fixed_work_without_the_one_off_stages():
     stats = Stats(timings={"g-buffer": 0.2, "direct light": 0.5, "vpl generation (camera-driven)":
                            0.3, "ism splat": 0.1, "indirect light maps": 0.1,
                            "indirect light": 0.4, "blur": 0.05, "automatic parameters": 0.2,
-                           "ray tracing setup": 0.1})
-    assert fixed_seconds(2.0, stats) == pytest.approx(2.0 - 1.25)
-    assert fixed_seconds(0.5, stats) == 0.0
+                           "ray tracing setup": 0.1, "ism points": 0.5})
+    fixed, chosen = split_seconds(3.0, stats)
+    assert chosen == pytest.approx(0.95) and fixed == pytest.approx(3.0 - 0.95 - 0.8)
+    assert split_seconds(0.5, stats) == (0.0, pytest.approx(0.95))
 
 
 def test_a_budget_is_spent_in_passes(renderer, cached_cost):
+    renderer.forget_frames()  # the same render first: shaders compiled, ISM point pool made
+    renderer.render_progressive(scene(), replace(BASE, time_budget=4.0))
     renderer.forget_frames()
-    renderer.render_progressive(scene(), replace(BASE, time_budget=0.5))  # shaders compiled
-    renderer.forget_frames()
-    _, stats = renderer.render_progressive(scene(), replace(BASE, time_budget=3.0))
+    _, stats = renderer.render_progressive(scene(), replace(BASE, time_budget=4.0))
     assert stats.counts["passes"] >= 2, stats.notes
+    first, later = (float(n.split("relative RMSE ")[1].split(" %")[0]) for n in stats.notes
+                    if n.startswith("automatic parameters"))
+    assert later < first  # the model's 2 s of fixed work were measured as far less
     spent = next(n for n in stats.notes if " passes in " in n)
     seconds = float(spent.split(" passes in ")[1].split(" s")[0])
-    assert seconds <= 3.0 * 1.5, spent  # a pass starts only when it is expected to fit
+    assert seconds <= 4.0 * 2, spent  # a pass starts only when it is expected to fit
     assert any(n.startswith("automatic parameters of passes 2+") for n in stats.notes)
     assert not stats.warnings, stats.warnings
 

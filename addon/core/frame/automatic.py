@@ -54,14 +54,19 @@ class ChooseParameters(Stage):
 
         return autotune.cached_cost_model(self.cost_cache, name, measure)
 
-    def rechoose(self, fixed: float, budget: float) -> autotune.Choice | None:
-        """The last frame's choice made again for ``budget`` seconds, with ``fixed`` the
-        measured seconds of the work it does not choose (None: no frame chose yet)."""
+    def rechoose(self, fixed: float, chosen: float, budget: float) -> autotune.Choice | None:
+        """The last frame's choice made again for ``budget`` seconds, from its measured
+        seconds: ``fixed`` of the work it does not choose, ``chosen`` of the work it does (None:
+        no frame chose yet)."""
         if self.last is None:
             return None
-        settings, work, _ = self.last
-        work = replace(work, fixed=fixed, pooled=self._pool_of(work.triangles))
+        settings, work, last = self.last
         cost = self.cost_model(Stats(), lambda _f, _m: None)
+        s = last.settings
+        modelled = autotune.chosen_seconds(cost, work, s.vpl_count, s.interleave, s.ism_points,
+                                           s.ism_resolution, s.blur_radius)
+        scale = min(max(chosen / modelled, 0.25), 8.0) if modelled > 0 and chosen > 0 else 1.0
+        work = replace(work, fixed=fixed, scale=scale, pooled=self._pool_of(work.triangles))
         return autotune.choose(replace(settings, time_budget=budget), work, cost,
                                autotune.load_error_model())
 

@@ -89,6 +89,8 @@ class Workload:
     max_subsets: int = 512  # point sets of the ISM pool (one per VPL up to this many)
     pooled: tuple[int, int] = (0, 0)  # (points, subsets) of the pool already sampled
     fixed: float | None = None  # measured seconds of the work not chosen here (None: modelled)
+    scale: float = 1.0  # measured / modelled seconds of the chosen work (the machine's load)
+    # (applied to the ISM point pool's modelled time too)
 
     def subsets(self, vpls: float) -> int:
         """Point sets the ISM pool holds for ``vpls`` VPLs (a power of two, capped)."""
@@ -122,12 +124,20 @@ def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int
     vpls = paths * work.vpls_per_path
     subsets = work.subsets(vpls)
     pool = 0.0 if work.pooled == (points, subsets) else cost.pool * subsets * points
-    return (pool + cost.paths * paths * max(1, work.bounces)
-            + cost.splat * vpls * points + cost.texels * vpls * resolution**2
-            + cost.gather * work.pixels * vpls / interleave**2
-            + (cost.blur * work.pixels * blur_radius if interleave > 1 else 0.0)
+    return (work.scale * (pool + chosen_seconds(cost, work, paths, interleave, points,
+                                                resolution, blur_radius))
             + (work.fixed if work.fixed is not None else
                cost.pixels * work.pixels + cost.maps * work.shadow_tiles * work.triangles))
+
+
+def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
+                   resolution: int, blur_radius: int) -> float:
+    """Predicted seconds of the stages these parameters set (not the ISM point pool)."""
+    vpls = paths * work.vpls_per_path
+    return (cost.paths * paths * max(1, work.bounces)
+            + cost.splat * vpls * points + cost.texels * vpls * resolution**2
+            + cost.gather * work.pixels * vpls / interleave**2
+            + (cost.blur * work.pixels * blur_radius if interleave > 1 else 0.0))
 
 
 def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel) -> Choice:

@@ -4,8 +4,9 @@ Pass 0 gets the parameters of least predicted error for BUDGET_SPLIT-th of the b
 fewer than the cheapest useful frame's, see autotune.MIN_VIEW_VPLS). Its wall time tells what
 the work the automatic mode does not choose (g-buffer, direct light, compose) really costs
 here, which the cost model, measured on its small calibration scene, can be far off for (the
-interior's shadow maps: 17.5 s predicted, 1.3 s measured). The later passes get the choice made
-again with that measured cost for the rest of the budget, and passes run while the next one
+interior's shadow maps: 17.5 s predicted, 1.3 s measured), and how far the chosen work's time
+is from the model's (the machine's load). The later passes get the choice made again with
+those measurements for the rest of the budget, and passes run while the next one
 fits (progressive.py's time limit). A budget below the cheapest useful frame still renders that
 frame, with one warning naming the time it took.
 
@@ -39,11 +40,13 @@ FARM_NOTE = ("the time mode adapts to this machine's speed; for the same frame o
              "machine (render farms) set auto_parameters off and pin the parameters")
 
 
-def fixed_seconds(wall: float, stats: Stats) -> float:
-    """Seconds of one pass spent on work the automatic mode does not choose."""
+def split_seconds(wall: float, stats: Stats) -> tuple[float, float]:
+    """Seconds of one pass spent on the work the automatic mode does not choose and on the
+    work it chooses (each without the stages done once)."""
+    once = sum(stats.timings.get(k, 0.0) for k in ONCE_STAGES)
     chosen = sum(v for k, v in stats.timings.items()
-                 if k.startswith(CHOSEN_STAGES) or k in ONCE_STAGES)
-    return max(0.0, wall - chosen)
+                 if k.startswith(CHOSEN_STAGES) and k not in ONCE_STAGES)
+    return max(0.0, wall - chosen - once), chosen
 
 
 def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Scene,
@@ -77,9 +80,9 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
             later = replace(settings, auto_parameters="off")
             return frame, stats
         chosen = chooser.last[2]
-        fixed = fixed_seconds(wall, stats)
+        fixed, variable = split_seconds(wall, stats)
         rest = max(budget - (time.perf_counter() - start), 0.0)
-        again = chooser.rechoose(fixed, rest / max(1, BUDGET_SPLIT - 1))
+        again = chooser.rechoose(fixed, variable, rest / max(1, BUDGET_SPLIT - 1))
         later = replace(again.settings if again is not None else chosen.settings,
                         auto_parameters="off", time_budget=budget)
         if again is not None:
