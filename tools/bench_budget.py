@@ -5,6 +5,9 @@ render them first with ``--references-only``), and the choice and passes it made
 
     .venv/bin/python tools/bench_budget.py sample_scenes/interior.blend --budgets 4.5,9 \\
         --splits 1,2,4 [--resolution 640x360] [--reference-samples 128] [--cache DIR]
+
+``--repo PATH`` renders with another checkout's add-on (one without frame/budget.py: each
+budget once, the single frame the automatic mode chose before passes).
 """
 
 from __future__ import annotations
@@ -15,7 +18,6 @@ import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 
 def main() -> None:
@@ -26,10 +28,12 @@ def main() -> None:
     parser.add_argument("--resolution", default="640x360")
     parser.add_argument("--reference-samples", type=int, default=128)
     parser.add_argument("--cache", type=Path, default=REPO / ".cache" / "references")
+    parser.add_argument("--repo", type=Path, default=REPO)
     args = parser.parse_args()
+    sys.path.insert(0, str(args.repo))
+    sys.path.insert(1, str(REPO))
 
     from addon import register, unregister
-    from addon.core.frame import budget as budget_module
     from addon.engine import monitor
     from devtools import report
 
@@ -47,8 +51,14 @@ def main() -> None:
             values = report.vpl_values({}, {})
             report.render_auto(scene, values, 1.0, exr)  # warm-up: shaders, the cost model
             for budget in (float(b) for b in args.budgets.split(",")):
-                for split in (int(s) for s in args.splits.split(",")):
-                    budget_module.BUDGET_SPLIT = split
+                try:
+                    from addon.core.frame import budget as budget_module
+                    splits = [int(s) for s in args.splits.split(",")]
+                except ImportError:
+                    budget_module, splits = None, [0]
+                for split in splits:
+                    if budget_module is not None:
+                        budget_module.BUDGET_SPLIT = split
                     image, seconds = report.render_auto(scene, values, budget, exr)
                     m = report.error_metrics(image, r1, r2)
                     stats = monitor.last_stats
