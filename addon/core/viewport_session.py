@@ -230,8 +230,9 @@ class ViewportFrame:
 
 @dataclass
 class EditRecord:
-    """What one edit triggered: its kind, the seconds to its first and last frame, and the
-    stages that ran (with seconds) or were skipped in the first frame, with its counts."""
+    """What one edit triggered: its kind, the seconds to its first frame and to its last
+    refinement level (idle passes not counted), the stages that ran (with seconds) or were
+    skipped in the first frame, with its counts, and the passes its last frame averaged."""
 
     edit: int
     kind: str
@@ -444,7 +445,9 @@ class ViewportSession:
                 record.ran = dict(stats.timings)
                 record.skipped = dict(stats.skipped)
                 record.counts = dict(stats.counts)
-            record.converged, record.passes = elapsed, passes
+            record.passes = passes
+            if passes == 1:  # idle passes do not move the time to the last level
+                record.converged = elapsed
         pass_note = f"Pass {passes} | " if passes > 1 else ""
         self.status = f"VPL GI | {refining}" if refining else \
             f"VPL GI | {pass_note}{stats.summary()}"
