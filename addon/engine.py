@@ -153,9 +153,12 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         def show(report: PassReport) -> None:
             """Each pass's average in the render window (Esc keeps the passes shown)."""
             self._write_result(report.frame)
-            if settings.passes > 1:
+            timed = settings.auto_parameters == "time"  # passes until the budget is spent
+            if settings.passes > 1 or timed:
                 noise = "" if report.noise is None else f", noise {report.noise * 100:.1f} %"
-                self.update_stats("", f"VPL GI | Pass {report.index}/{settings.passes}{noise}")
+                planned = f" ({settings.time_budget:g} s budget)" if timed \
+                    else f"/{settings.passes}"
+                self.update_stats("", f"VPL GI | Pass {report.index}{planned}{noise}")
 
         _, stats = shared_renderer().render_progressive(exported, settings, progress, cancelled,
                                                         passes, on_pass=show)

@@ -23,6 +23,7 @@ import os
 import sys
 import time
 import traceback
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -58,7 +59,8 @@ def replay(scene_file: Path, size: int) -> None:
         caught.extend(depsgraph_updates(depsgraph))
     bpy.app.handlers.depsgraph_update_post.append(catch)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    settings = bpy.context.scene.vpl_gi.to_settings()
+    # latency and refinement levels: no idle passes, whose CPU time would follow each edit
+    settings = replace(bpy.context.scene.vpl_gi.to_settings(), viewport_passes=1)
     cache = ExportCache()
     height = max(1, size * 9 // 16)
     camera = export_camera(depsgraph, bpy.context.scene.camera, size, height, [])

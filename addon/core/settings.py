@@ -208,8 +208,13 @@ class Settings:
         1, "Passes", "sampling",
         "Passes of a final render, each with its own light samples and VPLs, averaged and "
         "shown after each pass; the VPL clamp distance shrinks as 1/√pass, so the image keeps "
-        "converging (the viewport renders one pass per edit)",
+        "converging",
         low=1, high=1 << 16, soft_high=64)
+    viewport_passes: int = setting(
+        16, "Viewport Passes", "sampling",
+        "Passes the Rendered viewport adds while nothing changes, each with its own VPLs, "
+        "showing their average (as Cycles' viewport samples); any edit starts over",
+        low=1, high=1 << 16, soft_high=256)
     time_limit: float = setting(
         0.0, "Time Limit", "sampling",
         "Seconds a final render may take: no pass starts that would end past it, by the mean "
@@ -347,11 +352,16 @@ class Settings:
         "on reports",
         choices=(Choice("off", "Off", "use the settings as set"),
                  Choice("time", "Time Budget",
-                        "the least predicted error within time_budget"),
+                        "the least error within time_budget: passes until it is spent, the "
+                        "first sized from the cost model, the others from its measured time "
+                        "(adapts to the machine: farms pin the parameters instead)"),
                  Choice("error", "Target Error",
                         "the least predicted time within target_error")))
     time_budget: float = setting(
-        2.0, "Time Budget", "automatic", "Seconds per frame the automatic mode 'time' aims at",
+        2.0, "Time Budget", "automatic",
+        "Seconds per frame the automatic mode 'time' renders passes for (the passes, time "
+        "limit and noise threshold settings do not apply); below the cheapest useful frame "
+        "(64 VPLs lighting the view) that frame is rendered, with a warning",
         low=0.01, high=86400.0, soft_high=600.0, unit="TIME_ABSOLUTE",
         applies=when("auto_parameters", "time"))
     target_error: float = setting(

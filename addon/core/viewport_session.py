@@ -3,8 +3,10 @@
 A ``ViewportSession`` owns a worker thread with its own OpenGL context and Renderer. The
 Blender side hands it edits (a new scene export, a new view camera, new settings or display
 mode) and draws the latest finished frame; it never waits for the GPU. Per edit the worker
-renders a few levels of increasing resolution (a quick first frame, then refinement) and then
-sleeps until the next edit. An edit arriving mid-frame cancels that frame.
+renders a few levels of increasing resolution (a quick first frame, then refinement), then,
+while nothing changes, further passes at full resolution with their own VPLs (``viewport_passes``
+in all, as Cycles' viewport samples), showing their running average, and then sleeps until the
+next edit. An edit arriving mid-frame cancels that frame and starts the average over.
 
 What an edit costs follows from the Renderer's reuse between frames: geometry that did not
 change keeps its ray-tracing upload, VPLs are regenerated only when lights, world, geometry or
@@ -25,6 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .frame.progressive import Accumulator
 from .frame.renderer import RenderCancelled, Renderer, RenderError
 from .frame.result import Frame, Stats
 from .gpu.gl import GLUnavailableError, create_context
@@ -49,6 +52,8 @@ GENERATION_COLOURS = np.array([[1.0, 0.9, 0.2], [1.0, 0.4, 0.1], [0.9, 0.1, 0.5]
 GEOMETRY_OBJECTS = RENDERED_OBJECT_TYPES | {"CURVES", "POINTCLOUD", "VOLUME"}
 """Object types whose edits can change what is rendered (some not rendered yet)."""
 GEOMETRY_DATA = {"MESH", "CURVE", "METABALL", "CURVES", "POINTCLOUD", "VOLUME", "TEXT"}
+AVERAGED_DISPLAYS = ("combined", "direct", "indirect")
+"""Display modes that idle passes refine (VPL dots and the ISM atlas are one pass's)."""
 
 
 @dataclass(frozen=True)
@@ -220,12 +225,14 @@ class ViewportFrame:
     level: int  # 0 = the quick first frame
     levels: int
     stats: Stats
+    passes: int = 1  # passes averaged (more than one: idle refinement at full resolution)
 
 
 @dataclass
 class EditRecord:
-    """What one edit triggered: its kind, the seconds to its first and last frame, and the
-    stages that ran (with seconds) or were skipped in the first frame, with its counts."""
+    """What one edit triggered: its kind, the seconds to its first frame and to its last
+    refinement level (idle passes not counted), the stages that ran (with seconds) or were
+    skipped in the first frame, with its counts, and the passes its last frame averaged."""
 
     edit: int
     kind: str
@@ -234,6 +241,7 @@ class EditRecord:
     ran: dict[str, float] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
+    passes: int = 0  # full-resolution passes averaged in its last frame
 
 
 class ViewportSession:
@@ -329,6 +337,10 @@ class ViewportSession:
                 self._closed = True
                 self._cond.notify_all()
             return
+        # Idle passes render with a second Renderer on the same context, so that what the
+        # first keeps for the next edit (its VPLs, their shadow maps, the incremental
+        # anchors) stays untouched by the passes' own VPL sets.
+        idle = Renderer(renderer.ctx)
         try:
             while True:
                 with self._cond:
@@ -338,20 +350,22 @@ class ViewportSession:
                     edit, scene, camera = self._edit, self._scene, self._camera
                     settings, display, changes = self._settings, self._display, self._changes
                 if scene is not None and camera is not None:
-                    self._render_edit(renderer, edit, scene, camera, settings, display, changes)
+                    self._render_edit(renderer, idle, edit, scene, camera, settings, display,
+                                      changes)
                 with self._cond:
                     if self._edit == edit:
                         self._finished_edit = edit
                         self._cond.notify_all()
         finally:
+            idle.release()
             renderer.release()
             renderer.ctx.release()
 
     def _superseded(self, edit: int) -> bool:
         return self._closed or self._edit != edit
 
-    def _render_edit(self, renderer: Renderer, edit: int, scene: Scene, camera: Camera,
-                     settings: Settings, display: str, changes: Changes) -> None:
+    def _render_edit(self, renderer: Renderer, idle: Renderer, edit: int, scene: Scene,
+                     camera: Camera, settings: Settings, display: str, changes: Changes) -> None:
         levels = refinement_levels(camera)
         if changes.display and not (changes.needs_export or changes.camera):
             levels = levels[-1:]
@@ -362,42 +376,82 @@ class ViewportSession:
         quick = quick_settings(view_settings) if changes.regenerates and len(levels) > 1 \
             else view_settings
         record = self.records[edit - 1]
+        full = Accumulator()
         for level, divisor in enumerate(levels):
-            if self._superseded(edit):
-                return
             level_camera = scaled_camera(camera, divisor)
             self.status = f"VPL GI | Rendering {level + 1}/{len(levels)}"
-            try:
-                frame, stats = renderer.render(replace(scene, camera=level_camera),
-                                               quick if level == 0 else view_settings,
-                                               cancelled=lambda: self._superseded(edit),
-                                               passes=DISPLAY_PASSES.get(display, frozenset()))
-            except RenderCancelled:
+            frame = self._frame(renderer, edit, replace(scene, camera=level_camera),
+                                quick if level == 0 else view_settings, display)
+            if frame is None:
                 return
-            except (RenderError, SettingsError, GLUnavailableError) as exc:
-                self.error = str(exc)
-                self.status = f"VPL GI | Error: {exc}"
-                return
-            self.error = None
-            vpls = renderer.last_vpls if display == "vpls" else None
-            atlas = renderer.ism.read_atlas() if display == "ism" and renderer.has_ism else None
-            image = display_image(frame, display, level_camera, vpls, atlas)
-            with self._cond:
-                if self._edit != edit:
-                    return
-                self._frames += 1
-                self._latest = ViewportFrame(image, self._frames, edit, level, len(levels),
-                                             stats)
-                elapsed = time.perf_counter() - self._started[edit]
-                if level == 0:
-                    record.latency = elapsed
-                    record.ran = dict(stats.timings)
-                    record.skipped = dict(stats.skipped)
-                    record.counts = dict(stats.counts)
-                record.converged = elapsed
             last = level == len(levels) - 1
-            self.status = (f"VPL GI | {stats.summary()}" if last else
-                           f"VPL GI | Refining {level + 2}/{len(levels)}")
-            for warning in stats.warnings:
-                self.status += f" | {warning}"
-            self._on_frame()
+            if last:
+                full.add(frame[0])
+            if not self._publish(renderer, edit, record, frame, display, level_camera, level,
+                                 len(levels), 1,
+                                 "" if last else f"Refining {level + 2}/{len(levels)}"):
+                return
+        if display not in AVERAGED_DISPLAYS:
+            return
+        # Idle refinement: independent VPL sets (not incremental ones), averaged with the clamp
+        # shrinking as in final renders.
+        independent = replace(view_settings, incremental=False)
+        for index in range(1, settings.viewport_passes):
+            frame = self._frame(idle, edit, replace(scene, camera=camera), independent,
+                                display, index)
+            if frame is None:
+                return
+            full.add(frame[0])
+            if not self._publish(idle, edit, record, (full.average(), frame[1]), display,
+                                 camera, len(levels) - 1, len(levels), full.count, ""):
+                return
+
+    def _frame(self, renderer: Renderer, edit: int, scene: Scene, settings: Settings,
+               display: str, pass_index: int = 0) -> tuple[Frame, Stats] | None:
+        """One frame of ``edit`` (None when a newer edit cancelled it, or it failed: then
+        the error is shown)."""
+        if self._superseded(edit):
+            return None
+        try:
+            result = renderer.render(scene, settings, cancelled=lambda: self._superseded(edit),
+                                     passes=DISPLAY_PASSES.get(display, frozenset()),
+                                     pass_index=pass_index)
+        except RenderCancelled:
+            return None
+        except (RenderError, SettingsError, GLUnavailableError) as exc:
+            self.error = str(exc)
+            self.status = f"VPL GI | Error: {exc}"
+            return None
+        self.error = None
+        return result
+
+    def _publish(self, renderer: Renderer, edit: int, record: EditRecord,
+                 result: tuple[Frame, Stats], display: str, camera: Camera, level: int,
+                 levels: int, passes: int, refining: str) -> bool:
+        """Make a frame the latest one (False when a newer edit came first)."""
+        frame, stats = result
+        vpls = renderer.last_vpls if display == "vpls" else None
+        atlas = renderer.ism.read_atlas() if display == "ism" and renderer.has_ism else None
+        image = display_image(frame, display, camera, vpls, atlas)
+        with self._cond:
+            if self._edit != edit:
+                return False
+            self._frames += 1
+            self._latest = ViewportFrame(image, self._frames, edit, level, levels, stats,
+                                         passes)
+            elapsed = time.perf_counter() - self._started[edit]
+            if level == 0 and passes == 1:
+                record.latency = elapsed
+                record.ran = dict(stats.timings)
+                record.skipped = dict(stats.skipped)
+                record.counts = dict(stats.counts)
+            record.passes = passes
+            if passes == 1:  # idle passes do not move the time to the last level
+                record.converged = elapsed
+        pass_note = f"Pass {passes} | " if passes > 1 else ""
+        self.status = f"VPL GI | {refining}" if refining else \
+            f"VPL GI | {pass_note}{stats.summary()}"
+        for warning in stats.warnings:
+            self.status += f" | {warning}"
+        self._on_frame()
+        return True

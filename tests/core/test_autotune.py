@@ -135,3 +135,29 @@ def test_a_real_automatic_frame_lands_near_its_budget(renderer, tmp_path):
         assert "blur" not in stats.skipped and stats.timings["blur"] > 0
     assert 0.5 * predicted <= measured <= 2 * predicted + 0.2, (predicted, measured)
     assert np.isfinite(predicted)
+
+
+@pytest.mark.parametrize("vpls_per_path", [0.05, 0.5, 2.5])
+def test_no_choice_is_below_the_cheapest_useful_frame(vpls_per_path):
+    """Whatever the budget, the chosen paths leave MIN_VIEW_VPLS VPLs lighting the view; a
+    budget below that frame says so (not ``useful``) and gets that frame."""
+    work = replace(WORK, vpls_per_path=vpls_per_path)
+    least = work.least_paths()
+    assert least * vpls_per_path >= autotune.MIN_VIEW_VPLS
+    assert least == autotune.PATHS[0] or \
+        autotune.PATHS[autotune.PATHS.index(least) - 1] * vpls_per_path < autotune.MIN_VIEW_VPLS
+    model = autotune.load_error_model()
+    tiny = autotune.choose(replace(Settings(), auto_parameters="time", time_budget=0.01),
+                           work, COST, model)
+    assert tiny.settings.vpl_count == least and not tiny.useful
+    assert tiny.seconds > 0.01
+    ample = autotune.choose(replace(Settings(), auto_parameters="time", time_budget=60.0),
+                            work, COST, model)
+    assert ample.useful and ample.settings.vpl_count >= least and ample.seconds <= 60.0
+
+
+def test_a_measured_fixed_cost_replaces_the_modelled_one():
+    modelled = autotune.predict_seconds(COST, WORK, 256, 4, 1024, 64, 4)
+    rest = COST.pixels * WORK.pixels + COST.maps * WORK.shadow_tiles * WORK.triangles
+    measured = autotune.predict_seconds(COST, replace(WORK, fixed=0.25), 256, 4, 1024, 64, 4)
+    assert measured == pytest.approx(modelled - rest + 0.25)

@@ -51,3 +51,31 @@ def test_acceptance_spends_the_budget_on_contribution() -> None:
     assert np.all(chance[:900] == MIN_ACCEPTANCE) and np.all(chance[900:] > MIN_ACCEPTANCE)
     assert np.all(np.diff(chance[900:]) >= 0)  # more contribution, more chance
     assert np.all(acceptance(contribution, 2000.0) == 1.0)  # fewer candidates than wanted
+
+
+def test_the_decision_costs_a_small_probe_not_a_round_of_candidates(renderer, monkeypatch):
+    """Whether guidance pays is decided from DECISION_PATHS light paths: where most VPLs light
+    the view the frame traces only those and its plain paths (no FIRST_ROUND × vpl_count round),
+    and where few do the guided rounds follow."""
+    from addon.core.frame import vpl_stage
+
+    traced: list[int] = []
+    plain = vpl_stage.generate_vpls
+
+    def counting(scene, geometry, settings, *args):
+        traced.append(settings.vpl_count)
+        return plain(scene, geometry, settings, *args)
+
+    monkeypatch.setattr(vpl_stage, "generate_vpls", counting)
+    from tests.core.test_progressive import closed_sphere
+
+    settings = replace(BASE, vpl_count=512)
+    renderer.forget_frames()
+    _, stats = renderer.render(closed_sphere(), settings)  # every VPL lights the view
+    assert "vpl guidance" in stats.skipped
+    assert traced == [vpl_stage.DECISION_PATHS, 512]
+    traced.clear()
+    renderer.forget_frames()
+    _, stats = renderer.render(mostly_wasted_scene(), settings)
+    assert "vpl guidance" not in stats.skipped and stats.counts["vpls_in_view_pct"] >= 50
+    assert traced[:2] == [vpl_stage.DECISION_PATHS, vpl_stage.FIRST_ROUND * 512]

@@ -24,7 +24,7 @@ from tests.core.builders import floor_scene, icosphere, light, top_down_camera, 
 # shadow maps for direct light: the tests follow what edits keep (a ray-traced light keeps
 # nothing and is traced again after every edit)
 SETTINGS = Settings(vpl_count=128, bounces=2, ism_points=1024, interleave=1,
-                    direct_shadows="shadow_maps")
+                    direct_shadows="shadow_maps", viewport_passes=1)
 
 
 def scene(light_x: float = 0.0, ball_colour=(0.8, 0.2, 0.2)):
@@ -173,3 +173,32 @@ def test_an_edit_that_regenerates_starts_with_fewer_paths(session):
     assert first.counts["vpls"] < 0.75 * frame.stats.counts["vpls"]  # 64 paths, then 128
     light_move, _ = run(session, Changes(lights=True), scene=scene(light_x=0.05))
     assert light_move.counts["vpls_reused"] > 0  # full count from its first frame: reused
+
+
+def test_idle_passes_converge_and_an_edit_starts_over(renderer):
+    """While nothing changes the viewport adds passes with their own VPLs and shows their
+    average: its error against a many-VPL reference falls; an edit starts at one pass again."""
+    settings = replace(SETTINGS, vpl_count=64, viewport_passes=8)
+    renderer.forget_frames()
+    reference, _ = renderer.render_progressive(scene(), replace(
+        settings, antialiasing=1, vpl_count=1024, passes=16))
+    truth = reference.passes["DiffInd"] * reference.passes["DiffCol"]
+    frames = []
+    session = ViewportSession(on_frame=lambda: frames.append(session.latest()))
+    try:
+        run(session, Changes(settings=True), scene=scene(), camera=scene().camera,
+            settings=settings, display="indirect")
+        full = [f for f in frames if f.image.shape[:2] == truth.shape[:2]]
+        assert [f.passes for f in full] == list(range(1, 9))
+        error = [float(np.sqrt(np.mean((f.image[..., :3] - truth) ** 2)) / truth.mean())
+                 for f in full]
+        assert error[-1] < 0.6 * error[0], error
+        assert session.records[-1].passes == 8
+
+        frames.clear()
+        record, last = run(session, Changes(camera=True),
+                           camera=top_down_camera(192, extent=5.0))
+        assert frames[0].passes == 1 and frames[0].edit == last.edit == 2
+        assert last.passes == record.passes == 8
+    finally:
+        session.close()

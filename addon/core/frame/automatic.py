@@ -36,22 +36,46 @@ class ChooseParameters(Stage):
         self.gpu, self.kept, self.render = gpu, kept, render
         self.cost_cache: Path | None = autotune.default_cost_cache()
         """Where the measured cost model is kept (None: measure each time)."""
+        self.last: tuple[Settings, autotune.Workload, autotune.Choice] | None = None
+        """The last frame's settings, workload and choice (for :meth:`rechoose`)."""
 
-    def run(self, frame: FrameState) -> None:
-        if frame.settings.auto_parameters == "off" or not frame.plan.indirect:
-            return
-        settings, stats = frame.settings, frame.stats
+    def cost_model(self, stats: Stats, report: Callable[[float, str], None]
+                   ) -> autotune.CostModel:
+        """This machine's cost model: cached, or measured now (once) and cached."""
         name = str(self.gpu.ctx.info["GL_RENDERER"])
 
         def measure() -> autotune.CostModel:
-            frame.report(0.0, "Measuring this machine's cost model (once)")
+            report(0.0, "Measuring this machine's cost model (once)")
             with stats.timed("cost model calibration"):
                 model = autotune.calibrate(self._calibration_frame, name,
                                            Settings(antialiasing=1))
             self.kept.forget(anchors=False)
             return model
 
-        cost = autotune.cached_cost_model(self.cost_cache, name, measure)
+        return autotune.cached_cost_model(self.cost_cache, name, measure)
+
+    def rechoose(self, fixed: float, chosen: float, budget: float) -> autotune.Choice | None:
+        """The last frame's choice made again for ``budget`` seconds, from its measured
+        seconds: ``fixed`` of the work it does not choose, ``chosen`` of the work it does (None:
+        no frame chose yet)."""
+        if self.last is None:
+            return None
+        settings, work, last = self.last
+        cost = self.cost_model(Stats(), lambda _f, _m: None)
+        s = last.settings
+        modelled = autotune.chosen_seconds(cost, work, s.vpl_count, s.interleave, s.ism_points,
+                                           s.ism_resolution, s.blur_radius)
+        scale = min(max(chosen / modelled, 0.25), 8.0) if modelled > 0 and chosen > 0 else 1.0
+        work = replace(work, fixed=fixed, scale=scale, pooled=self._pool_of(work.triangles))
+        return autotune.choose(replace(settings, time_budget=budget), work, cost,
+                               autotune.load_error_model())
+
+    def run(self, frame: FrameState) -> None:
+        self.last = None
+        if frame.settings.auto_parameters == "off" or not frame.plan.indirect:
+            return
+        settings, stats = frame.settings, frame.stats
+        cost = self.cost_model(stats, frame.report)
         camera = frame.camera
         with stats.timed("automatic parameters"):
             work = autotune.Workload(
@@ -60,17 +84,18 @@ class ChooseParameters(Stage):
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
                 vpls_per_path=self._vpls_per_path(frame),
                 bounces=settings.bounces, max_subsets=ISM_POINT_SUBSETS,
-                pooled=self._ism_pool(frame))
+                pooled=self._pool_of(frame.geometry.vertex_count // 3))
         choice = autotune.choose(settings, work, cost, autotune.load_error_model())
+        self.last = (settings, work, choice)
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
                            f"{choice.describe()}")
         stats.counts.update(auto_vpl_count=choice.settings.vpl_count)
         frame.settings = choice.settings
 
-    def _ism_pool(self, frame: FrameState) -> tuple[int, int]:
+    def _pool_of(self, triangles: int) -> tuple[int, int]:
         """(points per VPL, subsets) of the ISM point pool sampled for these triangles."""
         key = getattr(self.gpu.ism_if_made, "pool_key", None)
-        if key is None or key[0] != frame.geometry.vertex_count // 3:
+        if key is None or key[0] != triangles:
             return 0, 0
         return key[2], key[1]
 

@@ -10,8 +10,11 @@ Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interl
     indirect light  c_gather · P · V / K²
     blur            c_blur · P · radius (K > 1)
     the rest        c_pixels · P + c_maps · shadow-map tiles · triangles  (not chosen here)
+    (replaced by ``Workload.fixed``, their time measured in a pass, when it is known)
 Error (relative RMSE against a converged image):
     sqrt(floor² + noise² / paths + ism(points, resolution)²)
+No choice has fewer light paths than the cheapest useful one: MIN_VIEW_VPLS VPLs lighting
+the view (fewer leave the image dark and blotchy whatever the budget).
 """
 
 from __future__ import annotations
@@ -32,6 +35,9 @@ COST_MODEL_VERSION = 2
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
 PATHS = tuple(round(16 * 2 ** (k / 4)) for k in range(41))
 """Light-path counts the automatic mode considers: 16 to 16384 in steps of 2^(1/4) (19 %)."""
+MIN_VIEW_VPLS = 64
+"""VPLs lighting the view of the cheapest useful frame (the interior at 384² with 3 of them was
+51 % dark and 79 % off; see docs/measurements.md)."""
 
 
 @dataclass(frozen=True)
@@ -82,10 +88,19 @@ class Workload:
     bounces: int
     max_subsets: int = 512  # point sets of the ISM pool (one per VPL up to this many)
     pooled: tuple[int, int] = (0, 0)  # (points, subsets) of the pool already sampled
+    fixed: float | None = None  # measured seconds of the work not chosen here (None: modelled)
+    scale: float = 1.0  # measured / modelled seconds of the chosen work (the machine's load)
+    # (applied to the ISM point pool's modelled time too)
 
     def subsets(self, vpls: float) -> int:
         """Point sets the ISM pool holds for ``vpls`` VPLs (a power of two, capped)."""
         return min(self.max_subsets, 1 << max(0, math.ceil(vpls) - 1).bit_length())
+
+    def least_paths(self) -> int:
+        """Light paths of the cheapest useful frame: the fewest of PATHS that leave
+        MIN_VIEW_VPLS VPLs lighting the view."""
+        needed = MIN_VIEW_VPLS / max(self.vpls_per_path, 1e-9)
+        return next((p for p in PATHS if p >= needed), PATHS[-1])
 
 @dataclass(frozen=True)
 class Choice:
@@ -94,6 +109,7 @@ class Choice:
     settings: Settings
     seconds: float
     error: float
+    useful: bool = True  # False: the goal needs less than the cheapest useful frame
 
     def describe(self) -> str:
         s = self.settings
@@ -108,19 +124,31 @@ def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int
     vpls = paths * work.vpls_per_path
     subsets = work.subsets(vpls)
     pool = 0.0 if work.pooled == (points, subsets) else cost.pool * subsets * points
-    return (pool + cost.paths * paths * max(1, work.bounces)
+    return (work.scale * (pool + chosen_seconds(cost, work, paths, interleave, points,
+                                                resolution, blur_radius))
+            + (work.fixed if work.fixed is not None else
+               cost.pixels * work.pixels + cost.maps * work.shadow_tiles * work.triangles))
+
+
+def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
+                   resolution: int, blur_radius: int) -> float:
+    """Predicted seconds of the stages these parameters set (not the ISM point pool)."""
+    vpls = paths * work.vpls_per_path
+    return (cost.paths * paths * max(1, work.bounces)
             + cost.splat * vpls * points + cost.texels * vpls * resolution**2
             + cost.gather * work.pixels * vpls / interleave**2
-            + (cost.blur * work.pixels * blur_radius if interleave > 1 else 0.0)
-            + cost.pixels * work.pixels + cost.maps * work.shadow_tiles * work.triangles)
+            + (cost.blur * work.pixels * blur_radius if interleave > 1 else 0.0))
 
 
 def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel) -> Choice:
     """The parameters of least predicted error within ``settings.time_budget`` seconds
     (mode 'time'), or of least predicted time within ``settings.target_error`` (mode
-    'error'). When nothing meets the goal, the closest candidate."""
+    'error'). Never fewer light paths than the cheapest useful frame's; when nothing meets the
+    goal, the closest candidate, marked not ``useful`` when the budget is below that frame."""
     candidates = []
-    for paths, (k, points, resolution) in product(PATHS, errors.options()):
+    least = work.least_paths()
+    for paths, (k, points, resolution) in product([p for p in PATHS if p >= least],
+                                                  errors.options()):
         blur = 0 if k == 1 else max(k, settings.blur_radius)
         seconds = predict_seconds(cost, work, paths, k, points, resolution, blur)
         error = errors.error(paths, k, points, resolution)
@@ -135,7 +163,8 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
     chosen = replace(settings, vpl_count=paths, interleave=k, ism_points=points,
                      ism_resolution=resolution, blur_radius=max(1, blur or settings.blur_radius),
                      visibility="ism")
-    return Choice(chosen, seconds, error)
+    return Choice(chosen, seconds, error,
+                  useful=settings.auto_parameters != "time" or bool(fitting))
 
 
 # -- the error model ---------------------------------------------------------------------------

@@ -102,9 +102,14 @@ RenderPass = Callable[[Scene, Settings, int, ProgressCallback, CancelCallback],
 def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
                   progress: ProgressCallback | None = None,
                   cancelled: CancelCallback | None = None,
-                  on_pass: Callable[[PassReport], None] | None = None) -> tuple[Frame, Stats]:
+                  on_pass: Callable[[PassReport], None] | None = None,
+                  open_ended: bool = False,
+                  next_seconds: Callable[[], float | None] | None = None
+                  ) -> tuple[Frame, Stats]:
     """Render ``settings.passes`` passes (fewer when the time limit or the noise threshold is
     reached first) and return their average; ``on_pass`` sees the average after each pass.
+    ``open_ended``: the time limit, not the pass count, ends the render (progress is time);
+    ``next_seconds``: the expected time of the next pass (None or absent: the mean so far).
     Cancelling raises RenderCancelled from inside the current pass."""
     report = progress or (lambda _f, _m: None)
     check = cancelled or (lambda: False)
@@ -114,6 +119,10 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
     for index in range(planned):
 
         def pass_progress(fraction: float, message: str, index: int = index) -> None:
+            if open_ended:
+                done = (time.perf_counter() - start) / settings.time_limit
+                report(min(done, 1.0), f"Pass {index + 1} | {message}")
+                return
             prefix = f"Pass {index + 1}/{planned} | " if planned > 1 else ""
             report((index + fraction) / planned, prefix + message)
 
@@ -124,15 +133,20 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
         if on_pass is not None:
             on_pass(PassReport(accumulator.count, accumulator.average(), total, noise))
         elapsed = time.perf_counter() - start
-        if settings.time_limit > 0 and elapsed * (1 + 1 / accumulator.count) > settings.time_limit:
-            break  # another pass (of the mean time so far) would end past the limit
+        expected = next_seconds() if next_seconds is not None else None
+        if expected is None:
+            expected = elapsed / accumulator.count
+        if settings.time_limit > 0 and elapsed + expected > settings.time_limit:
+            break  # another pass would end past the limit
         if settings.noise_threshold > 0 and noise is not None \
                 and accumulator.count >= MIN_PASSES_FOR_NOISE and noise <= settings.noise_threshold:
             break
     total.counts["passes"] = accumulator.count
     if planned > 1:
         estimate = accumulator.noise()
-        total.notes.append(f"{accumulator.count} of {planned} passes in "
+        of = "" if open_ended else f" of {planned}"
+        noun = "pass" if accumulator.count == 1 else "passes"
+        total.notes.append(f"{accumulator.count}{of} {noun} in "
                            f"{time.perf_counter() - start:.1f} s" +
                            (f", estimated noise {estimate * 100:.1f} %" if estimate is not None
                             else ""))

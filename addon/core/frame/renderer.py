@@ -16,6 +16,7 @@ from ..settings import Settings
 from ..transport.incremental import IncrementalVPLs
 from ..transport.vpl import VPLs
 from .automatic import ChooseParameters
+from .budget import render_budget
 from .denoise import Denoise, PlanDenoise
 from .gpu_session import GpuSession
 from .image import RenderImage
@@ -79,8 +80,9 @@ class Renderer:
                            passes: frozenset[str] | None = None,
                            on_pass: Callable[[PassReport], None] | None = None
                            ) -> tuple[Frame, Stats]:
-        """A final render: ``settings.passes`` passes averaged (see progressive.py), with
-        ``on_pass`` called after each."""
+        """A final render: ``settings.passes`` passes averaged (see progressive.py), or in the
+        automatic mode 'time' passes until the budget is spent (budget.py), with ``on_pass``
+        called after each."""
         settings.validate()
 
         def one_pass(scene: Scene, settings: Settings, index: int,
@@ -88,6 +90,9 @@ class Renderer:
                      ) -> tuple[Frame, Stats]:
             return self.render(scene, settings, progress, cancelled, passes, index)
 
+        if settings.auto_parameters == "time":
+            return render_budget(one_pass, self._automatic, scene, settings, progress,
+                                 cancelled, on_pass)
         return render_passes(one_pass, scene, settings, progress, cancelled, on_pass)
 
     def release(self) -> None:

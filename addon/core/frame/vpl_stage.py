@@ -36,6 +36,10 @@ VPL_FIELDS = ("vpl_count", "bounces", "seed", "termination", "vpl_source", "rsm_
 camera guidance, the camera)."""
 GUIDE_POINTS = 64  # camera points a candidate VPL's contribution is estimated at
 FIRST_ROUND = 4  # candidate paths per kept path's worth of VPLs in the first round
+DECISION_PATHS = 128
+"""Light paths of the probe that decides whether guidance is worth it (the share of their VPLs
+that lights a camera point, against USEFUL_SHARE): a few ms, where deciding from the first
+round (FIRST_ROUND × vpl_count paths) cost 0.4 s on the Cornell box, which then skips it."""
 INCREMENTAL_FIELDS = ("vpl_count", "bounces", "seed", "termination")
 """Settings whose change makes Incremental Instant Radiosity start afresh."""
 
@@ -130,7 +134,9 @@ class MakeVPLs(Stage):
         return vpls
 
     def _guided_vpls(self, frame: FrameState, tracer: RayTracer) -> VPLs:
-        """Candidates from more light paths, kept by their contribution to camera points: a
+        """Candidates from more light paths, kept by their contribution to camera points, when
+        a probe of DECISION_PATHS paths finds under USEFUL_SHARE of its VPLs lighting the view
+        (else the plain light paths): a
         first round of FIRST_ROUND × vpl_count paths, and a second one when too few of its
         candidates light the view to keep as many VPLs as vpl_count paths leave (up to
         guidance_candidates × vpl_count paths in all)."""
@@ -145,14 +151,16 @@ class MakeVPLs(Stage):
         points = camera_points(frame.camera, frame.geometry, tracer, GUIDE_POINTS, settings.seed)
         first_paths = candidate_paths(settings.vpl_count,
                                       min(FIRST_ROUND, settings.guidance_candidates))
-        first = candidates(first_paths, 0)
-        first_contribution = contributions(first, points, tracer, epsilon)
-        share = float(np.mean(first_contribution > 0)) if len(first) else 1.0
+        probe = candidates(min(DECISION_PATHS, first_paths), 2)
+        share = float(np.mean(contributions(probe, points, tracer, epsilon) > 0)) \
+            if len(probe) else 1.0
         if share >= USEFUL_SHARE:
             stats.skipped["vpl guidance"] = (f"{share:.0%} of the light paths' VPLs light the "
                                              "view: selecting among them would add noise")
             return generate_vpls(frame.scene, frame.geometry, settings, tracer, frame.centre,
                                  frame.radius)
+        first = candidates(first_paths, 0)
+        first_contribution = contributions(first, points, tracer, epsilon)
         wanted = len(first) * settings.vpl_count / first_paths  # VPLs of vpl_count paths
         rounds, contribution = [(first, first_paths)], [first_contribution]
         needed = wanted / kept_per_candidate(first_contribution) * first_paths / max(len(first), 1)

@@ -1,0 +1,107 @@
+"""The automatic mode 'time' as a progressive render: passes until the time budget is spent.
+
+Pass 0 gets the parameters of least predicted error for BUDGET_SPLIT-th of the budget (never
+fewer than the cheapest useful frame's, see autotune.MIN_VIEW_VPLS). Its wall time tells what
+the work the automatic mode does not choose (g-buffer, direct light, compose) really costs
+here, which the cost model, measured on its small calibration scene, can be far off for (the
+interior's shadow maps: 17.5 s predicted, 1.3 s measured), and how far the chosen work's time
+is from the model's (the machine's load). The later passes get the choice made again with
+those measurements for the rest of the budget, and passes run while the next one
+fits (progressive.py's time limit). A budget below the cheapest useful frame still renders that
+frame, with one warning naming the time it took.
+
+The chosen parameters depend on this machine's speed: frames of one job rendered on different
+machines differ. Render farms pin the parameters instead (auto_parameters = off)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+from ..scene.model import Scene
+from ..settings import Settings
+from .automatic import ChooseParameters
+from .progressive import PassReport, RenderPass, render_passes
+from .result import Frame, Stats
+from .state import CancelCallback, ProgressCallback
+
+BUDGET_SPLIT = 2
+"""Passes the budget is planned as: pass 0 gets this fraction of it (measured on the interior,
+docs/measurements.md: 1 pass / 2 / 4 at equal budgets)."""
+MAX_BUDGET_PASSES = 1 << 16  # the passes setting's own limit
+LEAST_BUDGET = 0.01  # the time_budget setting's own limit
+CHOSEN_STAGES = ("vpl generation", "ism ", "indirect light", "blur")
+"""Stages (by name prefix) whose time the automatic mode's parameters set."""
+ONCE_STAGES = ("automatic parameters", "cost model calibration", "ray tracing setup",
+               "ism points")
+"""Stages of pass 0 that later passes do not repeat (the BVH and the ISM point pool are kept)."""
+FARM_NOTE = ("the time mode adapts to this machine's speed; for the same frame on every "
+             "machine (render farms) set auto_parameters off and pin the parameters")
+
+
+def split_seconds(wall: float, stats: Stats) -> tuple[float, float]:
+    """Seconds of one pass spent on the work the automatic mode does not choose and on the
+    work it chooses (each without the stages done once)."""
+    once = sum(stats.timings.get(k, 0.0) for k in ONCE_STAGES)
+    chosen = sum(v for k, v in stats.timings.items()
+                 if k.startswith(CHOSEN_STAGES) and k not in ONCE_STAGES)
+    return max(0.0, wall - chosen - once), chosen
+
+
+def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Scene,
+                  settings: Settings, progress: ProgressCallback | None = None,
+                  cancelled: CancelCallback | None = None,
+                  on_pass: Callable[[PassReport], None] | None = None) -> tuple[Frame, Stats]:
+    """Render passes within ``settings.time_budget`` seconds (see the module docstring)."""
+    budget = settings.time_budget
+    calibration = Stats()
+    chooser.cost_model(calibration, progress or (lambda _f, _m: None))  # not in the budget
+    start = time.perf_counter()
+    later: Settings | None = None
+    expected: float | None = None  # seconds of the first later pass (predicted)
+    walls: list[float] = []  # of the later passes
+    notes: list[str] = []
+    warnings: list[str] = []
+
+    def one_pass(scene: Scene, _settings: Settings, index: int, progress: ProgressCallback,
+                 cancelled: CancelCallback) -> tuple[Frame, Stats]:
+        nonlocal later, expected
+        if index > 0 and later is not None:
+            began = time.perf_counter()
+            result = render_pass(scene, later, index, progress, cancelled)
+            walls.append(time.perf_counter() - began)
+            return result
+        first = replace(settings, time_budget=max(budget / BUDGET_SPLIT, LEAST_BUDGET))
+        began = time.perf_counter()
+        frame, stats = render_pass(scene, first, index, progress, cancelled)
+        wall = time.perf_counter() - began
+        if chooser.last is None:  # no indirect light: every pass alike
+            later = replace(settings, auto_parameters="off")
+            return frame, stats
+        chosen = chooser.last[2]
+        fixed, variable = split_seconds(wall, stats)
+        rest = max(budget - (time.perf_counter() - start), 0.0)
+        again = chooser.rechoose(fixed, variable, rest / max(1, BUDGET_SPLIT - 1))
+        later = replace(again.settings if again is not None else chosen.settings,
+                        auto_parameters="off", time_budget=budget)
+        if again is not None:
+            expected = again.seconds
+            notes.append(f"automatic parameters of passes 2+: {again.describe()} (measured "
+                         f"{fixed:.2f} s per pass of work not chosen)")
+        least = chooser.last[1].least_paths()
+        repeated = wall - sum(stats.timings.get(k, 0.0) for k in ONCE_STAGES)
+        if repeated > budget and chosen.settings.vpl_count <= least:
+            warnings.append(f"time budget {budget:g} s is below the cheapest useful frame of "
+                            f"this scene ({least} light paths, ≈ {repeated:.1f} s here); rendered "
+                            f"that ({FARM_NOTE})")
+        return frame, stats
+
+    frame, stats = render_passes(
+        one_pass, scene, replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget),
+        progress, cancelled, on_pass, open_ended=True,
+        next_seconds=lambda: sum(walls) / len(walls) if walls else expected)
+    stats.timings.update(calibration.timings)
+    stats.notes.extend(notes)
+    stats.warnings.extend(warnings)
+    return frame, stats

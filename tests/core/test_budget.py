@@ -1,0 +1,77 @@
+"""The automatic mode 'time' over passes: pass 0 sized from the cost model, the later passes
+from pass 0's measured time, passes until the budget is spent, and one warning when the budget
+is below the cheapest useful frame."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, replace
+
+import pytest
+
+from addon.core.frame import autotune
+from addon.core.frame.budget import split_seconds
+from addon.core.frame.result import Stats
+from addon.core.settings import Settings
+from tests.core.builders import floor_scene, light, translation
+from tests.core.test_planner import wall
+
+COST = autotune.CostModel("", paths=2e-5, splat=5e-7, texels=3e-7, gather=2e-7, blur=2.5e-7,
+                          pixels=8.5e-4, maps=4e-6, pool=7e-7)
+"""llvmpipe's coefficients on 2 cores, roughly, but per pixel 340 times too dear: a model that
+over-predicts the work it does not choose (2 s for these 48² pixels), as on the interior."""
+BASE = Settings(antialiasing=1, auto_parameters="time")
+
+
+def scene():
+    return floor_scene([light(autotune.LightKind.POINT, translation(0, 0, 2), power=50.0)],
+                       extra=[wall(2)], size=48)
+
+
+@pytest.fixture
+def cached_cost(renderer, tmp_path):
+    """A cost model cached for this GL renderer, so that no test calibrates."""
+    cache = tmp_path / "cost.json"
+    model = replace(COST, renderer=str(renderer.ctx.info["GL_RENDERER"]))
+    cache.write_text(json.dumps(asdict(model)))
+    previous, renderer.cost_cache = renderer.cost_cache, cache
+    yield model
+    renderer.cost_cache = previous
+
+
+def test_a_pass_splits_into_chosen_and_fixed_work_without_the_one_off_stages():
+    stats = Stats(timings={"g-buffer": 0.2, "direct light": 0.5, "vpl generation (camera-driven)":
+                           0.3, "ism splat": 0.1, "indirect light maps": 0.1,
+                           "indirect light": 0.4, "blur": 0.05, "automatic parameters": 0.2,
+                           "ray tracing setup": 0.1, "ism points": 0.5})
+    fixed, chosen = split_seconds(3.0, stats)
+    assert chosen == pytest.approx(0.95) and fixed == pytest.approx(3.0 - 0.95 - 0.8)
+    assert split_seconds(0.5, stats) == (0.0, pytest.approx(0.95))
+
+
+def test_a_budget_is_spent_in_passes(renderer, cached_cost):
+    renderer.forget_frames()  # the same render first: shaders compiled, ISM point pool made
+    renderer.render_progressive(scene(), replace(BASE, time_budget=4.0))
+    renderer.forget_frames()
+    _, stats = renderer.render_progressive(scene(), replace(BASE, time_budget=4.0))
+    assert stats.counts["passes"] >= 2, stats.notes
+    first, later = (float(n.split("relative RMSE ")[1].split(" %")[0]) for n in stats.notes
+                    if n.startswith("automatic parameters"))
+    assert later < first  # the model's 2 s of fixed work were measured as far less
+    spent = next(n for n in stats.notes if " passes in " in n)
+    seconds = float(spent.split(" passes in ")[1].split(" s")[0])
+    assert seconds <= 4.0 * 2, spent  # a pass starts only when it is expected to fit
+    assert any(n.startswith("automatic parameters of passes 2+") for n in stats.notes)
+    assert not stats.warnings, stats.warnings
+
+
+def test_a_budget_below_the_cheapest_useful_frame_renders_that_and_says_so(renderer,
+                                                                          cached_cost):
+    renderer.forget_frames()
+    frame, stats = renderer.render_progressive(scene(), replace(BASE, time_budget=0.01))
+    assert stats.counts["passes"] == 1
+    chosen = stats.counts["auto_vpl_count"]
+    warning, = [w for w in stats.warnings if "below the cheapest useful frame" in w]
+    assert f"({chosen} light paths" in warning and "auto_parameters off" in warning
+    indirect = frame.passes["DiffInd"]
+    assert float(indirect.mean()) > 0  # not a dark image
