@@ -1,19 +1,18 @@
-// Imperfect shadow maps, step 2 (addon/core/ism.py): splat every VPL's own subset of surface
-// points into its paraboloid map. One invocation per (point, VPL): x = the point in the VPL's
-// subset, y = the VPL, which names its atlas tile (a partial update renders a few tiles). The
-// point's position comes from the current triangle vertices, so points follow moved and
-// deformed triangles. Depths are distances (positive floats, whose bits compare
-// like the floats as uints), kept with imageAtomicMin over a square footprint of texels.
+// Imperfect shadow maps, step 2 (addon/core/gpu/ism.py): splat every VPL's own set of surface
+// points (drawn here, ism_points_lib.glsl) into its paraboloid map. One invocation per (point,
+// VPL): x = the point in the VPL's set, y = the VPL, whose atlas tile names its set (a partial
+// update renders a few tiles). The point's position comes from the current triangle vertices,
+// so points follow moved and deformed triangles. Depths are distances (positive floats, whose
+// bits compare like the floats as uints), kept with imageAtomicMin over a square footprint of
+// texels.
 #include "ism_lib.glsl"
+#include "ism_points_lib.glsl"
 
-#define ISM_BINDING_POINTS 20
 #define ISM_BINDING_VERTICES 21
 #define ISM_BINDING_VPLS 22
 
 layout(local_size_x = 64) in;
 
-// (triangle, packUnorm2x16 of the barycentric weights of vertices 1 and 2)
-layout(std430, binding = ISM_BINDING_POINTS) readonly buffer IsmPoints { uvec2 ism_points[]; };
 // three per triangle
 layout(std430, binding = ISM_BINDING_VERTICES) readonly buffer IsmVertices { vec4 ism_vertices[]; };
 // (position, directional flag), (normal or direction of travel, atlas tile) per VPL
@@ -21,8 +20,6 @@ layout(std430, binding = ISM_BINDING_VPLS) readonly buffer IsmVpls { vec4 ism_vp
 
 layout(r32ui, binding = 0) uniform uimage2D u_splat;
 
-uniform int u_points_per_vpl;
-uniform int u_subsets;           // subsets in the point pool; VPL k uses subset k % u_subsets
 uniform int u_columns;
 uniform int u_resolution;
 uniform float u_point_area;      // surface area each point stands for
@@ -31,19 +28,12 @@ uniform int u_max_footprint;     // largest footprint side, texels
 uniform vec3 u_scene_centre;     // bounding sphere of the scene, for directional maps
 uniform float u_scene_radius;
 
-// A uniform random number in [0, 1) from an integer (PCG hash, Jarzynski & Olano 2020).
-float random01(uint v) {
-    uint state = v * 747796405u + 2891336453u;
-    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return float((word >> 22u) ^ word) * (1.0 / 4294967296.0);
-}
-
 // A footprint side of `side` texels rounded up or down at random so that the expected area is
 // side², kept within 1 .. u_max_footprint.
 int random_side(float side, uint id) {
     float low = floor(side);
     float up = (side * side - low * low) / (2.0 * low + 1.0);  // P(round up): mean area side^2
-    return clamp(int(low) + (random01(id) < up ? 1 : 0), 1, u_max_footprint);
+    return clamp(int(low) + (ism_unit(ism_hash(id)) < up ? 1 : 0), 1, u_max_footprint);
 }
 
 // Side in texels of the square footprint of a point standing for `u_point_area` of a surface
@@ -77,16 +67,10 @@ void main() {
     int row = int(gl_GlobalInvocationID.y);  // this dispatch's VPL
     if (i >= u_points_per_vpl) return;
     int vpl = int(ism_vpls[2 * row + 1].w);  // its atlas tile, which also picks its points
-    uvec2 point = ism_points[(vpl % u_subsets) * u_points_per_vpl + i];
-    vec2 bary = unpackUnorm2x16(point.y);
-    if (vpl >= u_subsets) {
-        // VPLs beyond the pool reuse a set, moved within its triangles by a per-VPL random
-        // shift on the unit square (folded back into the triangle: still uniform by area).
-        uint key = uint(vpl / u_subsets) * 2654435761u;
-        bary = fract(bary + vec2(random01(key), random01(key ^ 0x9e3779b9u)));
-        if (bary.x + bary.y > 1.0) bary = 1.0 - bary;
-    }
-    int tri = int(point.x) * 3;
+    int tri;
+    vec2 bary;
+    ism_surface_point(vpl, i, tri, bary);
+    tri *= 3;
     vec3 v0 = ism_vertices[tri].xyz;
     vec3 e1 = ism_vertices[tri + 1].xyz - v0;
     vec3 e2 = ism_vertices[tri + 2].xyz - v0;

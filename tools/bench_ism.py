@@ -1,4 +1,4 @@
-"""Benchmark of addon/core/ism.py: point-pool pre-process, splat and pull-push times and atlas
+"""Benchmark of addon/core/gpu/ism.py: area-table pre-process, splat and pull-push times and atlas
 memory of imperfect shadow maps on a synthetic scene (a tessellated box room with boxes inside,
 about 70k triangles), with VPLs on its surfaces facing into the room.
 
@@ -20,7 +20,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from addon.core.gpu.gl import ProgramCache, shared_context
 from addon.core.gpu.ism import FOOTPRINT_SCALE, MAX_FOOTPRINT, ImperfectShadowMaps
-from addon.core.scene.surface_points import sample_surface_points
 
 
 def box(lo: np.ndarray, hi: np.ndarray, n: int, inward: bool) -> np.ndarray:
@@ -58,11 +57,12 @@ def room_scene(triangles: int, rng: np.random.Generator) -> tuple[np.ndarray, np
     return np.concatenate(parts), np.array(bounds)
 
 
-def vpls_on(triangles: np.ndarray, boxes: np.ndarray, count: int,
+def vpls_on(ism: ImperfectShadowMaps, triangles: np.ndarray, boxes: np.ndarray, count: int,
             seed: int) -> tuple[np.ndarray, np.ndarray]:
     """``count`` VPLs uniform on the surfaces outside the boxes (where light paths can reach),
-    facing along their triangles' normals."""
-    points = sample_surface_points(triangles, 4 * count, seed)
+    facing along their triangles' normals (ISM points of ``seed``, drawn by ``ism``)."""
+    ism.prepare(triangles, 4 * count, seed)
+    points = ism.points(0, 1)
     tris = triangles[points.triangle].astype(np.float64)
     e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
     uv = points.barycentric.astype(np.float64)
@@ -91,14 +91,14 @@ def main() -> None:
     print(ctx.info["GL_RENDERER"], ctx.info["GL_VERSION"])
     rng = np.random.default_rng(0)
     triangles, boxes = room_scene(args.triangles, rng)
-    position, normal = vpls_on(triangles, boxes, args.vpls, 1)
     programs = ProgramCache(ctx)
     ism = ImperfectShadowMaps(ctx, programs, args.footprint_scale, args.max_footprint)
+    position, normal = vpls_on(ism, triangles, boxes, args.vpls, 1)
     start = time.perf_counter()
-    ism.prepare(triangles, args.vpls, args.points, 2)
+    ism.prepare(triangles, args.points, 2, version="bench")  # a new version: built again
     print(f"{len(triangles)} triangles, {args.vpls} VPLs x {args.points} points; footprint "
-          f"scale {args.footprint_scale}, max {args.max_footprint}; point pool "
-          f"{time.perf_counter() - start:.2f} s")
+          f"scale {args.footprint_scale}, max {args.max_footprint}; area table "
+          f"{time.perf_counter() - start:.3f} s")
     for resolution in args.resolutions:
         levels = int(math.log2(resolution)) if args.levels is None else args.levels
         ism.render(triangles, position, normal, resolution, levels)  # compile, allocate

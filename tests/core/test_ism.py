@@ -1,4 +1,4 @@
-"""Imperfect shadow maps: the surface-point pool, pull-push, and ISM visibility against the
+"""Imperfect shadow maps: surface points drawn on the GPU, pull-push, and ISM visibility against the
 analytic shadow of a square occluder above a floor."""
 
 from __future__ import annotations
@@ -9,7 +9,6 @@ import pytest
 from addon.core.gpu import ism
 from addon.core.gpu.gl import SHADER_DIR
 from addon.core.gpu.ism import ImperfectShadowMaps
-from addon.core.scene.surface_points import sample_surface_points, spread_order
 
 RESOLUTION = 128
 POINTS = 8192
@@ -28,59 +27,115 @@ def quad(x0: float, x1: float, y0: float, y1: float, z: float) -> np.ndarray:
                      [[x0, y0, z], [x1, y1, z], [x0, y1, z]]], np.float32)
 
 
-# -- surface points ----------------------------------------------------------------------------
+# -- surface points (drawn on the GPU) ----------------------------------------------------------
 
-def test_points_are_uniform_by_area_in_every_subset():
+def test_points_are_uniform_by_area_and_stratified_in_every_set(maps):
     small = np.array([[0, 0, 0], [0.1, 0, 0], [0, 0.2, 0]], np.float32)  # area 0.01
     big = np.array([[0, 0, 1], [2, 0, 1], [0, 1, 1]], np.float32)  # area 1
     degenerate = np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2]], np.float32)
     broken = np.array([[0, 0, 0], [np.nan, 0, 0], [0, 1, 0]], np.float32)
     tris = np.stack([small, degenerate, big, broken])
-    count, subsets = 1000, 16
-    points = sample_surface_points(tris, count, seed=3, subsets=subsets)
-    assert len(points) == count * subsets
-    per_subset = np.stack([np.bincount(t, minlength=4) for t in
-                           points.triangle.reshape(subsets, count)])
-    expected = count * np.array([0.01, 0, 1, 0]) / 1.01
-    assert (np.abs(per_subset - expected) < 1).all()  # stratified: floor or ceiling
-    # An even prefix of a subset is stratified too (level of detail).
-    prefix = np.bincount(points.triangle[:count // 2], minlength=4)
-    assert (np.abs(prefix - expected / 2) <= 1).all()
-    uv = points.barycentric
-    assert (uv >= 0).all() and (uv.sum(axis=1) <= 1).all()
-    # Within a triangle, the four halved-edge sub-triangles get a quarter each.
-    on_big = uv[points.triangle == 2].astype(np.float64)
-    region = np.select([on_big[:, 0] > 0.5, on_big[:, 1] > 0.5, on_big.sum(axis=1) < 0.5],
-                       [0, 1, 2], 3)
-    share = np.bincount(region, minlength=4) / len(region)
-    np.testing.assert_allclose(share, 0.25, atol=0.01)
+    count, sets = 1000, 16
+    maps.prepare(tris, count, seed=3, version="uniform")  # the fixture is shared
+    for first in (0, 5000):  # every map has its own set, however many there are
+        points = maps.points(first, sets)
+        assert len(points) == count * sets
+        per_set = np.stack([np.bincount(t, minlength=4) for t in
+                            points.triangle.reshape(sets, count)])
+        expected = count * np.array([0.01, 0, 1, 0]) / 1.01
+        assert (np.abs(per_set - expected) < 1).all()  # stratified: floor or ceiling
+        uv = points.barycentric
+        assert (uv >= 0).all() and (uv.sum(axis=1) <= 1).all()
+        # Within a triangle, the four halved-edge sub-triangles get a quarter each.
+        on_big = uv[points.triangle == 2].astype(np.float64)
+        region = np.select([on_big[:, 0] > 0.5, on_big[:, 1] > 0.5, on_big.sum(axis=1) < 0.5],
+                           [0, 1, 2], 3)
+        share = np.bincount(region, minlength=4) / len(region)
+        np.testing.assert_allclose(share, 0.25, atol=0.01)
 
 
-def test_every_subset_is_its_own():
+def jittered_square(cells: int, rng: np.random.Generator) -> np.ndarray:
+    """The unit square cut into 2 cells² triangles of unequal areas (jittered grid)."""
+    g = np.linspace(0, 1, cells + 1)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    inner = (slice(1, -1), slice(1, -1))
+    x[inner] += rng.uniform(-0.4, 0.4, x[inner].shape) / cells
+    y[inner] += rng.uniform(-0.4, 0.4, y[inner].shape) / cells
+    v = np.stack([x, y, np.zeros_like(x)], -1)
+    a, b, c, d = v[:-1, :-1], v[1:, :-1], v[1:, 1:], v[:-1, 1:]
+    return np.concatenate([np.stack([a, b, c], 2), np.stack([a, c, d], 2)]).reshape(-1, 3, 3)
+
+
+def test_points_are_area_uniform_over_a_surface_and_deterministic(programs):
+    """On a square cut into triangles of unequal areas, each set's points fall uniformly on the
+    square (chi-square of a 10 × 10 histogram below its 99.9 % quantile, for the sets pooled
+    and for one), every triangle gets its share; a second instance with the same seed draws
+    the same points bit for bit and renders the same atlas, another seed other points."""
+    from scipy.stats import chi2
+
+    tris = jittered_square(12, np.random.default_rng(8)).astype(np.float32)
+    area = np.abs(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])[:, 2]) / 2
+    count, sets = 4096, 24
+    first, second, other = (ImperfectShadowMaps(programs.ctx, programs) for _ in range(3))
+    try:
+        atlases = []
+        for m, seed in ((first, 21), (second, 21), (other, 22)):
+            m.prepare(tris, count, seed=seed)
+            m.render(tris, [[0.5, 0.5, 1.0], [0.2, 0.7, 0.5]], [[0.0, 0.0, -1.0]] * 2, 32, 5)
+            atlases.append(m.read_atlas())
+        points = first.points(0, sets)
+        again = second.points(0, sets)
+        np.testing.assert_array_equal(points.triangle, again.triangle)
+        np.testing.assert_array_equal(points.barycentric.view(np.uint32),
+                                      again.barycentric.view(np.uint32))
+        np.testing.assert_array_equal(atlases[0].view(np.uint32), atlases[1].view(np.uint32))
+        assert not np.array_equal(other.points(0, sets).barycentric, points.barycentric)
+        assert not np.array_equal(atlases[0], atlases[2])
+    finally:
+        for m in (first, second, other):
+            m.release()
+    per_set = np.stack([np.bincount(t, minlength=len(tris)) for t in
+                        points.triangle.reshape(sets, count)])
+    assert (np.abs(per_set - count * area / area.sum()) < 1 + 1e-3).all()
+    t = tris[points.triangle].astype(np.float64)
+    uv = points.barycentric.astype(np.float64)
+    xy = (t[:, 0] + uv[:, :1] * (t[:, 1] - t[:, 0]) + uv[:, 1:] * (t[:, 2] - t[:, 0]))[:, :2]
+    for sample in (xy, xy[:count]):
+        histogram, _, _ = np.histogram2d(sample[:, 0], sample[:, 1], bins=10,
+                                         range=[[0, 1], [0, 1]])
+        expected = len(sample) / 100
+        statistic = ((histogram - expected) ** 2 / expected).sum()
+        assert statistic < chi2.ppf(0.999, 99), statistic
+
+
+def test_every_set_is_its_own(maps):
     tris = np.concatenate([quad(0, 1, 0, 1, 0), quad(0, 1, 0, 1, 1)])
-    points = sample_surface_points(tris, 500, seed=4, subsets=8)
-    keys = [set(zip(t.tolist(), map(tuple, uv.tolist()), strict=True)) for t, uv in
-            zip(points.triangle.reshape(8, -1), points.barycentric.reshape(8, -1, 2),
-                strict=True)]
-    for i in range(8):
+    maps.prepare(tris, 500, seed=4, version="own")
+    points = maps.points(0, 8)
+    beyond = maps.points(512, 8)  # the sets of maps 512.. (the old pool repeated at 512)
+    sets = [set(zip(t.tolist(), map(tuple, uv.tolist()), strict=True)) for p in (points, beyond)
+            for t, uv in zip(p.triangle.reshape(8, -1), p.barycentric.reshape(8, -1, 2),
+                             strict=True)]
+    for i in range(len(sets)):
         for j in range(i):
-            assert not keys[i] & keys[j]
-    again = sample_surface_points(tris, 500, seed=4, subsets=8)
-    np.testing.assert_array_equal(again.barycentric, points.barycentric)  # seeded
+            assert not sets[i] & sets[j]
 
 
-def test_empty_and_zero_area_scenes_give_no_points():
+def test_empty_and_zero_area_scenes_give_no_points(maps):
     flat = np.zeros((3, 3, 3), np.float32)
     for tris in (np.zeros((0, 3, 3), np.float32), flat):
-        points = sample_surface_points(tris, 100, seed=1, subsets=4)
+        maps.prepare(tris, 100, seed=1, version="empty")
+        points = maps.points(0, 4)
         assert len(points) == 0 and points.barycentric.shape == (0, 2)
 
 
-def test_spread_order_prefixes_are_even():
-    order = spread_order(16)
-    assert sorted(order) == list(range(16))
-    np.testing.assert_array_equal(np.sort(order[:4]), [0, 4, 8, 12])
-    assert sorted(spread_order(11)) == list(range(11))
+def test_the_area_table_is_uploaded_once_per_geometry_version(maps):
+    tris = occluder_scene()
+    maps.prepare(np.zeros((1, 3, 3), np.float32), 16, seed=1)
+    assert maps.prepare(tris, 1024, seed=2)
+    assert not maps.prepare(tris * 2, 2048, seed=3)  # same version: the table is kept
+    assert maps.prepare(tris * 2, 2048, seed=3, version=1)  # a new version: built again
+    assert maps.prepared_triangles == len(tris)
 
 
 # -- pull-push ---------------------------------------------------------------------------------
@@ -192,7 +247,7 @@ def visibility_stats(m: ImperfectShadowMaps, levels: int, points: int = POINTS
     grid for each VPL, averaged; points within 0.02 of the shadow's edge (in the occluder's
     plane, about a texel) are left out."""
     tris = occluder_scene()
-    m.prepare(tris, len(VPLS), points, seed=11)
+    m.prepare(tris, points, seed=11)
     m.render(tris, VPLS, np.tile([0.0, 0.0, -1.0], (len(VPLS), 1)), RESOLUTION, levels)
     floor = floor_grid(60)
     agree, leak = [], []
@@ -228,11 +283,11 @@ def test_raw_point_splats_leak_and_pull_push_fills_them(programs):
 def test_points_follow_moved_triangles_and_depth_scales(maps):
     tris = occluder_scene()
     normals = np.tile([0.0, 0.0, -1.0], (2, 1))
-    maps.prepare(tris, 2, 2048, seed=12)
+    maps.prepare(tris, 2048, seed=12)
     maps.render(tris, VPLS[:2], normals, 32, 5)
     base = maps.read_atlas()
     shift = np.float32([5.0, -3.0, 2.0])
-    maps.prepare(tris + shift, 2, 2048, seed=12)  # same inputs: the pool is kept
+    maps.prepare(tris + shift, 2048, seed=12)  # same count: the area table is kept
     maps.render(tris + shift, VPLS[:2] + shift, normals, 32, 5)
     np.testing.assert_allclose(maps.read_atlas(), base, rtol=1e-4)
     maps.render(tris * 1000, VPLS[:2] * 1000, normals, 32, 5)
@@ -246,7 +301,7 @@ def test_partial_update_equals_a_full_render(maps):
     rng = np.random.default_rng(4)
     positions = np.column_stack([rng.uniform(-0.8, 0.8, (8, 2)), np.full(8, 0.05)])
     normals = np.tile([0.0, 0.0, 1.0], (8, 1))
-    maps.prepare(tris, 8, 1024, seed=3)
+    maps.prepare(tris, 1024, seed=3)
     maps.render(tris, positions, normals, 32, 5)
     before = maps.read_atlas()
     moved = positions.copy()
@@ -274,7 +329,7 @@ def test_empty_scene_and_vpl_facing_nothing_are_all_lit(maps):
     up = np.tile([0.0, 0.0, 1.0], (len(below), 1))
     for tris, vpls, targets in ((np.zeros((0, 3, 3), np.float32), (0, 1), (below, above)),
                                 (quad(-1, 1, -1, 1, 0), (1,), (above,))):
-        maps.prepare(tris, 2, 1024, seed=13)
+        maps.prepare(tris, 1024, seed=13)
         maps.render(tris, lights, normals, 32, 5)
         atlas = maps.read_atlas()
         assert not np.isnan(atlas).any()
@@ -292,7 +347,7 @@ def test_render_checks_its_inputs(programs):
     try:
         with pytest.raises(RuntimeError, match="prepare"):
             m.render(quad(0, 1, 0, 1, 0), VPLS, VPLS, 32, 1)
-        m.prepare(quad(0, 1, 0, 1, 0), 1, 16, seed=1)
+        m.prepare(quad(0, 1, 0, 1, 0), 16, seed=1)
         with pytest.raises(ValueError, match="4 triangles; the points were sampled on 2"):
             m.render(np.concatenate([quad(0, 1, 0, 1, 0)] * 2), VPLS, VPLS, 32, 1)
         with pytest.raises(ValueError, match="atlas; this GPU allows"):
@@ -302,7 +357,9 @@ def test_render_checks_its_inputs(programs):
 
 
 @pytest.mark.parametrize("file, name, value", [
-    ("ism_splat_comp.glsl", "ISM_BINDING_POINTS", ism.BINDING_POINTS),
+    ("ism_points_lib.glsl", "ISM_BINDING_CDF", ism.BINDING_CDF),
+    ("ism_points_comp.glsl", "ISM_BINDING_POINT_OUT", ism.BINDING_POINT_OUT),
+    ("ism_points_comp.glsl", "local_size_x =", ism.POINT_LOCAL_SIZE),
     ("ism_splat_comp.glsl", "ISM_BINDING_VERTICES", ism.BINDING_VERTICES),
     ("ism_splat_comp.glsl", "ISM_BINDING_VPLS", ism.BINDING_VPLS),
     ("ism_lookup_comp.glsl", "ISM_BINDING_VPLS", ism.BINDING_VPLS),

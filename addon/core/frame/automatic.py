@@ -13,7 +13,6 @@ from ..settings import Settings
 from ..transport.vpl import generate_vpls
 from . import autotune
 from .gpu_session import GpuSession
-from .ism_maps import ISM_POINT_SUBSETS
 from .planner import reaches_bounds
 from .result import Frame, Stats
 from .reuse import KeptProducts
@@ -66,7 +65,8 @@ class ChooseParameters(Stage):
         modelled = autotune.chosen_seconds(cost, work, s.vpl_count, s.interleave, s.ism_points,
                                            s.ism_resolution, s.blur_radius)
         scale = min(max(chosen / modelled, 0.25), 8.0) if modelled > 0 and chosen > 0 else 1.0
-        work = replace(work, fixed=fixed, scale=scale, pooled=self._pool_of(work.triangles))
+        work = replace(work, fixed=fixed, scale=scale,
+                       area_table=self._ism_area_table(work.triangles))
         return autotune.choose(replace(settings, time_budget=budget), work, cost,
                                autotune.load_error_model())
 
@@ -83,8 +83,8 @@ class ChooseParameters(Stage):
                 triangles=frame.geometry.vertex_count // 3,
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
                 vpls_per_path=self._vpls_per_path(frame),
-                bounces=settings.bounces, max_subsets=ISM_POINT_SUBSETS,
-                pooled=self._pool_of(frame.geometry.vertex_count // 3))
+                bounces=settings.bounces,
+                area_table=self._ism_area_table(frame.geometry.vertex_count // 3))
         choice = autotune.choose(settings, work, cost, autotune.load_error_model())
         self.last = (settings, work, choice)
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
@@ -92,12 +92,9 @@ class ChooseParameters(Stage):
         stats.counts.update(auto_vpl_count=choice.settings.vpl_count)
         frame.settings = choice.settings
 
-    def _pool_of(self, triangles: int) -> tuple[int, int]:
-        """(points per VPL, subsets) of the ISM point pool sampled for these triangles."""
-        key = getattr(self.gpu.ism_if_made, "pool_key", None)
-        if key is None or key[0] != triangles:
-            return 0, 0
-        return key[2], key[1]
+    def _ism_area_table(self, triangles: int) -> bool:
+        """Whether the ISM area table of these triangles is built already."""
+        return getattr(self.gpu.ism_if_made, "prepared_triangles", None) == triangles
 
     def _vpls_per_path(self, frame: FrameState) -> float:
         """VPLs that can light the view per light path, from a probe of PROBE_PATHS paths."""

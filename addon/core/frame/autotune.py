@@ -6,7 +6,7 @@ reports (``error_model.json``, written by ``tools/fit_error_model.py``).
 Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interleave):
     VPL generation  c_paths · paths · bounces
     ISMs            c_splat · V · points + c_texels · V · resolution²
-    ISM point pool  c_pool · subsets · points, when the pool must be sampled anew
+    ISM area table  c_pool · triangles, when the table of triangle areas must be built
     indirect light  c_gather · P · V / K²
     blur            c_blur · P · radius (K > 1)
     the rest        c_pixels · P + c_maps · shadow-map tiles · triangles  (not chosen here)
@@ -31,7 +31,7 @@ import numpy as np
 from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene
 from ..settings import Settings
 
-COST_MODEL_VERSION = 2
+COST_MODEL_VERSION = 3
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
 PATHS = tuple(round(16 * 2 ** (k / 4)) for k in range(41))
 """Light-path counts the automatic mode considers: 16 to 16384 in steps of 2^(1/4) (19 %)."""
@@ -52,7 +52,7 @@ class CostModel:
     blur: float  # per pixel and blur radius
     pixels: float  # per pixel: g-buffer, direct light, compose
     maps: float  # per shadow-map tile and triangle
-    pool: float  # per ISM point sampled into the pool (subsets × points per VPL)
+    pool: float  # per triangle of the ISM area table (the points are drawn on the GPU)
     version: int = COST_MODEL_VERSION
 
 
@@ -86,15 +86,10 @@ class Workload:
     shadow_tiles: int  # of the direct light's shadow maps
     vpls_per_path: float  # VPLs that can light the view per light path
     bounces: int
-    max_subsets: int = 512  # point sets of the ISM pool (one per VPL up to this many)
-    pooled: tuple[int, int] = (0, 0)  # (points, subsets) of the pool already sampled
+    area_table: bool = False  # the ISM area table of these triangles is built already
     fixed: float | None = None  # measured seconds of the work not chosen here (None: modelled)
     scale: float = 1.0  # measured / modelled seconds of the chosen work (the machine's load)
-    # (applied to the ISM point pool's modelled time too)
-
-    def subsets(self, vpls: float) -> int:
-        """Point sets the ISM pool holds for ``vpls`` VPLs (a power of two, capped)."""
-        return min(self.max_subsets, 1 << max(0, math.ceil(vpls) - 1).bit_length())
+    # (applied to the ISM area table's modelled time too)
 
     def least_paths(self) -> int:
         """Light paths of the cheapest useful frame: the fewest of PATHS that leave
@@ -121,9 +116,7 @@ class Choice:
 def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
                     resolution: int, blur_radius: int) -> float:
     """Predicted wall time of one frame with these parameters."""
-    vpls = paths * work.vpls_per_path
-    subsets = work.subsets(vpls)
-    pool = 0.0 if work.pooled == (points, subsets) else cost.pool * subsets * points
+    pool = 0.0 if work.area_table else cost.pool * work.triangles
     return (work.scale * (pool + chosen_seconds(cost, work, paths, interleave, points,
                                                 resolution, blur_radius))
             + (work.fixed if work.fixed is not None else
@@ -132,7 +125,7 @@ def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int
 
 def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
                    resolution: int, blur_radius: int) -> float:
-    """Predicted seconds of the stages these parameters set (not the ISM point pool)."""
+    """Predicted seconds of the stages these parameters set (not the ISM area table)."""
     vpls = paths * work.vpls_per_path
     return (cost.paths * paths * max(1, work.bounces)
             + cost.splat * vpls * points + cost.texels * vpls * resolution**2
@@ -201,10 +194,8 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     for paths, k, points, resolution in CALIBRATION:
         settings = replace(base, vpl_count=paths, interleave=k, ism_points=points,
                            ism_resolution=resolution, visibility="ism", auto_parameters="off")
-        first = render(settings)  # samples the point pool, compiles shaders
-        rows.append((settings, {**render(settings), "ism points": first.get("ism points", 0.0),
-                                "pool points": points * min(512, 1 << max(
-                                    0, int(first["vpls"]) - 1).bit_length())}))
+        first = render(settings)  # builds the ISM area table (if new), compiles shaders
+        rows.append((settings, {**render(settings), "ism points": first.get("ism points")}))
 
     def column(f) -> np.ndarray:
         return np.array([f(s, m) for s, m in rows], dtype=np.float64)
@@ -225,8 +216,9 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
         lambda s, m: sum(m.get(k, 0.0) for k in ("g-buffer", "direct light", "compose"))))
     (maps,) = _through_origin(column(lambda s, m: m["shadow_tiles"] * m["triangles"])[:, None],
                               column(lambda s, m: m.get("direct light maps", 0.0)))
-    (pool,) = _through_origin(column(lambda s, m: m["pool points"])[:, None],
-                              column(lambda s, m: m["ism points"]))
+    built = [m for _, m in rows if m["ism points"] is not None]  # the table is built once
+    pool = (sum(m["ism points"] for m in built) / sum(m["triangles"] for m in built)
+            if built else 0.0)
     return CostModel(renderer_name, float(paths), float(splat), float(texels), float(gather),
                      float(blur), float(pixel), float(maps), float(pool))
 

@@ -35,7 +35,7 @@ CHOSEN_STAGES = ("vpl generation", "ism ", "indirect light", "blur")
 """Stages (by name prefix) whose time the automatic mode's parameters set."""
 ONCE_STAGES = ("automatic parameters", "cost model calibration", "ray tracing setup",
                "ism points")
-"""Stages of pass 0 that later passes do not repeat (the BVH and the ISM point pool are kept)."""
+"""Stages of pass 0 that later passes do not repeat (the BVH and the ISM area table are kept)."""
 FARM_NOTE = ("the time mode adapts to this machine's speed; for the same frame on every "
              "machine (render farms) set auto_parameters off and pin the parameters")
 

@@ -1,5 +1,6 @@
-"""Imperfect shadow maps of one frame's batches: surface points sampled once per scene and
-VPL count, and the atlas kept between frames when the frame has a single ISM batch."""
+"""Imperfect shadow maps of one frame's batches: the area CDF their surface points are drawn
+from (on the GPU) uploaded once per geometry version, and the atlas kept between frames when the
+frame has a single ISM batch."""
 
 from __future__ import annotations
 
@@ -17,8 +18,6 @@ from .result import Stats
 from .reuse import KeptProducts, settings_key
 from .state import RenderError
 
-ISM_POINT_SUBSETS = 512  # stratified point sets sampled on the CPU (~0.4 µs a point); VPL k uses
-# set k % 512, moved within its triangles by a per-VPL random shift beyond the first 512
 ATLAS_FIELDS = ("ism_points", "ism_resolution", "pull_push_levels", "seed")
 """Settings the kept ISM atlas depends on (with the triangle positions' version)."""
 
@@ -37,18 +36,16 @@ class ImperfectShadowMapFrame:
         self.sphere, self.stats, self.keyed_batch, self.keys = sphere, stats, keyed_batch, keys
         self.triangles = geometry.positions.reshape(-1, 3, 3)
         self.empty = geometry.vertex_count == 0
-        most = max(len(b.samples) for b in batches)  # rounded up to a power of two, so that
-        subsets = min(ISM_POINT_SUBSETS, 1 << max(0, most - 1).bit_length())  # counts that
-        # vary a little from frame to frame (Incremental Instant Radiosity) keep the pool
         start = time.perf_counter()
         try:
-            sampled = ism.prepare(self.triangles, subsets, settings.ism_points, point_seed)
-        except ValueError as exc:  # the point pool exceeds the GPU's storage-buffer limit
-            raise RenderError(f"imperfect shadow maps: {exc} (lower ism_points)") from None
-        if sampled:
+            uploaded = ism.prepare(self.triangles, settings.ism_points, point_seed,
+                                   kept.versions.shape)
+        except ValueError as exc:  # the area table exceeds the GPU's storage-buffer limit
+            raise RenderError(f"imperfect shadow maps: {exc}") from None
+        if uploaded:
             stats.timings["ism points"] = time.perf_counter() - start
         else:
-            stats.skipped["ism points"] = "triangle count and point settings unchanged"
+            stats.skipped["ism points"] = "triangle positions unchanged (area table kept)"
         self.levels = min(settings.pull_push_levels, int(np.log2(settings.ism_resolution)))
         stats.counts["isms"] = sum(len(b.samples) for b in batches)
         self.atlas_key = (kept.versions.shape, *settings_key(settings, ATLAS_FIELDS))

@@ -2,10 +2,13 @@
 paraboloid depth map per VPL, splatted from a few thousand surface points and hole-filled by
 pull-push, all VPLs at once on the GPU (OpenGL 4.3 compute shaders).
 
-1. Points (``prepare``, ``sample_surface_points``): one subset of ``points_per_vpl`` points per
-   VPL, each uniform by area and stratified on its own (systematic sampling of the area CDF, a
-   shifted R2 sequence within each triangle), stored as triangle index + barycentrics so that
-   they follow moved or deformed triangles.
+1. Points (``prepare``, ``gpu_shaders/ism_points_lib.glsl``): a set of ``points_per_vpl``
+   points per atlas tile, drawn on the GPU inside the splat from hashes of (seed, tile, point
+   index), each set uniform by area and stratified on its own (systematic sampling of the
+   triangles' area CDF with a hashed offset, a hashed shift of the R2 sequence within each
+   triangle). The CPU computes and uploads only the CDF, once per geometry version
+   (O(triangles)); points are triangle index + barycentrics, so they follow moved or deformed
+   triangles.
 2. Splat (``ism_splat_comp.glsl``): each VPL's points go into its tile of an atlas of
    paraboloid maps (the hemisphere around the VPL's normal, ``gpu_shaders/ism_lib.glsl``) with
    ``imageAtomicMin`` of their distance. A point covers a square of about its projected area:
@@ -50,16 +53,17 @@ import time
 import moderngl
 import numpy as np
 
-from ..scene.surface_points import SurfacePoints, sample_surface_points
+from ..scene.surface_points import SurfacePoints, area_cdf
 from ..scene.vectors import triangle_areas, unit
 from .gl import ProgramCache, require_compute
 
-BINDING_POINTS = 20  # ISM_BINDING_POINTS in ism_splat_comp.glsl
+BINDING_CDF = 20  # ISM_BINDING_CDF in ism_points_lib.glsl
 BINDING_VERTICES = 21  # ISM_BINDING_VERTICES in ism_splat_comp.glsl
 BINDING_VPLS = 22  # ISM_BINDING_VPLS in ism_splat_comp.glsl and ism_lookup_comp.glsl
 BINDING_QUERIES = 23  # ISM_BINDING_QUERIES in ism_lookup_comp.glsl
 BINDING_RESULTS = 24  # ISM_BINDING_RESULTS in ism_lookup_comp.glsl
 BINDING_TILE_LIST = 25  # ISM_TILE_LIST of ism_tile_list_lib.glsl: tiles a partial update does
+BINDING_POINT_OUT = 26  # ISM_BINDING_POINT_OUT in ism_points_comp.glsl
 POINT_LOCAL_SIZE = 64  # local_size_x of ism_splat_comp.glsl and ism_lookup_comp.glsl
 IMAGE_LOCAL_SIZE = 8  # local_size_x and _y of ism_pull_comp.glsl and ism_push_comp.glsl
 FAR = float(np.float32(3.0e38))  # ISM_FAR in ism_lib.glsl: the depth of texels left empty
@@ -71,12 +75,6 @@ ISM_BIAS_TEXELS = 1.0  # receiver offset in texels: measured best against exact 
 
 QUERY_DTYPE = np.dtype([("world", "<f4", 3), ("vpl", "<i4"), ("normal", "<f4", 3),
                         ("pad", "<f4")])
-
-
-def pack_points(points: SurfacePoints) -> np.ndarray:
-    """The GPU layout: (n, 2) uint32 of (triangle, barycentrics as GLSL packUnorm2x16)."""
-    unorm = np.round(np.clip(points.barycentric, 0, 1) * 65535).astype(np.uint32)
-    return np.stack([points.triangle.astype(np.uint32), unorm[:, 0] | unorm[:, 1] << 16], axis=1)
 
 
 def atlas_grid(tiles: int) -> tuple[int, int]:
@@ -123,9 +121,9 @@ def _vpl_data(position: np.ndarray, normal: np.ndarray,
 class ImperfectShadowMaps:
     """Imperfect shadow maps of many VPLs at once (needs OpenGL 4.3).
 
-    ``prepare`` once per scene (the point pool), then ``render`` per frame with the current
-    triangles and VPLs. ``timings`` holds the seconds of the last render's stages (measured
-    with ``ctx.finish()``)."""
+    ``prepare`` once per geometry version (the area CDF the points are drawn from), then
+    ``render`` per frame with the current triangles and VPLs. ``timings`` holds the seconds
+    of the last render's stages (measured with ``ctx.finish()``)."""
 
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache,
                  footprint_scale: float = FOOTPRINT_SCALE,
@@ -138,9 +136,10 @@ class ImperfectShadowMaps:
         self.columns = 1
         self.resolution = 1
         self.timings: dict[str, float] = {}
-        self._pool_key: tuple | None = None
+        self._prepared: tuple | None = None  # (triangle count, version) of the uploaded CDF
+        self._has_area = False
         self._points_per_vpl = 0
-        self._subsets = 1
+        self._seed = 0
         self._triangle_count = 0
         self._buffers: dict[int, moderngl.Buffer] = {}
         self._layout: tuple | None = None  # (width, height, resolution, level resolutions)
@@ -150,34 +149,52 @@ class ImperfectShadowMaps:
         self._scene_sphere: tuple[np.ndarray, float] = (np.zeros(3), 1.0)
         self._listed = 0  # tiles of the tile list the current pull-push runs on (0: all)
 
-    # -- point pool ----------------------------------------------------------------------------
+    # -- points ------------------------------------------------------------------------------
 
-    def prepare(self, triangles: np.ndarray, vpl_count: int, points_per_vpl: int,
-                seed: int) -> bool:
-        """Sample and upload ``vpl_count`` subsets of ``points_per_vpl`` points; False when
-        skipped because the triangle count and the arguments repeat (the points follow moved
-        or deformed triangles without a new pre-process)."""
+    def prepare(self, triangles: np.ndarray, points_per_vpl: int, seed: int,
+                version: object = None) -> bool:
+        """Draw ``points_per_vpl`` points per map from ``seed`` from now on, and upload the
+        triangles' area CDF unless the triangle count and the caller's geometry ``version``
+        repeat (the points follow moved or deformed triangles meanwhile); True when it was
+        uploaded."""
+        self._points_per_vpl = points_per_vpl
+        self._seed = seed & 0xFFFFFFFF
         count = len(np.asarray(triangles).reshape(-1, 3, 3))
-        key = (count, vpl_count, points_per_vpl, seed)
-        if key == self._pool_key:
+        if (count, version) == self._prepared:
             return False
-        subsets = max(1, vpl_count)
-        packed = pack_points(sample_surface_points(triangles, points_per_vpl, seed, subsets))
+        cdf = area_cdf(triangles)
         limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
-        if packed.nbytes > limit:
-            raise ValueError(f"{len(packed)} ISM points need {packed.nbytes >> 20} MiB of "
-                             f"storage buffer; this GPU allows {limit >> 20} MiB")
-        self._write(BINDING_POINTS, packed if len(packed) else np.zeros((1, 2), np.uint32))
-        self._points_per_vpl = points_per_vpl if len(packed) else 0
-        self._subsets = subsets
+        if cdf is not None and cdf.nbytes > limit:
+            raise ValueError(f"the area table of {count} triangles needs {cdf.nbytes >> 20} "
+                             f"MiB of storage buffer; this GPU allows {limit >> 20} MiB")
+        self._write(BINDING_CDF, cdf if cdf is not None else np.ones(1, np.float32))
+        self._has_area = cdf is not None
         self._triangle_count = count
-        self._pool_key = key
+        self._prepared = (count, version)
         return True
 
     @property
-    def pool_key(self) -> tuple | None:
-        """(triangles, subsets, points per VPL, seed) of the sampled point pool, or None."""
-        return self._pool_key
+    def prepared_triangles(self) -> int | None:
+        """The triangle count whose area CDF is uploaded, or None before ``prepare``."""
+        return None if self._prepared is None else self._prepared[0]
+
+    def points(self, first_set: int, sets: int) -> SurfacePoints:
+        """The points the splat draws for maps (sets) ``first_set`` .. ``first_set + sets - 1``
+        of the prepared triangles, read back from the GPU (for tests and benchmarks)."""
+        if self._prepared is None:
+            raise RuntimeError("call prepare() before points()")
+        count = self._points_per_vpl * sets if self._has_area else 0
+        if count == 0:
+            return SurfacePoints(np.zeros(0, np.int32), np.zeros((0, 2), np.float32))
+        out = self._buffer(BINDING_POINT_OUT, 16 * count)
+        out.bind_to_storage_buffer(BINDING_POINT_OUT)
+        shader = self.programs.compute("ism_points_comp.glsl")
+        self._point_uniforms(shader)
+        shader["u_first_set"] = first_set
+        shader.run(-(-self._points_per_vpl // POINT_LOCAL_SIZE), sets)
+        self.ctx.memory_barrier(moderngl.BUFFER_UPDATE_BARRIER_BIT)
+        data = np.frombuffer(out.read(16 * count), np.uint32).reshape(-1, 4)
+        return SurfacePoints(data[:, 0].astype(np.int32), data[:, 1:3].view(np.float32).copy())
 
     # -- per frame -----------------------------------------------------------------------------
 
@@ -186,8 +203,7 @@ class ImperfectShadowMaps:
                scene_sphere: tuple[np.ndarray, float] = (np.zeros(3), 1.0),
                tiles: np.ndarray | None = None, tile_count: int = 0) -> moderngl.Texture:
         """The r32f depth atlas of the VPLs (n, 3) with ``resolution``² tiles (the map in tile
-        k uses point subset k % vpl_count of ``prepare``, shifted within its triangles by a
-        per-tile random offset when k >= vpl_count). ``pull_push_levels`` = 0 keeps the raw
+        k splats point set k, see ``points``). ``pull_push_levels`` = 0 keeps the raw
         splats. Where ``directional`` is true the "VPL" is a direction of travel
         (``vpl_normal``) and its map is orthographic over ``scene_sphere`` (centre, radius).
 
@@ -195,7 +211,7 @@ class ImperfectShadowMaps:
         of ``tile_count`` tiles and every other tile keeps what an earlier render with the same
         layout, resolution and levels left there."""
         self._scene_sphere = scene_sphere
-        if self._pool_key is None:
+        if self._prepared is None:
             raise RuntimeError("call prepare() before render()")
         tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
         if len(tris) != self._triangle_count:
@@ -214,7 +230,7 @@ class ImperfectShadowMaps:
                         else np.zeros(1, np.int32))
         self.ctx.finish()
         uploaded = time.perf_counter()
-        if self._points_per_vpl and vpl_count:
+        if self._has_area and self._points_per_vpl and vpl_count:
             self._run_splat(vpl_count, triangle_areas(tris).sum())
         self.ctx.finish()
         splatted = time.perf_counter()
@@ -284,7 +300,7 @@ class ImperfectShadowMaps:
             buffer.release()
         self._buffers.clear()
         self._release_images()
-        self._pool_key = None
+        self._prepared = None
 
     # -- internals -----------------------------------------------------------------------------
 
@@ -337,12 +353,11 @@ class ImperfectShadowMaps:
         self._layout = None
 
     def _run_splat(self, vpl_count: int, total_area: float) -> None:
-        for binding in (BINDING_POINTS, BINDING_VERTICES, BINDING_VPLS):
+        for binding in (BINDING_VERTICES, BINDING_VPLS):
             self._buffers[binding].bind_to_storage_buffer(binding)
         shader = self.programs.compute("ism_splat_comp.glsl")
         self._splat.bind_to_image(0, read=True, write=True)
-        shader["u_points_per_vpl"] = self._points_per_vpl
-        shader["u_subsets"] = self._subsets
+        self._point_uniforms(shader)
         shader["u_columns"] = self.columns
         shader["u_resolution"] = self.resolution
         shader["u_point_area"] = total_area / self._points_per_vpl
@@ -353,6 +368,13 @@ class ImperfectShadowMaps:
         shader["u_scene_radius"] = float(radius)
         shader.run(-(-self._points_per_vpl // POINT_LOCAL_SIZE), vpl_count)
         self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+    def _point_uniforms(self, shader: moderngl.ComputeShader) -> None:
+        """Bind the area CDF and set the uniforms of ism_points_lib.glsl."""
+        self._buffers[BINDING_CDF].bind_to_storage_buffer(BINDING_CDF)
+        shader["u_points_per_vpl"] = self._points_per_vpl
+        shader["u_triangle_count"] = self._triangle_count
+        shader["u_point_seed"] = self._seed
 
     def _run_pull_push(self, levels: int, listed: int = 0) -> None:
         """Pull into each coarser level, push back down to each finer level in place, and
