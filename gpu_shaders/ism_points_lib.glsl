@@ -10,10 +10,13 @@
 #define ISM_POINTS_LIB_GLSL
 
 #define ISM_BINDING_CDF 20
+#define ISM_BINDING_GUIDE 27
 
 // Cumulative triangle area / total area (float), the last exactly 1; zero-area triangles
 // repeat the previous value and are never drawn.
 layout(std430, binding = ISM_BINDING_CDF) readonly buffer IsmCdf { float ism_cdf[]; };
+// u_triangle_count + 1 entries: entry g is the first triangle whose CDF exceeds g / count.
+layout(std430, binding = ISM_BINDING_GUIDE) readonly buffer IsmGuide { uint ism_guide[]; };
 
 uniform int u_points_per_vpl;
 uniform int u_triangle_count;
@@ -44,8 +47,11 @@ void ism_surface_point(int set, int i, out int triangle, out vec2 bary) {
     uint key = ism_hash(u_point_seed ^ ism_hash(uint(set)));
     float offset = ism_unit(key);
     float x = ism_stratum(i, offset);
-    int lo = 0;  // the first triangle whose CDF exceeds x
-    int hi = u_triangle_count - 1;
+    // The first triangle whose CDF exceeds x, between the guide entries around x: one cell
+    // more on each side, since the float product may miss the cell by one.
+    int cell = min(int(x * float(u_triangle_count)), u_triangle_count - 1);
+    int lo = int(ism_guide[max(cell - 1, 0)]);
+    int hi = min(int(ism_guide[min(cell + 2, u_triangle_count)]), u_triangle_count - 1);
     while (lo < hi) {
         int mid = (lo + hi) >> 1;
         if (ism_cdf[mid] > x) hi = mid; else lo = mid + 1;

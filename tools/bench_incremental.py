@@ -70,7 +70,7 @@ def main() -> None:
     images: dict[str, list[np.ndarray]] = {m: [] for m in modes}
     seconds: dict[str, list[float]] = {m: [] for m in modes}
     maps: dict[str, list[int]] = {m: [] for m in modes}
-    for frame in range(args.frames + 1):  # frame 0 warms up (shaders, point pools)
+    for frame in range(args.frames + 1):  # frame 0 warms up (shaders, ISM area tables)
         current = moving_light(scene, frame, args.frames, args.circle * scene_radius)
         for mode, (renderer, settings) in modes.items():
             if mode == "independent":

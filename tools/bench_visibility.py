@@ -5,8 +5,9 @@ twice in one process — ``visibility=ism`` and ``visibility=classic``, the same
 the time of the visibility stage of each and their ratio, the time of every stage of the ISM
 frame, and the memory of the ISM atlas. Each timed frame starts with ``forget_frames()``, so it
 renders every map afresh instead of reusing the previous frame's (a timed stage that reports
-itself skipped or ~0 s stops the benchmark with an error); the ISM point pool, sampled once per
-scene, is timed in the warm-up frame and reported beside the ratio.
+itself skipped or ~0 s stops the benchmark with an error); the ISM area table the points are
+drawn from on the GPU, built once per geometry version, is timed in the warm-up frame and
+reported beside the ratio.
 Run: ``.venv/bin/python tools/bench_visibility.py``.
 """
 
@@ -75,7 +76,7 @@ def main() -> None:
                                               vpl_count=256, interleave=1))
     paths = max(1, round(256 * args.vpls / max(1, probe.counts["vpls"])))
     settings = replace(base, vpl_count=paths)
-    _, warm = renderer.render(scene, replace(settings, visibility="ism"))  # shaders, point pool
+    _, warm = renderer.render(scene, replace(settings, visibility="ism"))  # shaders, area table
     renderer.forget_frames()  # no VPLs, ISM atlas or shadow atlases kept from the warm-up
     _, ism = renderer.render(scene, replace(settings, visibility="ism"))
     check_full_work(ism, "ISM")
@@ -94,8 +95,8 @@ def main() -> None:
     print(f"visibility stage: ISM {ism_maps:.3f} s ({settings.ism_points} points/VPL, "
           f"{settings.ism_resolution}² maps, {settings.pull_push_levels} pull-push levels) vs "
           f"classic {classic_maps:.3f} s ({settings.vpl_shadow_resolution}² cube maps): "
-          f"{classic_maps / ism_maps:.1f}x faster; with the ISM point pool (sampled once per "
-          f"scene, {points:.3f} s in the warm-up frame): "
+          f"{classic_maps / ism_maps:.1f}x faster; with the ISM area table (built once per "
+          f"geometry version, {points:.3f} s in the warm-up frame): "
           f"{classic_maps / (ism_maps + points):.1f}x")
     print("ISM frame stages:")
     for stage, seconds in ism.timings.items():

@@ -321,9 +321,8 @@ class Settings:
         "less exact)", applies=_SHADOW_MAPS)
     ism_points: int = setting(
         8192, "Points per VPL", "visibility",
-        "Surface points splatted into each imperfect shadow map (512 stratified sets; VPL k "
-        "uses set k mod 512, shifted within its triangles beyond the first 512, so every VPL "
-        "has its own points)",
+        "Surface points splatted into each imperfect shadow map (drawn on the GPU from the "
+        "seed: every VPL its own set, uniform by area and stratified over the surfaces)",
         low=16, high=1 << 16, soft_high=32768, applies=_ISM_USED)
     ism_resolution: int = setting(
         128, "ISM Resolution", "visibility",

@@ -358,6 +358,7 @@ def test_render_checks_its_inputs(programs):
 
 @pytest.mark.parametrize("file, name, value", [
     ("ism_points_lib.glsl", "ISM_BINDING_CDF", ism.BINDING_CDF),
+    ("ism_points_lib.glsl", "ISM_BINDING_GUIDE", ism.BINDING_GUIDE),
     ("ism_points_comp.glsl", "ISM_BINDING_POINT_OUT", ism.BINDING_POINT_OUT),
     ("ism_points_comp.glsl", "local_size_x =", ism.POINT_LOCAL_SIZE),
     ("ism_splat_comp.glsl", "ISM_BINDING_VERTICES", ism.BINDING_VERTICES),

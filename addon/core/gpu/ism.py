@@ -53,7 +53,7 @@ import time
 import moderngl
 import numpy as np
 
-from ..scene.surface_points import SurfacePoints, area_cdf
+from ..scene.surface_points import SurfacePoints, area_cdf, cdf_guide
 from ..scene.vectors import triangle_areas, unit
 from .gl import ProgramCache, require_compute
 
@@ -64,6 +64,7 @@ BINDING_QUERIES = 23  # ISM_BINDING_QUERIES in ism_lookup_comp.glsl
 BINDING_RESULTS = 24  # ISM_BINDING_RESULTS in ism_lookup_comp.glsl
 BINDING_TILE_LIST = 25  # ISM_TILE_LIST of ism_tile_list_lib.glsl: tiles a partial update does
 BINDING_POINT_OUT = 26  # ISM_BINDING_POINT_OUT in ism_points_comp.glsl
+BINDING_GUIDE = 27  # ISM_BINDING_GUIDE in ism_points_lib.glsl
 POINT_LOCAL_SIZE = 64  # local_size_x of ism_splat_comp.glsl and ism_lookup_comp.glsl
 IMAGE_LOCAL_SIZE = 8  # local_size_x and _y of ism_pull_comp.glsl and ism_push_comp.glsl
 FAR = float(np.float32(3.0e38))  # ISM_FAR in ism_lib.glsl: the depth of texels left empty
@@ -164,10 +165,11 @@ class ImperfectShadowMaps:
             return False
         cdf = area_cdf(triangles)
         limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
-        if cdf is not None and cdf.nbytes > limit:
+        if cdf is not None and cdf.nbytes + 4 > limit:
             raise ValueError(f"the area table of {count} triangles needs {cdf.nbytes >> 20} "
                              f"MiB of storage buffer; this GPU allows {limit >> 20} MiB")
         self._write(BINDING_CDF, cdf if cdf is not None else np.ones(1, np.float32))
+        self._write(BINDING_GUIDE, cdf_guide(cdf) if cdf is not None else np.zeros(2, np.uint32))
         self._has_area = cdf is not None
         self._triangle_count = count
         self._prepared = (count, version)
@@ -371,7 +373,8 @@ class ImperfectShadowMaps:
 
     def _point_uniforms(self, shader: moderngl.ComputeShader) -> None:
         """Bind the area CDF and set the uniforms of ism_points_lib.glsl."""
-        self._buffers[BINDING_CDF].bind_to_storage_buffer(BINDING_CDF)
+        for binding in (BINDING_CDF, BINDING_GUIDE):
+            self._buffers[binding].bind_to_storage_buffer(binding)
         shader["u_points_per_vpl"] = self._points_per_vpl
         shader["u_triangle_count"] = self._triangle_count
         shader["u_point_seed"] = self._seed

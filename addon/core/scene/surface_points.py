@@ -32,3 +32,11 @@ def area_cdf(triangles: np.ndarray) -> np.ndarray | None:
     cdf = (cumulative / cumulative[-1]).astype(np.float32)
     cdf[-1] = 1.0
     return cdf
+
+
+def cdf_guide(cdf: np.ndarray) -> np.ndarray:
+    """(T + 1,) uint32 guide table of a (T,) CDF: entry g is the first triangle whose CDF
+    exceeds g / T, so a search for x needs only the triangles between the entries around
+    x · T (the cutpoint method: a few steps on average, not log2 T)."""
+    cells = np.arange(len(cdf) + 1, dtype=np.float64) / len(cdf)
+    return np.searchsorted(cdf.astype(np.float64), cells, side="right").astype(np.uint32)
