@@ -38,7 +38,8 @@ SAVED = re.compile(r"^Saved .* \(([\d.]+) s\)$", re.MULTILINE)
 
 def render(tree: Path, scene: Path, size: str, overrides: list[str], output: Path
            ) -> dict[str, float]:
-    """Render one frame with ``tree``'s code: its stage timings and ``frame`` (seconds)."""
+    """Render one frame with ``tree``'s code: its stage timings and ``frame`` (seconds), and
+    its counts (``count vpls`` ...)."""
     command = [sys.executable, "-m", "addon", "render", str(scene.resolve()), "-r", size,
                "-o", str(output), *(a for o in overrides for a in ("--set", o))]
     env = {**os.environ, "PYTHONPATH": str(tree)}
@@ -46,8 +47,9 @@ def render(tree: Path, scene: Path, size: str, overrides: list[str], output: Pat
     if done.returncode:
         sys.exit(f"{tree}: {' '.join(command)} failed:\n{done.stderr[-2000:]}")
     line = next(s for s in done.stdout.splitlines() if s.startswith("stages: "))
-    ran = line.split(" | ran: ")[1].split(" | skipped: ")[0]
-    timings = {}
+    counts, ran = line.removeprefix("stages: ").split(" | skipped: ")[0].split(" | ran: ")
+    timings = {f"count {k}": float(v) for k, _, v in
+               (item.rpartition(" ") for item in counts.split(", ")) if k}
     for item in ran.split(", "):
         match = STAGE.match(item)
         if match:
@@ -94,11 +96,12 @@ def main() -> None:
                    out / "reference.exr")
             reference = read_exr(out / "reference.exr")
             print(f"\n{scene.name} at {args.size}, {' '.join(args.set) or 'defaults'}: median "
-                  f"of {args.repeat} (ms)")
+                  f"of {args.repeat} (ms; counts as counted)")
             stages = list(dict.fromkeys(s for name in trees for r in runs[name] for s in r))
             print(f"{'stage':<36}{'base':>10}{'head':>10}")
             for stage in stages:
-                cells = [statistics.median(r.get(stage, 0.0) for r in runs[name]) * 1000
+                scale = 1 if stage.startswith("count ") else 1000
+                cells = [statistics.median(r.get(stage, 0.0) for r in runs[name]) * scale
                          for name in trees]
                 print(f"{stage:<36}{cells[0]:>10.0f}{cells[1]:>10.0f}")
             errors = [relative_rmse(read_exr(out / f"{name}0.exr"), reference)
