@@ -5,12 +5,16 @@ For each sample scene it renders a command-line frame with default settings in e
 each frame does all of its work), alternating old and new, and prints the median of
 ``--repeat`` per stage and in total; then, per tree, the viewport's first-frame latencies
 (this tree's tools/bench_viewport.py on each tree's add-on) and the 10k-instance export +
-upload against Cycles' sync (tools/bench_export.py). The older commit is checked out with
-``git worktree`` in a temporary folder (removed at the end); both trees run with this
-interpreter.
+upload against Cycles' sync (tools/bench_export.py). The ``error`` part renders each scene
+twice per tree and once with ``--reference`` overrides in this tree (default
+``visibility=exact``: the same VPLs with ray-traced visibility) and prints each tree's
+relative RMSE against it and whether its two frames are bit-identical. ``--set`` overrides
+apply to every frame. The older commit is checked out with ``git worktree`` in a temporary
+folder (removed at the end); both trees run with this interpreter.
 
     .venv/bin/python tools/bench_versions.py --old babc501 [--scenes interior cornell_box]
-        [--size 640x360] [--repeat 3] [--parts frame viewport export]
+        [--size 640x360] [--repeat 3] [--parts frame viewport export error]
+        [--set NAME=VALUE] [--reference NAME=VALUE]
 """
 
 from __future__ import annotations
@@ -24,6 +28,8 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 STAGE = re.compile(r"([a-z_()\- ]+?) (\d+) ms")
@@ -53,10 +59,11 @@ def run(tree: Path, *args: str, timeout: float = 1800) -> str:
     return result.stdout
 
 
-def frame_timings(tree: Path, scene: str, size: str, out: Path) -> dict[str, float]:
+def frame_timings(tree: Path, scene: str, size: str, out: Path,
+                  overrides: tuple[str, ...] = ()) -> dict[str, float]:
     """Stage times of one CLI frame (seconds, from its ``stages:`` line) and its ``total``."""
     stdout = run(tree, "-m", "addon", "render", str(tree / "sample_scenes" / f"{scene}.blend"),
-                 "-r", size, "-o", str(out))
+                 "-r", size, "-o", str(out), *(a for o in overrides for a in ("--set", o)))
     line = next(x for x in stdout.splitlines() if x.startswith("stages:"))
     ran = line.split("| ran:", 1)[1].split("|", 1)[0]
     timings = {name.strip(): int(ms) / 1000 for name, ms in STAGE.findall(ran)}
@@ -64,16 +71,18 @@ def frame_timings(tree: Path, scene: str, size: str, out: Path) -> dict[str, flo
     return timings
 
 
-def frame_table(trees: dict[str, Path], scene: str, size: str, repeat: int) -> None:
+def frame_table(trees: dict[str, Path], scene: str, size: str, repeat: int,
+                overrides: tuple[str, ...] = ()) -> None:
     samples: dict[str, list[dict[str, float]]] = {label: [] for label in trees}
     with tempfile.TemporaryDirectory() as folder:
         for i in range(repeat):
             for label, tree in trees.items():  # alternating, so load drifts hit both alike
                 samples[label].append(frame_timings(tree, scene, size,
-                                                    Path(folder) / f"{label}{i}.png"))
+                                                    Path(folder) / f"{label}{i}.png", overrides))
     stages = list(dict.fromkeys(s for label in trees for t in samples[label] for s in t))
     stages.remove("total")
-    print(f"\n{scene}, {size}, defaults: median of {repeat} command-line frames per tree "
+    print(f"\n{scene}, {size}, {' '.join(overrides) or 'defaults'}: median of {repeat} "
+          "command-line frames per tree "
           "(seconds; each frame its own process)")
     print("| stage | " + " | ".join(trees) + " | new / old |")
     print("|---|" + "---|" * (len(trees) + 1))
@@ -83,6 +92,42 @@ def frame_table(trees: dict[str, Path], scene: str, size: str, repeat: int) -> N
         ratio = f"{medians[1] / medians[0]:.2f}" if medians[0] > 0 else "–"
         cells = " | ".join(f"{m:.3f}" if m else "–" for m in medians)
         print(f"| {'**total**' if stage == 'total' else stage} | {cells} | {ratio} |")
+
+
+def read_exr(path: Path) -> np.ndarray:
+    """Linear RGB of an EXR the renderer wrote."""
+    import bpy
+
+    image = bpy.data.images.load(str(path))
+    try:
+        pixels = np.empty(image.size[0] * image.size[1] * image.channels, np.float32)
+        image.pixels.foreach_get(pixels)
+        return pixels.reshape(-1, image.channels)[:, :3].copy()
+    finally:
+        bpy.data.images.remove(image)
+
+
+def error_table(trees: dict[str, Path], scene: str, size: str, overrides: tuple[str, ...],
+                reference: tuple[str, ...]) -> None:
+    sys.path.insert(0, str(REPO))
+    from devtools.metrics import relative_rmse
+
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder)
+        for i in range(2):
+            for k, tree in enumerate(trees.values()):
+                frame_timings(tree, scene, size, out / f"{k}_{i}.exr", overrides)
+        frame_timings(REPO, scene, size, out / "reference.exr", (*overrides, *reference))
+        exact = read_exr(out / "reference.exr")
+        print(f"\n{scene}, {size}, {' '.join(overrides) or 'defaults'}: relative RMSE against "
+              f"{' '.join(reference)} (this tree), and whether two processes' frames are "
+              "bit-identical")
+        print("| tree | relative RMSE | identical |")
+        print("|---|---|---|")
+        for k, label in enumerate(trees):
+            first, second = (read_exr(out / f"{k}_{i}.exr") for i in range(2))
+            print(f"| {label} | {relative_rmse(first, exact):.4f} | "
+                  f"{'yes' if np.array_equal(first, second) else 'no'} |")
 
 
 def viewport_table(trees: dict[str, Path], scenes: list[str], width: int) -> None:
@@ -123,17 +168,25 @@ def main() -> None:
     parser.add_argument("--size", default="640x360", help="frame size, WIDTHxHEIGHT")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--parts", nargs="+", default=["frame", "viewport", "export"],
-                        choices=["frame", "viewport", "export"])
+                        choices=["frame", "viewport", "export", "error"])
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="a setting for every frame of the frame and error parts")
+    parser.add_argument("--reference", action="append", metavar="NAME=VALUE",
+                        help="settings of the error part's reference (visibility=exact)")
     args = parser.parse_args()
+    overrides, reference = tuple(args.set), tuple(args.reference or ["visibility=exact"])
     with old_tree(args.old) as old:
         trees = {f"old ({args.old})": old, "new (this tree)": REPO}
         if "frame" in args.parts:
             for scene in args.scenes:
-                frame_table(trees, scene, args.size, args.repeat)
+                frame_table(trees, scene, args.size, args.repeat, overrides)
         if "viewport" in args.parts:
             viewport_table(trees, args.scenes, int(args.size.split("x")[0]))
         if "export" in args.parts:
             export_table(trees, args.repeat)
+        if "error" in args.parts:
+            for scene in args.scenes:
+                error_table(trees, scene, args.size, overrides, reference)
 
 
 if __name__ == "__main__":
