@@ -179,13 +179,17 @@ def test_baked_materials_match_cycles(blender, tmp_path, kind):
 
 
 def datablock_names(bpy) -> dict[str, set[str]]:
-    """Every datablock's name, by collection, and each mesh's UV maps and material users."""
+    """Every datablock's name and the datablocks that use it, by collection, and each mesh's
+    UV maps and material nodes. Users come from ``bpy.data.user_map()``: Blender 4.2's raw
+    user count of an image stays one too high after a bake with no user behind it."""
     names = {}
+    users = bpy.data.user_map()
     for attribute in dir(bpy.data):
         collection = getattr(bpy.data, attribute)
         if isinstance(collection, bpy.types.bpy_prop_collection) and attribute != "window_managers":
             try:
-                names[attribute] = {(item.name_full, item.users) for item in collection}
+                names[attribute] = {(item.name_full, frozenset(
+                    user.name_full for user in users.get(item, ()))) for item in collection}
             except (AttributeError, TypeError):
                 continue
     names["uv maps"] = {(m.name, layer.name) for m in bpy.data.meshes for layer in m.uv_layers}
