@@ -5,8 +5,8 @@
 // distance, whose outgoing radiance (this batch's light, gathered at y) arrives with weight
 // 1 - d²/clamp².
 // With GLOSSY a second target gets the glossy radiance towards the camera, summed over the
-// same samples with the pixel's lobe from the g-buffer (VPLs are still diffuse emitters; bias
-// compensation adds no glossy light).
+// same samples with the pixel's lobe from the g-buffer (bias compensation adds no glossy
+// light). With VPL_GLOSSY, VPLs at glossy surfaces also emit through their lobe (lights_lib).
 #include "lights_lib.glsl"
 #include "interleave_lib.glsl"
 #ifdef GLOSSY

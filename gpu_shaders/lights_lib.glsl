@@ -1,7 +1,13 @@
 // The light-sample table (a RGBA32F texture, 5 texels per sample) and the shadow-map lookup.
+// With VPL_GLOSSY the table has 9 texels per sample: texel 4's w flags a VPL at a glossy
+// surface, whose texels 5-8 are its GGX lobe scaled by the incident flux (principled_lib's
+// lobe_a/b/c) and the direction its light came from (transport/vpl.py's VPLs.glossy).
 #ifndef LIGHTS_LIB_GLSL
 #define LIGHTS_LIB_GLSL
 #include "common_lib.glsl"
+#ifdef VPL_GLOSSY
+#include "principled_lib.glsl"
+#endif
 
 struct LightSample {
     vec3 position;      // world position; for directional samples unused
@@ -17,6 +23,12 @@ struct LightSample {
     int generation;     // bounces the light has made: 0 for lights, k for k-th bounce VPLs
     float spread_tan;   // area-light spread: tan of the half angle, 0 for none
     float spread_norm;  // Cycles' normalisation of the spread (keeps the light's power)
+#ifdef VPL_GLOSSY
+    vec4 lobe_a;        // flux x A, alpha (0: no glossy emission)
+    vec4 lobe_b;        // flux x B, eta
+    vec4 lobe_c;        // flux x C
+    vec3 towards_light; // where the VPL's light came from
+#endif
 };
 
 uniform sampler2D u_light_table;
@@ -27,8 +39,20 @@ LightSample light_sample(int index) {
     vec4 t2 = texelFetch(u_light_table, ivec2(2, index), 0);
     vec4 t3 = texelFetch(u_light_table, ivec2(3, index), 0);
     vec4 t4 = texelFetch(u_light_table, ivec2(4, index), 0);
+#ifdef VPL_GLOSSY
+    vec4 a = vec4(0.0), b = vec4(0.0), c = vec4(0.0), d = vec4(0.0);
+    if (t4.w > 0.0) {
+        a = texelFetch(u_light_table, ivec2(5, index), 0);
+        b = texelFetch(u_light_table, ivec2(6, index), 0);
+        c = texelFetch(u_light_table, ivec2(7, index), 0);
+        d = texelFetch(u_light_table, ivec2(8, index), 0);
+    }
+    return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
+                       t3.w, int(t4.x), t4.y, t4.z, a, b, c, d.xyz);
+#else
     return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
                        t3.w, int(t4.x), t4.y, t4.z);
+#endif
 }
 
 // Cycles' spot mask: smoothstep of the cosine past the cone edge, scaled by the blend.
@@ -49,12 +73,22 @@ float spread(LightSample s, vec3 from_light) {
     return max((s.spread_tan - tan_theta) * s.spread_norm, 0.0);
 }
 
-// Radiant intensity (W/sr) of a non-directional sample towards a unit direction.
+// Radiant intensity (W/sr) of a non-directional sample towards a unit direction; a glossy
+// VPL adds its light reflected by its lobe, flux x f_glossy(towards_light, from_light) x cos.
 vec3 emitted_intensity(LightSample s, vec3 from_light) {
     float falloff = 1.0;
     if (s.kind == KIND_COSINE) falloff = max(dot(from_light, s.axis), 0.0) * spread(s, from_light);
     else if (s.kind == KIND_COSINE2) falloff = abs(dot(from_light, s.axis));
+#ifdef VPL_GLOSSY
+    vec3 glossy = vec3(0.0);
+    if (s.lobe_a.w > 0.0) {
+        glossy = glossy_brdf(s.lobe_a, s.lobe_b, s.lobe_c, s.axis, from_light, s.towards_light)
+                 * max(dot(from_light, s.axis), 0.0);
+    }
+    return s.intensity * falloff * spot_mask(s, from_light) + glossy;
+#else
     return s.intensity * falloff * spot_mask(s, from_light);
+#endif
 }
 
 uniform sampler2D u_shadow_atlas;

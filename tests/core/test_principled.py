@@ -83,3 +83,55 @@ def test_path_albedo_leaves_the_material_table_alone():
     path = geometry.albedo[0]
     assert geometry.materials[0, 0:3] == pytest.approx([0.9, 0.6, 0.3])
     assert (path > 0.3).all() and (path <= 1.0).all()
+
+
+def glossy_brdf(texels: np.ndarray, normal: np.ndarray, view: np.ndarray,
+                light: np.ndarray) -> np.ndarray:
+    """principled_lib.glsl's glossy_brdf for one lobe's texels (3, 4), views (k, 3), one light
+    direction: F D G2 / (4 cos_v cos_l), (k, 3)."""
+    cos_v, cos_l = view @ normal, float(light @ normal)
+    h = view + light
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    cos_vh, cos_nh = np.clip(h @ light, 0, 1), np.clip(h @ normal, 0, 1)
+    alpha2 = texels[0, 3] ** 2
+    d = alpha2 / (np.pi * (1 + (alpha2 - 1) * cos_nh**2) ** 2)
+
+    def lam(c):
+        return 0.5 * (np.sqrt(1 + alpha2 * np.maximum(1 / np.maximum(c * c, 1e-12) - 1, 0)) - 1)
+    g2 = 1 / (1 + lam(cos_v) + lam(cos_l))
+    eta = texels[1, 3]
+    f0 = principled.f0_from_ior(eta)
+    s_eta = (principled.fresnel_dielectric(cos_vh, eta) - f0) / (1 - f0) if eta != 1 else 0 * d
+    f = texels[0, :3] + texels[1, :3] * s_eta[:, None] \
+        + texels[2, :3] * ((1 - cos_vh) ** 5)[:, None]
+    return np.where((cos_v > 0)[:, None], f * (d * g2 / (4 * np.maximum(cos_v, 1e-12)
+                                                           * cos_l))[:, None], 0.0)
+
+
+@pytest.mark.parametrize("rough, metallic, mu", [(0.5, 0.0, 0.8), (0.3, 0.0, 0.4),
+                                                 (0.4, 1.0, 0.6), (0.7, 0.5, 0.25)])
+def test_vpl_glossy_emission_carries_the_glossy_albedo(rough, metallic, mu):
+    """A VPL's glossy emission (lobe_texels at the incoming cosine, reflected towards every
+    outgoing direction: f_glossy cos) integrates to the glossy albedo its path continuation
+    carries (layer_weights' GlossCol at the same cosine), so light reflected glossily at a
+    VPL is counted once, with the right power."""
+    base = np.array([[0.9, 0.6, 0.3]])
+    row = principled.specular_row(rough, metallic, 1.5, 0.5, (1, 1, 1))
+    texels = principled.lobe_texels(base, row, np.array([mu]))[0]
+    _, gloss = principled.layer_weights(base, *principled.specular_parameters(row),
+                                        np.array([mu]))
+    n = 800
+    theta = (np.arange(n) + 0.5) / n * np.pi / 2
+    phi = (np.arange(2 * n) + 0.5) / (2 * n) * 2 * np.pi
+    t, p = (x.ravel() for x in np.meshgrid(theta, phi, indexing="ij"))
+    out = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1)
+    light = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
+    f = glossy_brdf(texels, np.array([0.0, 0.0, 1.0]), out, light)
+    emitted = (f * (np.cos(t) * np.sin(t))[:, None]).sum(0) * (np.pi / 2 / n) * (np.pi / n)
+    print(f"rough {rough} metallic {metallic} mu {mu}: emitted {emitted}, GlossCol {gloss[0]}")
+    assert emitted == pytest.approx(gloss[0], rel=0.01)
+
+
+def test_lambert_rows_have_no_glossy_lobe():
+    lambert = principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1))
+    assert not principled.lobe_texels(np.ones((3, 3)), lambert, np.full(3, 0.5)).any()

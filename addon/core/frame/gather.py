@@ -97,6 +97,8 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         visibility = light_pass.visibility
         defines: dict[str, object] = dict(visibility.defines)
         uniforms: dict[str, object] = {}
+        if table.shape[1] > 5:  # some VPLs reflect glossily (LightSamples.table)
+            defines.update(VPL_GLOSSY=1)
         if gbuffer.glossy:
             defines.update(GLOSSY=1)
             for unit, name in zip(LOBE_UNITS, GLOSSY_LAYERS, strict=True):

@@ -145,6 +145,8 @@ def reaches_bounds(samples: LightSamples, bounds: Bounds | None) -> np.ndarray:
         return np.zeros(n, bool)
     lo, hi = bounds
     reach = np.any(samples.intensity > 0, axis=1)
+    if samples.glossy is not None:
+        reach |= samples.glossy[:, 0, 3] > 0
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                         for z in (lo[2], hi[2])])
     spot = (samples.spot_cos > NO_SPOT) & (samples.kind != KIND_DIRECTIONAL)

@@ -136,6 +136,20 @@ class WorldGeometry:
             rough[group] = params[0]
         return diffuse, gloss, rough
 
+    def lobe_texels(self, triangle: np.ndarray, position: np.ndarray,
+                    mu: np.ndarray) -> np.ndarray:
+        """The glossy lobes (m, 3, 4) at points on triangles for light arriving at cosine
+        ``mu`` (m,) (principled.lobe_texels; zero for materials without one)."""
+        out = np.zeros((len(triangle), principled.LOBE_TEXELS, 4))
+        material = self.triangle_material[triangle]
+        for row in np.unique(material):
+            params = self.materials[row, SPECULAR:]
+            if params[7] > 0:
+                group = np.flatnonzero(material == row)
+                out[group] = principled.lobe_texels(
+                    self.base_at(triangle[group], position[group]), params, mu[group])
+        return out
+
     def base_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
         """Base colour (m, 3) at points on triangles: the material's, or the texture sampled
         at the interpolated UV (with its interpolation and extension), capped like base

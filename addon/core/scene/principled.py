@@ -295,3 +295,32 @@ def diffuse_average(row: np.ndarray) -> float:
     mu, weight = 0.5 * (x + 1.0), 0.5 * w * (x + 1.0)
     diffuse, _ = layer_weights(np.zeros((len(mu), 3)), *specular_parameters(row), mu)
     return float((diffuse * weight).sum())
+
+
+LOBE_TEXELS = 3  # (A rgb, alpha), (B rgb, eta), (C rgb, 0): principled_lib.glsl's lobe_a/b/c
+
+
+def lobe_texels(base: np.ndarray, row: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """The glossy lobe's texels (n, 3, 4) of base colours (n, 3) at cosines ``mu`` (n,), as
+    principled_layers in principled_lib.glsl computes them for a pixel (glossy_brdf reads
+    them); all zero for a row without a glossy lobe."""
+    rough, metallic, eta, f0, s_avg = specular_parameters(row)
+    out = np.zeros((len(mu), LOBE_TEXELS, 4))
+    if row[7] <= 0:
+        return out
+    z = np.sqrt(np.abs((eta - 1.0) / (eta + 1.0)))
+    e, e_avg, _, _ = (x[:, None] for x in lookup(np.full(len(mu), rough),
+                                                  np.clip(mu, 1e-3, 1.0), np.full(len(mu), z)))
+    e = np.maximum(e, 1e-4)
+    if eta != 1.0:
+        k_d = (1.0 - metallic) * _darkening(np.broadcast_to(f0, (len(mu), 3)), s_avg, e,
+                                             e_avg) / e
+        out[:, 0, :3] += k_d * f0
+        out[:, 1, :3] = k_d * (1.0 - f0)
+    if metallic > 0:
+        metal_f0 = np.clip(base, 0.0, 1.0)
+        k_m = metallic * _darkening(metal_f0, 1.0 / 21.0, e, e_avg) / e
+        out[:, 0, :3] += k_m * metal_f0
+        out[:, 2, :3] = k_m * (1.0 - metal_f0)
+    out[:, 0, 3], out[:, 1, 3] = rough * rough, eta
+    return out

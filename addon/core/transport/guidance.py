@@ -118,9 +118,7 @@ def merge(rounds: list[tuple[VPLs, int]]) -> VPLs:
     """Candidates of several rounds of light paths (VPLs, paths traced) as one estimate: each
     round's intensities weighted by its share of all paths."""
     total = sum(paths for _, paths in rounds)
-    parts = [(v.position, v.normal, v.intensity * (paths / total), v.generation, v.rank)
-             for v, paths in rounds]
-    return VPLs(*(np.concatenate(column) for column in zip(*parts, strict=True)))
+    return VPLs.concatenate([v.scaled(slice(None), paths / total) for v, paths in rounds])
 
 
 def kept_per_candidate(contribution: np.ndarray) -> float:
@@ -146,9 +144,7 @@ def guide(candidates: VPLs, contribution: np.ndarray, wanted: float, seed: int) 
     reweighted so that the estimate stays unbiased."""
     chance = acceptance(contribution, wanted)
     keep = systematic(chance, np.random.default_rng(seed).random())
-    chosen = VPLs(candidates.position[keep], candidates.normal[keep],
-                candidates.intensity[keep] / chance[keep, None], candidates.generation[keep],
-                candidates.rank[keep])
+    chosen = candidates.scaled(keep, 1.0 / chance[keep])
     lights = contribution > 0
     return Guidance(chosen, len(candidates), float(lights.mean()) if len(lights) else 0.0,
                     float(lights[keep].mean()) if keep.any() else 0.0)

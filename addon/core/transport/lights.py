@@ -42,6 +42,9 @@ class LightSamples:
     soft: np.ndarray  # (n,) bool one of many samples of a soft light (area, sphere, sun angle,
     # world, emission) rather than a light of its own
     spread: np.ndarray  # (n, 2) area-light spread: tan(half angle), normalisation; 0 = none
+    glossy: np.ndarray | None = None  # (n, 4, 4) VPLs' glossy emission (VPLs.glossy); None
+    # when no sample has one (the table then has no glossy texels)
+
     def __len__(self) -> int:
         return len(self.kind)
 
@@ -52,9 +55,11 @@ class LightSamples:
         return np.where(self.casts_shadow, tiles, 0)
 
     def table(self, first_tile: np.ndarray, near: np.ndarray, far: np.ndarray) -> np.ndarray:
-        """The (n, 5, 4) float32 table the shaders read (see lights_lib.glsl)."""
+        """The (n, 5, 4) float32 table the shaders read (see lights_lib.glsl); (n, 9, 4) with
+        glossy emission (texel 4's w flags the samples that have it)."""
         n = len(self)
-        t = np.zeros((n, 5, 4), dtype=np.float32)
+        glossy = self.glossy is not None and bool(np.any(self.glossy[:, 0, 3] > 0))
+        t = np.zeros((n, 9 if glossy else 5, 4), dtype=np.float32)
         t[:, 0, :3], t[:, 0, 3] = self.position, self.kind
         t[:, 1, :3], t[:, 1, 3] = self.axis, self.spot_cos
         t[:, 2, :3], t[:, 2, 3] = self.intensity, self.spot_smooth
@@ -62,10 +67,14 @@ class LightSamples:
         t[:, 3, 1], t[:, 3, 2], t[:, 3, 3] = self.resolution, near, far
         t[:, 4, 0] = self.generation
         t[:, 4, 1:3] = self.spread
+        if glossy:
+            t[:, 4, 3] = self.glossy[:, 0, 3] > 0
+            t[:, 5:] = self.glossy
         return t
 
     def subset(self, index: np.ndarray) -> LightSamples:
-        return LightSamples(*(getattr(self, f)[index] for f in self.__dataclass_fields__))
+        return LightSamples(*(None if getattr(self, f) is None else getattr(self, f)[index]
+                              for f in self.__dataclass_fields__))
 
 
 def fibonacci_sphere(n: int, rng: np.random.Generator) -> np.ndarray:

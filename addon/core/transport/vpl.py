@@ -7,11 +7,19 @@ left at the k-th hit carries the light of k bounces and is used when ``bounces >
 Weights (flux Φ is RGB):
 - a path starts with Φ₀ = Φ_emitter / (N p_emitter) (emitters chosen by flux);
 - at a hit y with albedo ρ(y) the VPL is a one-sided Lambertian emitter of peak intensity
-  Φ ρ(y) / π (W/sr) around the normal facing the incoming path;
+  Φ ρ(y) / π (W/sr) around the normal facing the incoming path; at a glossy surface it also
+  reflects Φ through its GGX lobe (a glossy point emitter, as Virtual Spherical Lights without
+  the spread): Φ f_glossy(ω_in, ω) cos θ towards ω, the lobe evaluated at the receiver by
+  the gather (lights_lib.glsl) from the VPL's ``glossy`` texels;
 - continuing, the flux becomes Φ ρ(y) / q, where q is the chance to continue: with
   fractional absorption q = n_k / n_(k-1), the share of the N index-ordered paths that go on
   (n_k = round(ρ̄^k N), ρ̄ the scene's average reflectance); with Russian roulette
   q = min(1, max(ρ(y))) per path. Both keep the estimator unbiased.
+
+A path continuing through the glossy lobe leaves its next VPL at the next hit, which carries
+two or more bounces; the glossy emission at y is the single glossy bounce y → receiver, so no
+path is counted twice. Its lobe's multiple-scattering compensation is taken at the incoming
+cosine, so the emitted glossy power is exactly what the glossy continuation carries on.
 """
 
 from __future__ import annotations
@@ -56,6 +64,9 @@ class VPLs:
     rank: np.ndarray  # (n,) int, the rank of the light path that left it
     key: np.ndarray | None = None  # (n,) int64 identity kept while the VPL holds still
     # (Incremental Instant Radiosity); None when VPLs are made afresh every frame
+    glossy: np.ndarray | None = None  # (n, 4, 4) glossy emission: the lobe texels scaled by
+    # the incident flux (Φ A, alpha), (Φ B, eta), (Φ C, 0) and (towards the light, 0); all
+    # zero for a diffuse VPL; None when no VPL is glossy
 
     def __len__(self) -> int:
         return len(self.generation)
@@ -70,7 +81,30 @@ class VPLs:
         return LightSamples(self.position, self.normal, np.full(n, KIND_COSINE), self.intensity,
                             np.full(n, NO_SPOT), np.zeros(n), np.ones(n, bool),
                             np.full(n, shadow_resolution), self.generation, np.zeros(n, bool),
-                            np.zeros((n, 2)))
+                            np.zeros((n, 2)), self.glossy)
+
+    def scaled(self, keep: np.ndarray | slice, factor: np.ndarray | float) -> VPLs:
+        """The VPLs ``keep``, their light (diffuse and glossy) times ``factor`` (per VPL or
+        one); without keys."""
+        factor = np.broadcast_to(np.asarray(factor, float), self.generation[keep].shape)
+        glossy = None
+        if self.glossy is not None:
+            glossy = self.glossy[keep].copy()
+            glossy[:, :3, :3] *= factor[:, None, None]
+        return VPLs(self.position[keep], self.normal[keep],
+                    self.intensity[keep] * factor[:, None], self.generation[keep],
+                    self.rank[keep], glossy=glossy)
+
+    @classmethod
+    def concatenate(cls, parts: list[VPLs]) -> VPLs:
+        """One set of the VPLs of ``parts`` (without keys)."""
+        glossy = None
+        if any(p.glossy is not None for p in parts):
+            glossy = np.concatenate([p.glossy if p.glossy is not None
+                                     else np.zeros((len(p), 4, 4)) for p in parts])
+        return cls(*(np.concatenate([getattr(p, f) for p in parts])
+                     for f in ("position", "normal", "intensity", "generation", "rank")),
+                   glossy=glossy)
 
 
 @dataclass
@@ -330,15 +364,21 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
 
 
 def _lobes(hits: SurfaceHits, geometry: WorldGeometry
-           ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-    """What a VPL at the hits emits diffusely (reflectance (m, 3)), and the glossy albedo
-    (m, 3) and roughness (m,) of the paths' glossy continuation (None where no material is
-    glossy or the incoming direction is not known: the path albedo is then all diffuse)."""
+           ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray | None]:
+    """What a VPL at the hits emits diffusely (reflectance (m, 3)), the glossy albedo (m, 3)
+    and roughness (m,) of the paths' glossy continuation, and the VPLs' glossy emission
+    (VPLs.glossy, (m, 4, 4)) (both None where no material is glossy or the incoming direction
+    is not known: the path albedo is then all diffuse)."""
     if hits.incoming is None or hits.triangle is None or not geometry.has_specular:
-        return hits.albedo, None, np.zeros(len(hits.rank))
+        return hits.albedo, None, np.zeros(len(hits.rank)), None
     mu = np.clip(-(hits.incoming * hits.normal).sum(axis=1), 0.0, 1.0)
     diffuse, gloss, rough = geometry.reflectance_split(hits.triangle, hits.position, mu)
-    return diffuse, gloss, rough
+    emission = np.zeros((len(mu), 4, 4))
+    emission[:, :3] = geometry.lobe_texels(hits.triangle, hits.position, mu)
+    emission[:, :3, :3] *= hits.flux[:, None, :]
+    emission[:, 3, :3] = -hits.incoming
+    emission[emission[:, 0, 3] <= 0] = 0.0
+    return diffuse, gloss, rough, emission
 
 
 def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: Settings,
@@ -351,11 +391,11 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
     lobe_choice = np.random.default_rng(settings.seed + 2).uniform(size=(count, settings.bounces))
     epsilon = 1e-5 * radius
     hits, survivors = first, count
-    out: list[tuple[np.ndarray, ...]] = []
+    out: list[VPLs] = []
     for generation in range(1, settings.bounces + 1):
-        diffuse, gloss, rough = _lobes(hits, geometry)
-        out.append((hits.position, hits.normal, hits.flux * diffuse / np.pi,
-                    np.full(len(hits.rank), generation), hits.rank))
+        diffuse, gloss, rough, emission = _lobes(hits, geometry)
+        out.append(VPLs(hits.position, hits.normal, hits.flux * diffuse / np.pi,
+                        np.full(len(hits.rank), generation), hits.rank, glossy=emission))
         if generation == settings.bounces or len(hits.rank) == 0:
             break
         if settings.termination == "fractional":
@@ -386,7 +426,7 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
                       direction[keep], flux[keep], hits.rank[keep], epsilon)
     if not out:
         return VPLs.empty()
-    return VPLs(*(np.concatenate(c) for c in zip(*out, strict=True)))
+    return VPLs.concatenate(out)
 
 
 def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tracer: RayCaster,
