@@ -25,21 +25,11 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+from tools.bench_viewport import rotate_about  # noqa: E402
+
 DEFAULT_SPONZA = REPO.parent / "shared" / "assets" / "sponza" / "sponza.obj"
-
-
-def orbit(view: np.ndarray, centre: np.ndarray, degrees: float) -> np.ndarray:
-    """``view`` with the camera turned about the vertical axis through ``centre``."""
-    a = np.radians(degrees)
-    turn = np.eye(4)
-    turn[:2, :2] = [[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]
-    to_centre, back = np.eye(4), np.eye(4)
-    to_centre[:3, 3], back[:3, 3] = -centre, centre
-    return view @ back @ turn @ to_centre
 
 
 def timed_frames(render, count: int) -> list[dict[str, float]]:
@@ -96,7 +86,7 @@ def measure(name: str, size: tuple[int, int], frames: int) -> None:
         return stats.timings
 
     def turned(i: int) -> dict[str, float]:
-        view = orbit(exported.camera.view_matrix, centre, 0.5 * (i + 1))
+        view = rotate_about(exported.camera.view_matrix, centre, 0.5 * (i + 1))
         camera = replace(exported.camera, view_matrix=view)
         _frame, stats = renderer.render(replace(exported, camera=camera), settings)
         renderer.ctx.finish()
