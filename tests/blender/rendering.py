@@ -20,6 +20,18 @@ def open_scene(name: str, size: int) -> bpy.types.Scene:
     return scene
 
 
+def add_camera(scene: bpy.types.Scene, size: int, location=(0.0, 0.0, 0.0),
+               rotation=(0.0, 0.0, 0.0)) -> bpy.types.Object:
+    """A perspective camera at ``location`` turned by Euler ``rotation``, made the scene's
+    camera, with a size × size image."""
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location, camera.rotation_euler = location, rotation
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.resolution_x = scene.render.resolution_y = size
+    return camera
+
+
 def configure_cycles(scene: bpy.types.Scene, samples: int, bounces: int = 0, seed: int = 0
                      ) -> None:
     """Cycles set up for a like-for-like diffuse reference: CPU, no denoiser, no clamping,

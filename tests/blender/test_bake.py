@@ -289,10 +289,9 @@ def test_command_line_bakes_once_and_reports_it(blender, tmp_path):
 def test_viewport_bakes_on_a_timer_then_exports_again(blender, monkeypatch):
     """The Rendered viewport's first export has no bake: it schedules one on a timer (outside
     drawing), which bakes, asks the engine for an update, and the next export uses it."""
-    from types import SimpleNamespace
 
     from addon.viewport import ViewportState
-    from tests.blender.test_viewport_glue import FakeEngine
+    from tests.blender.test_viewport_glue import FakeEngine, viewport_context
 
     bpy = blender
     scene = case_scene(bpy, "noise")
@@ -303,13 +302,7 @@ def test_viewport_bakes_on_a_timer_then_exports_again(blender, monkeypatch):
     monkeypatch.setattr(bake.bpy.app.timers, "register",
                         lambda function, first_interval=0.0: timers.append(function))
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    camera = scene.camera.evaluated_get(depsgraph)
-    region_data = SimpleNamespace(
-        view_matrix=np.array(camera.matrix_world.inverted()),
-        window_matrix=np.array(camera.calc_matrix_camera(depsgraph, x=16, y=16)),
-        is_perspective=False)
-    context = SimpleNamespace(region=SimpleNamespace(width=16, height=16),
-                              region_data=region_data, scene=scene)
+    context = viewport_context(scene, depsgraph, 16, 16, perspective=False)
     calls: list = []
     engine = FakeEngine(calls)
     engine.tag_update = lambda: calls.append("update")

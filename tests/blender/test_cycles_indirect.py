@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from devtools import metrics
-from tests.blender.rendering import configure_cycles, open_scene, render_linear
+from tests.blender.rendering import add_camera, configure_cycles, open_scene, render_linear
 
 SIZE = 48
 
@@ -83,10 +83,7 @@ def closed_sphere(bpy, albedo: float) -> None:
     lamp = bpy.data.lights.new("Point", "POINT")
     lamp.energy, lamp.shadow_soft_size = 100.0, 0.0
     scene.collection.objects.link(bpy.data.objects.new("Light.Point", lamp))
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    scene.render.resolution_x = scene.render.resolution_y = 24
+    add_camera(scene, 24)
 
 
 def test_cycles_and_vpl_gi_both_match_the_closed_sphere_formula(blender, tmp_path):

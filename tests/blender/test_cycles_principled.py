@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import math
 
+import bpy
 import numpy as np
 import pytest
 
 from devtools import metrics
-from tests.blender.rendering import configure_cycles, open_scene, render_linear
+from tests.blender.rendering import add_camera, configure_cycles, open_scene, render_linear
 from tests.blender.test_cycles_direct import edge_mask
 from tests.blender.versions import ensure_nodes
 
@@ -36,6 +37,16 @@ def set_principled(material, roughness: float = 0.5, metallic: float = 0.0,
     bsdf.inputs["Metallic"].default_value = metallic
     bsdf.inputs["Specular IOR Level"].default_value = level
     bsdf.inputs["IOR"].default_value = ior
+
+
+def principled_material(name: str, color: tuple[float, float, float], roughness: float,
+                        **specular: float) -> bpy.types.Material:
+    """A new Principled material of base ``color`` with ``set_principled``'s inputs."""
+    material = bpy.data.materials.new(name)
+    ensure_nodes(material)
+    material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*color, 1.0)
+    set_principled(material, roughness, **specular)
+    return material
 
 
 def errors(ours: np.ndarray, reference: np.ndarray) -> tuple[float, float, float]:
@@ -115,32 +126,19 @@ def floor_scene(bpy, roughness: float):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_plane_add(size=8.0)
-    floor = bpy.data.materials.new("Floor")
-    ensure_nodes(floor)
-    floor.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = \
-        (0.5, 0.5, 0.5, 1.0)
-    set_principled(floor, roughness)
-    bpy.context.object.data.materials.append(floor)
+    bpy.context.object.data.materials.append(
+        principled_material("Floor", (0.5, 0.5, 0.5), roughness))
     bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 2.0, 2.0),
                                      rotation=(math.pi / 2, 0.0, 0.0))
-    wall = bpy.data.materials.new("Wall")
-    ensure_nodes(wall)
-    wall.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = \
-        (0.6, 0.1, 0.1, 1.0)
-    set_principled(wall, 1.0, level=0.0)
-    bpy.context.object.data.materials.append(wall)
+    bpy.context.object.data.materials.append(
+        principled_material("Wall", (0.6, 0.1, 0.1), 1.0, level=0.0))
     lamp = bpy.data.lights.new("Area", "AREA")
     lamp.energy, lamp.size = 300.0, 0.5
     light = bpy.data.objects.new("Area", lamp)
     light.location = (0.0, 1.0, 2.5)
     light.rotation_euler = (math.radians(-20), 0.0, 0.0)
     scene.collection.objects.link(light)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, -4.0, 1.5)
-    camera.rotation_euler = (math.radians(72), 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    scene.render.resolution_x = scene.render.resolution_y = SIZE
+    add_camera(scene, SIZE, (0.0, -4.0, 1.5), (math.radians(72), 0.0, 0.0))
     return scene
 
 
@@ -158,23 +156,14 @@ def test_metallic_sphere(blender, tmp_path, without_specular):
     scene = blender.context.scene
     blender.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=64, ring_count=32)
     blender.ops.object.shade_smooth()
-    metal = blender.data.materials.new("Metal")
-    ensure_nodes(metal)
-    metal.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = \
-        (0.9, 0.6, 0.3, 1.0)
-    set_principled(metal, 0.4, metallic=1.0)
-    blender.context.object.data.materials.append(metal)
+    blender.context.object.data.materials.append(
+        principled_material("Metal", (0.9, 0.6, 0.3), 0.4, metallic=1.0))
     lamp = blender.data.lights.new("Point", "POINT")
     lamp.energy, lamp.shadow_soft_size = 500.0, 0.0
     light = blender.data.objects.new("Point", lamp)
     light.location = (2.0, -3.0, 3.0)
     scene.collection.objects.link(light)
-    camera = blender.data.objects.new("Camera", blender.data.cameras.new("Camera"))
-    camera.location = (0.0, -4.0, 0.0)
-    camera.rotation_euler = (math.pi / 2, 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    scene.render.resolution_x = scene.render.resolution_y = SIZE
+    add_camera(scene, SIZE, (0.0, -4.0, 0.0), (math.pi / 2, 0.0, 0.0))
     configure_cycles(scene, 256, bounces=0)
     settings = scene.vpl_gi
     settings.bounces, settings.antialiasing, settings.light_samples = 0, 4, 64

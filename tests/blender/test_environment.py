@@ -12,7 +12,7 @@ import pytest
 
 from addon.export import export_world
 from devtools import metrics
-from tests.blender.rendering import configure_cycles, render_linear
+from tests.blender.rendering import add_camera, configure_cycles, render_linear
 
 SIZE = 64
 MAP_W, MAP_H = 128, 64
@@ -75,13 +75,7 @@ def box_on_floor() -> bpy.types.Scene:
     bpy.context.object.data.materials.append(material)
     bpy.ops.mesh.primitive_cube_add(size=1.5, location=(0, 0, 0.75))
     bpy.context.object.data.materials.append(material)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.data.lens = 24
-    camera.location = (0.0, -7.0, 3.5)
-    camera.rotation_euler = (math.radians(70), 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    scene.render.resolution_x = scene.render.resolution_y = SIZE
+    add_camera(scene, SIZE, (0.0, -7.0, 3.5), (math.radians(70), 0.0, 0.0)).data.lens = 24
     return scene
 
 

@@ -45,6 +45,18 @@ def fake_gpu(calls: list) -> tuple[ModuleType, ModuleType]:
     return gpu, presets
 
 
+def viewport_context(scene, depsgraph, width: int, height: int,
+                     perspective: bool) -> SimpleNamespace:
+    """A stand-in for a 3D view's context looking through the scene's camera."""
+    camera = scene.camera.evaluated_get(depsgraph)
+    region_data = SimpleNamespace(
+        view_matrix=np.array(camera.matrix_world.inverted()),
+        window_matrix=np.array(camera.calc_matrix_camera(depsgraph, x=width, y=height)),
+        is_perspective=perspective)
+    return SimpleNamespace(region=SimpleNamespace(width=width, height=height),
+                           region_data=region_data, scene=scene)
+
+
 def test_view_update_and_view_draw(blender, monkeypatch):
     from addon.viewport import ViewportState
 
@@ -57,13 +69,8 @@ def test_view_update_and_view_draw(blender, monkeypatch):
     scene = blender.context.scene
     scene.vpl_gi.vpl_count = 64
     depsgraph = blender.context.evaluated_depsgraph_get()
-    camera = scene.camera.evaluated_get(depsgraph)
-    region_data = SimpleNamespace(
-        view_matrix=np.array(camera.matrix_world.inverted()),
-        window_matrix=np.array(camera.calc_matrix_camera(depsgraph, x=80, y=60)),
-        is_perspective=True)
-    context = SimpleNamespace(region=SimpleNamespace(width=80, height=60),
-                              region_data=region_data, scene=scene)
+    context = viewport_context(scene, depsgraph, 80, 60, perspective=True)
+    region_data = context.region_data
     engine = FakeEngine(calls)
     state = ViewportState(engine)
     try:
