@@ -50,12 +50,12 @@ def main() -> None:
             (r1, *_), (r2, *_) = references
             values = report.vpl_values({}, {})
             report.render_auto(scene, values, 1.0, exr)  # warm-up: shaders, the cost model
+            try:  # a checkout from before the budget module (--repo) has one split
+                from addon.core.frame import budget as budget_module
+                splits = [int(s) for s in args.splits.split(",")]
+            except ImportError:
+                budget_module, splits = None, [0]
             for budget in (float(b) for b in args.budgets.split(",")):
-                try:
-                    from addon.core.frame import budget as budget_module
-                    splits = [int(s) for s in args.splits.split(",")]
-                except ImportError:
-                    budget_module, splits = None, [0]
                 for split in splits:
                     if budget_module is not None:
                         budget_module.BUDGET_SPLIT = split

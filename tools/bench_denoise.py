@@ -58,21 +58,17 @@ def main() -> int:
         for name in args.scenes:
             path = Path(name) if name.endswith(".blend") else \
                 REPO / "sample_scenes" / f"{name}.blend"
-            scene = report.open_scene(path, args.size[0])
-            scene.render.resolution_x, scene.render.resolution_y = args.size
+            scene = report.open_scene(path, args.size)
             bounces = scene.vpl_gi.bounces
             samples = args.reference_samples or REFERENCE_SAMPLES.get(path.stem, 64)
             used_samples[path.stem] = samples
             digest = report.file_digest(path)
             with tempfile.TemporaryDirectory(prefix="vpl_gi_bench_") as tmp:
                 exr = Path(tmp) / "render.exr"
-                refs = []
-                for seed in report.REFERENCE_SEEDS:
-                    settings = report.cycles_settings(samples, bounces, seed)
-                    key = report.reference_key(digest, f"{args.size[0]}x{args.size[1]}",
-                                               settings)
-                    refs.append(report.reference(scene, settings, key, report.DEFAULT_CACHE,
-                                                 exr)[0])
+                options = report.Options(report.LADDERS["test"], args.size,
+                                         reference_samples=samples)
+                refs = [image for image, *_ in
+                        report.render_references(scene, digest, options, bounces, exr)]
                 scene.render.engine = ENGINE_ID
                 scene.vpl_gi.denoiser = args.denoisers[0]
                 report.render_timed(scene, exr)  # warm-up: GL context, shaders, OIDN weights

@@ -1,8 +1,8 @@
 """Benchmark: the interior sample scene at 640×360 with default settings, with and without a
 light portal in its window (an area light marked Portal, as a Cycles user would place it),
-each rendered twice; error against the report's cached Cycles references (2 × 128 spp, made
-by `python -m devtools report sample_scenes/interior.blend`). Portals change Cycles' sampling,
-not its converged image, so the same references serve both.
+each rendered twice; error against the report's Cycles references (2 × 128 spp at the scene's
+4 bounces, cached as `python -m devtools report` caches them; rendered first if missing).
+Portals change Cycles' sampling, not its converged image, so the same references serve both.
 
     .venv/bin/python tools/bench_portal.py [--cache .cache/references]
 """
@@ -43,27 +43,23 @@ def main() -> None:
     from addon import register, unregister
     from addon.engine import monitor
     from devtools.report import (
-        cycles_settings,
+        LADDERS,
+        Options,
         error_metrics,
         file_digest,
         open_scene,
-        reference_key,
+        render_references,
         render_timed,
     )
 
     code = 1
     register()
     try:
-        refs = []
-        for seed in (1, 2):
-            key = reference_key(file_digest(BLEND), SIZE, cycles_settings(128, 4, seed),
-                                bpy.app.version_string)
-            path = args.cache / f"{key}.npy"
-            if not path.is_file():
-                print(f"no cached reference {path}: run `python -m devtools report "
-                      "sample_scenes/interior.blend` first", file=sys.stderr)
-                return
-            refs.append(np.load(path))
+        scene = open_scene(BLEND, SIZE)
+        options = Options(LADDERS["test"], SIZE, reference_samples=128, cache_dir=args.cache)
+        refs = [image for image, *_ in render_references(
+            scene, file_digest(BLEND), options, scene.vpl_gi.bounces,
+            Path("/tmp/vplgi_portal_reference.exr"))]
         print("| portal | seconds | relRMSE | energy | VPLs lighting the view |")
         print("|---|---|---|---|---|")
         for portal in (False, True, False, True):
