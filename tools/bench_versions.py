@@ -94,23 +94,11 @@ def frame_table(trees: dict[str, Path], scene: str, size: str, repeat: int,
         print(f"| {'**total**' if stage == 'total' else stage} | {cells} | {ratio} |")
 
 
-def read_exr(path: Path) -> np.ndarray:
-    """Linear RGB of an EXR the renderer wrote."""
-    import bpy
-
-    image = bpy.data.images.load(str(path))
-    try:
-        pixels = np.empty(image.size[0] * image.size[1] * image.channels, np.float32)
-        image.pixels.foreach_get(pixels)
-        return pixels.reshape(-1, image.channels)[:, :3].copy()
-    finally:
-        bpy.data.images.remove(image)
-
-
 def error_table(trees: dict[str, Path], scene: str, size: str, overrides: tuple[str, ...],
                 reference: tuple[str, ...]) -> None:
     sys.path.insert(0, str(REPO))
     from devtools.metrics import relative_rmse
+    from devtools.report import read_exr
 
     with tempfile.TemporaryDirectory() as folder:
         out = Path(folder)

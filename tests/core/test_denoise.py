@@ -13,15 +13,11 @@ from addon.core.frame import denoise
 from addon.core.frame.renderer import Renderer
 from addon.core.scene.model import Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
+from devtools import metrics
 from tests.core.builders import light, quad, top_down_camera, translation
 from tests.core.test_frame_stages import lit_corner
 
 NOISY = Settings(antialiasing=1, vpl_count=64, bounces=1, seed=3, interleave=4)
-
-
-def _relative_rmse(image: np.ndarray, reference: np.ndarray) -> float:
-    return float(np.sqrt(np.mean((image[..., :3] - reference[..., :3]) ** 2))
-                 / reference[..., :3].mean())
 
 
 @pytest.fixture(scope="module")
@@ -44,8 +40,8 @@ def test_oidn_lowers_the_error_of_a_noisy_frame(renderer: Renderer, reference: n
     monkeypatch.setattr(denoise.Denoise, "run", lambda self, frame: None)
     renderer.forget_frames()
     raw, _ = renderer.render(lit_corner(), settings)
-    raw_error = _relative_rmse(raw.passes["Combined"], reference)
-    denoised_error = _relative_rmse(denoised.passes["Combined"], reference)
+    raw_error = metrics.relative_rmse(raw.passes["Combined"], reference)
+    denoised_error = metrics.relative_rmse(denoised.passes["Combined"], reference)
     assert denoised_error < 0.8 * raw_error, (raw_error, denoised_error)
     assert np.all(np.isfinite(denoised.passes["Combined"]))
     np.testing.assert_array_equal(denoised.passes["Combined"][..., 3],
