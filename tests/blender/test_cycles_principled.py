@@ -20,9 +20,8 @@ import bpy
 import numpy as np
 import pytest
 
-from devtools import metrics
 from tests.blender.rendering import add_camera, configure_cycles, open_scene, render_linear
-from tests.blender.test_cycles_direct import edge_mask
+from tests.blender.test_cycles_direct import errors
 from tests.blender.versions import ensure_nodes
 
 SIZE = 64
@@ -47,14 +46,6 @@ def principled_material(name: str, color: tuple[float, float, float], roughness:
     material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*color, 1.0)
     set_principled(material, roughness, **specular)
     return material
-
-
-def errors(ours: np.ndarray, reference: np.ndarray) -> tuple[float, float, float]:
-    """Energy, interior relRMSE and overall relRMSE (as test_cycles_direct.py measures)."""
-    interior = ~edge_mask(reference)
-    energy = metrics.mean_relative_energy(ours, reference)
-    interior_error = metrics.rmse(ours[interior], reference[interior]) / reference[..., :3].mean()
-    return energy, interior_error, metrics.relative_rmse(ours, reference)
 
 
 @pytest.fixture
