@@ -100,14 +100,9 @@ def settings_of(scene: bpy.types.Scene) -> tuple[int, int]:
 def bake_reason(material: bpy.types.Material | None, fallback: str | None) -> str | None:
     """Why a material's surface is baked (the exporter's reason for falling back, and the
     nodes feeding the surface), or None when it is not bakeable or needs no bake."""
-    if material is None or fallback is None or material.node_tree is None:
+    if fallback is None or not _bakeable(material):
         return None
-    node = bake_tree.surface(material)
-    try:
-        bake_tree.check(node)
-    except bake_tree.NotBakeable:
-        return None
-    nodes = sorted(set(bake_tree.linked_inputs(node)))
+    nodes = sorted(set(bake_tree.linked_inputs(bake_tree.surface(material))))
     return fallback + (f" (nodes: {', '.join(nodes)})" if nodes else "")
 
 

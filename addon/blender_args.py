@@ -27,7 +27,7 @@ from .cli import CliError, run_render
 FORMAT_EXTENSIONS = {"PNG": ".png", "OPEN_EXR": ".exr", "EXR": ".exr"}
 # Options that take no value and change nothing here (the bpy module is always background).
 IGNORED_FLAGS = {"-b", "--background", "-y", "--enable-autoexec", "-Y", "--disable-autoexec",
-                 "--factory-startup", "-noaudio", "--python-exit-code", "--quiet", "-q"}
+                 "--factory-startup", "-noaudio", "--quiet", "-q"}
 # Options whose value is ignored here.
 IGNORED_WITH_VALUE = {"-t", "--threads", "--python-exit-code"}
 USAGE = ("usage: python -m addon blender [-b] [-y] FILE.blend [--scene NAME] "

@@ -40,10 +40,15 @@ FARM_NOTE = ("the time mode adapts to this machine's speed; for the same frame o
              "machine (render farms) set auto_parameters off and pin the parameters")
 
 
+def once_seconds(stats: Stats) -> float:
+    """Seconds a render spent on the stages done once (not again in later passes)."""
+    return sum(stats.timings.get(k, 0.0) for k in ONCE_STAGES)
+
+
 def split_seconds(wall: float, stats: Stats) -> tuple[float, float]:
     """Seconds of one pass spent on the work the automatic mode does not choose and on the
     work it chooses (each without the stages done once)."""
-    once = sum(stats.timings.get(k, 0.0) for k in ONCE_STAGES)
+    once = once_seconds(stats)
     chosen = sum(v for k, v in stats.timings.items()
                  if k.startswith(CHOSEN_STAGES) and k not in ONCE_STAGES)
     return max(0.0, wall - chosen - once), chosen
@@ -90,7 +95,7 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
             notes.append(f"automatic parameters of passes 2+: {again.describe()} (measured "
                          f"{fixed:.2f} s per pass of work not chosen)")
         least = chooser.last[1].least_paths()
-        repeated = wall - sum(stats.timings.get(k, 0.0) for k in ONCE_STAGES)
+        repeated = wall - once_seconds(stats)
         if repeated > budget and chosen.settings.vpl_count <= least:
             warnings.append(f"time budget {budget:g} s is below the cheapest useful frame of "
                             f"this scene ({least} light paths, ≈ {repeated:.1f} s here); rendered "

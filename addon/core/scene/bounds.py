@@ -34,7 +34,7 @@ def _in_view(camera: Camera, points: np.ndarray) -> np.ndarray:
 def view_core(camera: Camera, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Corners (lo, hi) of the box around the camera's position, the vertex nearest to it and
     the vertices (n, 3), n > 0, in its view."""
-    eye = np.linalg.inv(camera.view_matrix)[:3, 3]
+    eye = camera.position
     points = positions.astype(np.float64)
     nearest = points[np.argmin(((points - eye) ** 2).sum(axis=1))]
     seen = points[_in_view(camera, positions)]
