@@ -58,4 +58,11 @@ vec4 directional_clip(vec3 world, vec3 axis, vec3 centre, float radius) {
 float directional_depth(vec3 world, vec3 axis, vec3 centre, float radius) {
     return dot(world - centre, axis) + radius;
 }
+// PCG hash (Jarzynski & Olano 2020): 32 well-mixed bits of v.
+uint pcg(uint v) {
+    uint state = v * 747796405u + 2891336453u;
+    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
 #endif

@@ -83,12 +83,6 @@ uniform int u_bias_samples;
 uniform uint u_seed;
 uniform int u_max_generation;  // light that may bounce once more at y
 
-uint pcg(uint v) {
-    uint state = v * 747796405u + 2891336453u;
-    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return (word >> 22u) ^ word;
-}
-
 vec2 random2(uvec2 pixel, uint k) {
     uint h = pcg(pixel.x + pcg(pixel.y + pcg(k + pcg(u_seed))));
     return vec2(float(h & 0xffffu), float(h >> 16u)) / 65536.0;

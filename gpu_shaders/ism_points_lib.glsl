@@ -9,6 +9,8 @@
 #ifndef ISM_POINTS_LIB_GLSL
 #define ISM_POINTS_LIB_GLSL
 
+#include "common_lib.glsl"
+
 #define ISM_BINDING_CDF 20
 #define ISM_BINDING_GUIDE 27
 
@@ -25,13 +27,6 @@ uniform uint u_point_seed;
 const uvec2 ISM_R2 = uvec2(3242174889u, 2447445414u);  // Roberts' R2 step, 0.32 fixed point
 const float ISM_BELOW_ONE = 0.99999994;  // the largest float below 1
 
-// PCG hash (Jarzynski & Olano 2020).
-uint ism_hash(uint v) {
-    uint state = v * 747796405u + 2891336453u;
-    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return (word >> 22u) ^ word;
-}
-
 // A uniform number in [0, 1) from 32 random bits (their top 24: exact in a float).
 float ism_unit(uint bits) {
     return float(bits >> 8u) * (1.0 / 16777216.0);
@@ -44,7 +39,7 @@ float ism_stratum(int j, float offset) {
 
 // Point i of set `set`: its triangle and the barycentric weights of its vertices 1 and 2.
 void ism_surface_point(int set, int i, out int triangle, out vec2 bary) {
-    uint key = ism_hash(u_point_seed ^ ism_hash(uint(set)));
+    uint key = pcg(u_point_seed ^ pcg(uint(set)));
     float offset = ism_unit(key);
     float x = ism_stratum(i, offset);
     // The first triangle whose CDF exceeds x, between the guide entries around x: one cell
@@ -62,8 +57,8 @@ void ism_surface_point(int set, int i, out int triangle, out vec2 bary) {
     int first = clamp(int(ceil(below * float(u_points_per_vpl) - offset)), 0, i);
     while (first > 0 && ism_stratum(first - 1, offset) >= below) --first;
     while (first < i && ism_stratum(first, offset) < below) ++first;
-    uint shift = ism_hash(key ^ ism_hash(uint(triangle) + 2654435769u));
-    uvec2 uv_bits = uvec2(shift, ism_hash(shift)) + uint(i - first) * ISM_R2;
+    uint shift = pcg(key ^ pcg(uint(triangle) + 2654435769u));
+    uvec2 uv_bits = uvec2(shift, pcg(shift)) + uint(i - first) * ISM_R2;
     bary = vec2(ism_unit(uv_bits.x), ism_unit(uv_bits.y));
     if (bary.x + bary.y > 1.0) bary = 1.0 - bary;
 }

@@ -33,7 +33,7 @@ uniform float u_scene_radius;
 int random_side(float side, uint id) {
     float low = floor(side);
     float up = (side * side - low * low) / (2.0 * low + 1.0);  // P(round up): mean area side^2
-    return clamp(int(low) + (ism_unit(ism_hash(id)) < up ? 1 : 0), 1, u_max_footprint);
+    return clamp(int(low) + (ism_unit(pcg(id)) < up ? 1 : 0), 1, u_max_footprint);
 }
 
 // Side in texels of the square footprint of a point standing for `u_point_area` of a surface
