@@ -153,22 +153,21 @@ class Denoise(Stage):
     needs = ("output",)
 
     def run(self, frame: FrameState) -> None:
-        if frame_denoiser(frame) not in OIDN_DENOISERS:
+        denoiser = frame_denoiser(frame)
+        if denoiser not in OIDN_DENOISERS:
             return
         module, _ = load_oidn()
         output = frame.output
         guides = output["Denoising Albedo"], output["Denoising Normal"]
-        indirect = MODES[frame_denoiser(frame)].oidn == "indirect"
+        indirect = MODES[denoiser].oidn == "indirect"
         with frame.stats.timed(self.name):
             try:
-                if indirect:
-                    # Indirect light leaving the surfaces, DiffInd × DiffCol (exact where the
-                    # albedo is uniform within a pixel); direct light and emission stay as they are.
-                    before = output["DiffInd"] * output["DiffCol"]
-                    after = denoise_image(module, before, *guides)
-                else:
-                    before = output["Combined"][..., :3]
-                    after = denoise_image(module, before, *guides)
+                # With indirect: the indirect light leaving the surfaces, DiffInd × DiffCol
+                # (exact where the albedo is uniform within a pixel); direct light and emission
+                # stay as they are.
+                before = output["DiffInd"] * output["DiffCol"] if indirect \
+                    else output["Combined"][..., :3]
+                after = denoise_image(module, before, *guides)
             except (RuntimeError, ValueError, TypeError, OSError) as exc:
                 frame.stats.warnings.append(f"Open Image Denoise failed ({exc}); the image is "
                                             f"not denoised")
