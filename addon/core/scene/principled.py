@@ -131,6 +131,21 @@ def tables() -> np.ndarray:
     return out
 
 
+@lru_cache(maxsize=1)
+def _tables64() -> np.ndarray:
+    """``tables()`` as float64, for the CPU's lookups (made once, not per call)."""
+    return tables().astype(np.float64)
+
+
+def _cosine_quadrature(nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre nodes μ on [0, 1] and weights of ∫ f(μ) 2μ dμ (cosine-weighted)."""
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    return 0.5 * (x + 1.0), 0.5 * w * (x + 1.0)
+
+
+COSINE_MU, COSINE_WEIGHT = _cosine_quadrature(8)
+
+
 def _lerp_row(table: np.ndarray, row: np.ndarray, x: np.ndarray, size: int) -> np.ndarray:
     f = np.clip(x, 0.0, 1.0) * (size - 1)
     i = np.minimum(np.floor(f).astype(int), size - 2)
@@ -150,7 +165,7 @@ def _lerp_2d(table: np.ndarray, first: int, rough: np.ndarray, mu: np.ndarray, s
 def lookup(rough: np.ndarray, mu: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, ...]:
     """E, E_avg, s_ior and s5 at (roughness, cos view, IOR parameter), interpolated linearly
     between table nodes (as the shader does)."""
-    t = tables().astype(np.float64)
+    t = _tables64()
     rough, mu, z = np.broadcast_arrays(*(np.asarray(a, float) for a in (rough, mu, z)))
     e = _lerp_2d(t, ROW_E, rough, mu, E_SIZE)
     e_avg = _lerp_row(t, np.full(rough.shape, ROW_EAVG), rough, E_SIZE)
@@ -203,8 +218,7 @@ def path_albedo(base: np.ndarray, row: np.ndarray) -> np.ndarray:
     """Reflectance of light arriving from a cosine-weighted direction (what a light path keeps
     at a bounce, the glossy part re-emitted diffusely): ∫ (diffuse weight × base + GlossCol)
     2μ dμ, for base colours (n, 3) of one material's specular row."""
-    x, w = np.polynomial.legendre.leggauss(8)
-    mu, weight = 0.5 * (x + 1.0), 0.5 * w * (x + 1.0)  # 2μ dμ on [0, 1]
+    mu, weight = COSINE_MU, COSINE_WEIGHT
     n = len(base)
     repeated = np.repeat(base, len(mu), axis=0)
     diffuse, gloss = layer_weights(repeated, *specular_parameters(row), np.tile(mu, n))
@@ -291,8 +305,7 @@ def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarra
 def diffuse_average(row: np.ndarray) -> float:
     """The diffuse weight averaged over outgoing cosine-weighted directions (what a diffuse
     VPL of this material emits per unit base colour): ∫ weight(μ) 2μ dμ."""
-    x, w = np.polynomial.legendre.leggauss(8)
-    mu, weight = 0.5 * (x + 1.0), 0.5 * w * (x + 1.0)
+    mu, weight = COSINE_MU, COSINE_WEIGHT
     diffuse, _ = layer_weights(np.zeros((len(mu), 3)), *specular_parameters(row), mu)
     return float((diffuse * weight).sum())
 
