@@ -366,13 +366,14 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
     CACHE.generation += 1
     CACHE.baked, CACHE.problems, CACHE.failed = [], [], {}
     done: set[str] = set()
+    materials: dict[str, dict[str, str]] = {}  # each material's fallback, exported once
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.original.type != "MESH" or inst.is_instance or not obj.data.polygons or \
                 obj.original.name_full in done:
             continue
         done.add(obj.original.name_full)
-        reasons = needed(obj, fallback_reasons(obj), {slot.material.name: named_uv_maps(
+        reasons = needed(obj, fallback_reasons(obj, materials), {slot.material.name: named_uv_maps(
             slot.material) for slot in obj.material_slots if slot.material is not None})
         if not reasons:
             continue

@@ -449,12 +449,21 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
         return viewport
 
 
-def fallback_reasons(obj: bpy.types.Object) -> dict[str, str]:
-    """Why each of the object's materials falls back to its viewport colour (by name)."""
+def fallback_reasons(obj: bpy.types.Object,
+                     known: dict[str, dict[str, str]] | None = None) -> dict[str, str]:
+    """Why each of the object's materials falls back to its viewport colour (by name);
+    ``known`` keeps each material's answer across calls, so objects that share a material
+    export it (and read its images) once."""
+    known = {} if known is None else known
     fallbacks: dict[str, str] = {}
     for slot in obj.material_slots:
-        if slot.material is not None:
-            export_material(slot.material, [], fallbacks=fallbacks)
+        material = slot.material
+        if material is None:
+            continue
+        if material.name_full not in known:
+            known[material.name_full] = {}
+            export_material(material, [], fallbacks=known[material.name_full])
+        fallbacks.update(known[material.name_full])
     return fallbacks
 
 
