@@ -197,7 +197,7 @@ class Settings:
         low=0.0, high=64.0, soft_high=8.0,
         applies=_SHADOW_MAPS | when("visibility", "classic"))
     antialiasing: int = setting(
-        2, "Anti-Aliasing", "sampling",
+        3, "Anti-Aliasing", "sampling",
         "Supersampling factor per axis, box filter (1 = one sample per pixel, 2 = four)",
         low=1, high=8)
     seed: int = setting(
@@ -279,18 +279,28 @@ class Settings:
         "VPL distances below this fraction of the scene's radius are clamped: bounds the 1/d² "
         "spikes next to VPLs at the cost of some energy (0 = no clamp)",
         low=0.0, high=1.0, subtype="FACTOR")
-    bias_compensation: bool = setting(
-        False, "Bias Compensation", "clamping",
-        "Restore the energy the clamp removes: short rays from each pixel gather the light of "
-        "surfaces closer than the clamp distance (Kollig & Keller 2004, one level)",
+    bias_compensation: str = setting(
+        "image", "Bias Compensation", "clamping",
+        "Restore the light the clamp removes next to corners and contacts: short rays from "
+        "each pixel find the surfaces closer than the clamp distance and add their light "
+        "(Kollig & Keller 2004, one level)",
+        choices=(Choice("off", "Off", "leave the clamp's bias (darker corners and contacts)"),
+                 Choice("full", "Full", "each ray's hit gathers every VPL again: also where "
+                        "the camera cannot see the hit, but one gather per ray (slow)"),
+                 Choice("image", "From the Image",
+                        "each ray's hit takes its light from the image already gathered (one "
+                        "ray per supersample costs about one hard light's shadows); hits the "
+                        "camera cannot see add nothing")),
         applies=unless("clamp_distance", 0.0))
     bias_samples: int = setting(
-        16, "Compensation Rays", "clamping", "Rays per pixel for bias compensation",
-        low=1, high=1024, soft_high=128, applies=when("bias_compensation", True))
+        1, "Compensation Rays", "clamping",
+        "Rays per supersample for bias compensation (the blur averages its neighbours' rays)",
+        low=1, high=1024, soft_high=128, applies=unless("bias_compensation", "off"))
     interleave: int = setting(
-        4, "Interleave", "interleaving",
-        "Interleaved sampling: each pixel of a K×K pattern gathers every K²-th VPL (1 = off); "
-        "a geometry-aware blur then removes the pattern",
+        8, "Interleave", "interleaving",
+        "Interleaved sampling: each supersample of a K×K pattern gathers every K²-th VPL and "
+        "every K²-th sample of the soft lights (1 = off); a geometry-aware blur then removes "
+        "the pattern",
         choices=(Choice(1, "Off", "every pixel gathers every VPL"),
                  Choice(2, "2×2", "each pixel gathers every 4th VPL"),
                  Choice(4, "4×4", "each pixel gathers every 16th VPL"),

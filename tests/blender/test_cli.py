@@ -33,7 +33,7 @@ def digest(path: Path) -> str:
 def test_renders_a_png_and_says_where_it_went(tmp_path):
     out = tmp_path / "cornell.png"
     result = run_cli("render", str(CORNELL), "-o", str(out), "-r", "40x30",
-                     "--set", "visibility=exact", "--set", "bias_compensation=on",
+                     "--set", "visibility=exact", "--set", "bias_compensation=full",
                      "--set", "vpl_count=32", "--set", "bias_samples=4")
     assert result.returncode == 0, result.stderr
     assert f"Saved {out}" in result.stdout

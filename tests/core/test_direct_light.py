@@ -110,13 +110,14 @@ def test_point_light_shadow_of_an_occluder(renderer):
     np.testing.assert_allclose(e[lit], expected[lit], rtol=2e-3)
 
 
-def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch):
+@pytest.mark.parametrize("aa", [2, 3])
+def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch, aa):
     lights = [light(LightKind.POINT, translation(x, 0.5, 2.0), power=50.0) for x in (-1, 0, 1)]
     blocker = Instance(quad(0.4, 0.4, z=1.0), np.eye(4), [Material("blocker")])
     scene = floor_scene(lights, extra=[blocker])
-    settings = Settings(bounces=0, antialiasing=2, shadow_resolution=256)
+    settings = Settings(bounces=0, antialiasing=aa, shadow_resolution=256)
     whole, _ = renderer.render(scene, settings)
-    monkeypatch.setattr(image_stage, "MAX_TILE", 48)
+    monkeypatch.setattr(image_stage, "MAX_TILE", 50)  # tiles of 48 supersamples at aa = 3
     monkeypatch.setattr(batches, "ATLAS_TEXELS", 6 * 256 * 256)
     split, _ = renderer.render(scene, settings)
     for name, image in whole.passes.items():

@@ -65,10 +65,34 @@ def test_clamp_removes_the_predicted_share_and_compensation_restores_it(renderer
     common = {"bounces": 1, "vpl_count": 128, "visibility": visibility,
               "vpl_shadow_resolution": 32}
     unclamped = indirect_ratio(renderer, rho, clamp_distance=0.0, **common)
-    clamped = indirect_ratio(renderer, rho, clamp_distance=clamp, **common)
-    compensated = indirect_ratio(renderer, rho, clamp_distance=clamp, bias_compensation=True,
+    clamped = indirect_ratio(renderer, rho, clamp_distance=clamp, bias_compensation="off",
+                             **common)
+    compensated = indirect_ratio(renderer, rho, clamp_distance=clamp, bias_compensation="full",
                                  bias_samples=64, **common)
     assert clamped / unclamped == pytest.approx(1 - clamp**2 / 8, rel=0.01)
+    assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
+
+
+@pytest.mark.parametrize("bounces", [1, 3])
+def test_compensation_from_the_image_restores_what_the_camera_sees(renderer, bounces):
+    """Image-based compensation reads the near surfaces' light from the image: at the centre of
+    a 90° view every surface within the clamp distance (a 35° cone here) is on screen, so the
+    clamped share comes back there; without it the clamp's share is missing."""
+    rho, clamp, size = 0.5, 0.6, 64
+    scene = sphere_scene(rho)
+    scene.camera = inside_sphere_camera(size)
+    centre = slice(size // 2 - 2, size // 2 + 2)
+
+    def indirect(**settings) -> float:
+        frame, _ = renderer.render(scene, Settings(
+            antialiasing=1, bounces=bounces, vpl_count=256, visibility="exact",
+            interleave=1, **settings))
+        return float(frame.passes["DiffInd"][centre, centre, 0].mean())
+
+    unclamped = indirect(clamp_distance=0.0)
+    clamped = indirect(clamp_distance=clamp, bias_compensation="off")
+    compensated = indirect(clamp_distance=clamp, bias_compensation="image", bias_samples=256)
+    assert clamped / unclamped == pytest.approx(1 - clamp**2 / 8, abs=0.01)  # every bounce's
     assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
 
 

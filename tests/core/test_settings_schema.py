@@ -97,8 +97,10 @@ def test_blenders_single_precision_floats_pass_their_own_bounds():
 def test_what_applies_follows_the_other_settings():
     values = {f.name: getattr(DEFAULTS, f.name) for f in fields(Settings)}
     assert not applies("vpl_shadow_resolution", values) and applies("ism_points", values)
-    assert not applies("time_budget", values) and not applies("bias_samples", values)
-    values.update(visibility="classic", auto_parameters="time", bias_compensation=True)
+    assert not applies("time_budget", values) and applies("bias_samples", values)
+    values.update(bias_compensation="off")
+    assert not applies("bias_samples", values)
+    values.update(visibility="classic", auto_parameters="time", bias_compensation="full")
     assert applies("vpl_shadow_resolution", values) and not applies("ism_points", values)
     assert applies("time_budget", values) and applies("bias_samples", values)
     values["soft_light_ism"] = True
@@ -107,8 +109,8 @@ def test_what_applies_follows_the_other_settings():
 
 def test_command_line_overrides_are_typed_and_checked_together():
     assert parse_overrides(["ism_resolution=64", "interleave=2", "time_budget=0.01",
-                            "bias_compensation=yes"]) == {
-        "ism_resolution": 64, "interleave": 2, "time_budget": 0.01, "bias_compensation": True}
+                            "soft_light_ism=yes"]) == {
+        "ism_resolution": 64, "interleave": 2, "time_budget": 0.01, "soft_light_ism": True}
     with pytest.raises(CliError, match="not one of 32, 64, 128, 256, 512"):
         parse_overrides(["ism_resolution=7"])
     with pytest.raises(CliError, match="expected NAME=VALUE"):

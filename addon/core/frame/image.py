@@ -15,16 +15,17 @@ from ..scene.geometry import WorldGeometry
 from .compose import compose
 from .denoise import DenoisingData
 from .gather import gather, new_accumulator, read_accumulator
-from .gbuffer import GBuffer, Tile, render_gbuffer
+from .gbuffer import GBuffer, Tile, render_gbuffer, tile_projection
 from .gpu_scope import GpuScope
 from .gpu_session import GpuSession
+from .near_field import compensate_from_image
 from .result import PASS_CHANNELS
 from .reuse import KeptProducts
 from .shadow_maps import KeptAtlases, ShadowAtlases
 from .state import FrameState, RenderError, Stage
 from .visibility import FrameMaps
 
-MAX_TILE = 1024  # supersampled pixels per image tile edge
+MAX_TILE = 2048  # supersampled pixels per image tile edge (each tile renders its own maps)
 
 
 @dataclass
@@ -45,14 +46,18 @@ class TileWork:
     scope: GpuScope  # the tile's GPU objects
     gbuffer: GBuffer | None = None
     direct: moderngl.Framebuffer | None = None
+    soft: moderngl.Framebuffer | None = None  # interleaved soft direct light, to be blurred
     indirect: moderngl.Framebuffer | None = None
+    soft_light: np.ndarray | None = None  # after the blur
     indirect_light: np.ndarray | None = None
 
 
-def tiles_of(width: int, height: int) -> list[Tile]:
-    """The image's tiles, row by row."""
-    return [Tile(x, min(x + MAX_TILE, width), y, min(y + MAX_TILE, height), width, height)
-            for y in range(0, height, MAX_TILE) for x in range(0, width, MAX_TILE)]
+def tiles_of(width: int, height: int, aa: int) -> list[Tile]:
+    """The tiles of an image of width × height supersamples, row by row; each tile's edges
+    fall on pixel edges (whole aa × aa blocks)."""
+    edge = max(aa, MAX_TILE - MAX_TILE % aa)
+    return [Tile(x, min(x + edge, width), y, min(y + edge, height), width, height)
+            for y in range(0, height, edge) for x in range(0, width, edge)]
 
 
 def _buffers(ctx: moderngl.Context, geometry: WorldGeometry, scope: GpuScope
@@ -88,6 +93,8 @@ class GBufferStage(TileStage):
         glossy = work.gbuffer.glossy
         work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
         work.indirect = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
+        if any(p.interleave > 1 and not p.indirect for p in frame.light_passes):
+            work.soft = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
 
 
 class GatherStage(TileStage):
@@ -105,7 +112,8 @@ class GatherStage(TileStage):
                 atlas = light_pass.visibility.maps(light_pass.batch, data.maps)
                 ctx.finish()
             with stats.timed(light_pass.name):
-                target = work.indirect if light_pass.indirect else work.direct
+                target = work.indirect if light_pass.indirect else \
+                    work.soft if light_pass.interleave > 1 else work.direct
                 gather(ctx, self.gpu.programs, light_pass, atlas, work.gbuffer, target,
                        data.scene, centre, radius, bias)
                 ctx.finish()
@@ -119,24 +127,52 @@ class GatherStage(TileStage):
                          f"{light_pass.name} {frame.steps_done}/{frame.steps}")
 
 
+class NearFieldStage(TileStage):
+    """Bias compensation from the image: the near surfaces' light, read from what the gather
+    put in the direct and indirect accumulators, added to the indirect light before its
+    blur."""
+
+    name = "bias compensation"
+
+    def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
+        if frame.near_field is None:
+            return
+        frame.check_cancelled()
+        camera = frame.camera
+        with frame.stats.timed(self.name):
+            self.gpu.tracer.bind()
+            view_projection = tile_projection(camera.projection_matrix, work.tile) \
+                @ camera.view_matrix
+            compensate_from_image(self.gpu.ctx, self.gpu.programs, frame.near_field,
+                                  work.gbuffer, (work.direct, work.soft), work.indirect,
+                                  view_projection, 1e-4 * frame.radius)
+            self.gpu.ctx.finish()
+
+
 class BlurStage(TileStage):
-    """The geometry-aware blur that removes the interleaving pattern of indirect light."""
+    """The geometry-aware blur that removes the interleaving pattern of indirect light and of
+    soft direct light."""
 
     name = "blur"
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
+        work.indirect_light = self._blurred(frame, work, work.indirect)
+        if work.soft is not None:
+            work.soft_light = self._blurred(frame, work, work.soft)
+
+    def _blurred(self, frame: FrameState, work: TileWork, accumulator: moderngl.Framebuffer
+                 ) -> np.ndarray:
         if not frame.blur_radius:
-            work.indirect_light = read_accumulator(work.indirect)
-            return
+            return read_accumulator(accumulator)
         with frame.stats.timed(self.name):
             textures = work.gbuffer.textures
             blurred = []
-            for target in work.indirect.color_attachments:  # diffuse, then glossy light
+            for target in accumulator.color_attachments:  # diffuse, then glossy light
                 result = work.scope.own(self.gpu.blur.apply(
                     target, textures["position"], textures["normal"], frame.blur_radius))
                 w, h = result.size
                 blurred.append(np.frombuffer(result.read(), dtype=np.float32).reshape(h, w, 4))
-            work.indirect_light = np.concatenate(blurred, axis=-1)
+            return np.concatenate(blurred, axis=-1)
 
 
 class ComposeStage(TileStage):
@@ -144,7 +180,10 @@ class ComposeStage(TileStage):
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
         with frame.stats.timed(self.name):
-            compose(frame.output, work.gbuffer.images, read_accumulator(work.direct),
+            direct = read_accumulator(work.direct)
+            if work.soft_light is not None:
+                direct += work.soft_light
+            compose(frame.output, work.gbuffer.images, direct,
                     work.indirect_light, frame.scene, frame.settings.antialiasing,
                     work.tile.x0, work.tile.y0, frame.plan.passes)
 
@@ -158,13 +197,13 @@ class RenderImage(Stage):
 
     def __init__(self, gpu: GpuSession, kept: KeptProducts) -> None:
         self.gpu, self.kept = gpu, kept
-        self.tile_stages = [GBufferStage(gpu), GatherStage(gpu), BlurStage(gpu),
-                            ComposeStage(gpu), DenoisingData()]
+        self.tile_stages = [GBufferStage(gpu), GatherStage(gpu), NearFieldStage(gpu),
+                            BlurStage(gpu), ComposeStage(gpu), DenoisingData()]
 
     def run(self, frame: FrameState) -> None:
         camera, settings, ctx = frame.camera, frame.settings, self.gpu.ctx
         aa = settings.antialiasing
-        tiles = tiles_of(camera.width * aa, camera.height * aa)
+        tiles = tiles_of(camera.width * aa, camera.height * aa, aa)
         frame.output = {name: np.zeros((camera.height, camera.width, c), np.float32)
                         for name, c in PASS_CHANNELS.items()}
         kept = KeptAtlases(self.kept.shadow_atlases, self.kept.versions.shape) \

@@ -108,7 +108,7 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
         plan.skipped["emission light"] = "no emissive surface"
     if not geometry.has_textures:
         plan.skipped["texture lookups"] = "no material has an image texture"
-    if plan.indirect and not settings.bias_compensation:
+    if plan.indirect and settings.bias_compensation == "off":
         plan.skipped["bias compensation"] = "off"
     elif plan.indirect and settings.clamp_distance == 0:
         plan.skipped["bias compensation"] = "no distance clamp"

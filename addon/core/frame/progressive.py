@@ -1,11 +1,12 @@
 """Progressive final renders: passes with independent light samples and VPLs, averaged.
 
-Pass k (from 0) renders with its own seed and the VPL clamp distance shrunk to
-clamp / √(k + 1). Averaged over K passes a VPL's clamped peak contributes at most
-1 / (K (clamp / √K)²) = 1 / clamp², the first pass's bound, so hot spots stay bounded while
-the clamp, and with it the bias, goes to zero: the average converges to the unclamped
-solution (a consistent estimator). The noise of the average is estimated from the difference
-of the averages of the even and of the odd passes (independent halves)."""
+Pass k (from 0) renders with its own seed, its supersamples moved by a sub-sample offset
+(pass 0: none; so edges converge as in Cycles, whose samples fall anywhere in the pixel) and
+the VPL clamp distance shrunk to clamp / √(k + 1). Averaged over K passes a VPL's clamped
+peak contributes at most 1 / (K (clamp / √K)²) = 1 / clamp², the first pass's bound, so hot
+spots stay bounded while the clamp, and with it the bias, goes to zero: the average converges
+to the unclamped solution (a consistent estimator). The noise of the average is estimated
+from the difference of the averages of the even and of the odd passes (independent halves)."""
 
 from __future__ import annotations
 
@@ -16,14 +17,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..scene.model import Scene
+from ..scene.model import Camera, Scene
 from ..settings import Settings
 from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
 
-LIGHT_PASSES = ("Combined", "DiffDir", "DiffInd", "GlossDir", "GlossInd")
-"""Passes that differ from pass to pass (the others are the same in every pass)."""
+UNFILTERED_PASSES = frozenset({"Depth", "Denoising Depth"})
+"""Passes the last pass gives (a depth is not averaged over a pixel); the others are averaged."""
 SEED_STRIDE = 0x9E3779B1  # pass k's seed: seed + k × stride (mod 2³¹)
+R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's steps (Roberts 2018)
 MIN_PASSES_FOR_NOISE = 4  # passes before the noise estimate may stop a render
 
 
@@ -34,6 +36,18 @@ def pass_settings(settings: Settings, index: int) -> Settings:
         return settings
     return replace(settings, seed=(settings.seed + index * SEED_STRIDE) % 2**31,
                    clamp_distance=settings.clamp_distance / math.sqrt(index + 1))
+
+
+def pass_camera(camera: Camera, index: int, aa: int) -> Camera:
+    """The camera of pass ``index``: its projection moved by a sub-sample offset in
+    [-1/2, 1/2)² supersamples from the R2 sequence (pass 0: the camera itself)."""
+    if index == 0:
+        return camera
+    offset = [((0.5 + index * step) % 1.0) - 0.5 for step in R2]
+    shift = np.eye(4)
+    shift[0, 3] = 2.0 * offset[0] / (camera.width * aa)  # NDC spans 2 over the image
+    shift[1, 3] = 2.0 * offset[1] / (camera.height * aa)
+    return replace(camera, projection_matrix=shift @ camera.projection_matrix)
 
 
 @dataclass
@@ -56,17 +70,17 @@ class Accumulator:
 
     def add(self, frame: Frame) -> None:
         half = self._halves[self.count % 2]
-        for name in LIGHT_PASSES:
-            if name in frame.passes:
-                image = frame.passes[name].astype(np.float64)
+        for name, image in frame.passes.items():
+            if name not in UNFILTERED_PASSES:
+                image = image.astype(np.float64)
                 half[name] = half[name] + image if name in half else image
         self.count += 1
         self._last = frame
 
     def average(self) -> Frame:
         passes = dict(self._last.passes)
-        for name in LIGHT_PASSES:
-            if name in passes:
+        for name in passes:
+            if name not in UNFILTERED_PASSES:
                 total = sum(h[name] for h in self._halves if name in h)
                 passes[name] = (total / self.count).astype(np.float32)
         return Frame(self._last.width, self._last.height, passes)

@@ -9,14 +9,15 @@ import numpy as np
 
 from ..scene.bounds import robust_bounds
 from ..scene.geometry import flatten_instances, light_shapes
-from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, build_light_samples
+from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .batches import shadow_map_batches
 from .compose import sanitize
 from .gather import Compensation, LightPass
 from .gpu_session import GpuSession
 from .ism_maps import ImperfectShadowMapFrame
+from .near_field import NearField
 from .planner import plan_frame, plan_gather, visible_bounds
-from .progressive import pass_settings
+from .progressive import pass_camera, pass_settings
 from .reuse import KeptProducts
 from .state import FrameState, RenderError, Stage
 from .visibility import (
@@ -51,7 +52,7 @@ class CheckInput(Stage):
             raise RenderError(f"{camera.width}×{camera.height} pixels at antialiasing {aa} is "
                               f"{samples:,} samples; the limit is {MAX_FRAME_SAMPLES:,} (lower "
                               f"the resolution or the antialiasing)")
-        frame.camera = camera
+        frame.camera = pass_camera(camera, frame.pass_index, aa)
 
 
 class FlattenGeometry(Stage):
@@ -161,13 +162,18 @@ class PlanLightPasses(Stage):
         passes += [LightPass("indirect light", b, clamp, mode, settings.interleave)
                    for b in vpl_batches]
         frame.blur_radius = blur_radius(settings.interleave, settings.blur_radius) \
-            if len(vpl_samples) else 0
-        if settings.bias_compensation and len(frame.vpls) and settings.clamp_distance > 0:
-            frame.compensation = Compensation(settings.clamp_distance * radius,
-                                              settings.bias_samples, settings.seed,
-                                              settings.bounces - 1)
-        frame.traces_rays = frame.compensation is not None or any(
-            p.visibility.rays_per_sample for p in passes)
+            if any(p.interleave > 1 for p in passes) else 0
+        if settings.bias_compensation != "off" and len(frame.vpls) and settings.clamp_distance:
+            if settings.bias_compensation == "full":
+                frame.compensation = Compensation(settings.clamp_distance * radius,
+                                                  settings.bias_samples, settings.seed,
+                                                  settings.bounces - 1)
+            else:
+                frame.near_field = NearField(settings.clamp_distance * radius,
+                                             settings.bias_samples, settings.seed,
+                                             settings.bounces > 1)
+        frame.traces_rays = frame.compensation is not None or frame.near_field is not None \
+            or any(p.visibility.rays_per_sample for p in passes)
         if frame.traces_rays:
             upload_triangles(self.gpu, self.kept, frame.geometry, stats)
         batches = [p.batch for p in passes if p.visibility.uses_ism]
@@ -187,7 +193,8 @@ class PlanLightPasses(Stage):
     def _direct_passes(self, frame: FrameState) -> list[LightPass]:
         """The light samples' passes: ray traced (all samples, or with ``hybrid`` those of
         lights with hard shadows), the others with shadow maps (imperfect ones for soft lights
-        with soft_light_ism)."""
+        with soft_light_ism). The samples of soft lights are interleaved like VPLs (soft light
+        varies smoothly; the blur removes the pattern); hard lights' are not."""
         settings, stats, samples = frame.settings, frame.stats, frame.light_samples
         near = frame.radius * 1e-6
         traced = {"ray_traced": np.ones(len(samples), bool), "hybrid": ~samples.soft,
@@ -196,8 +203,9 @@ class PlanLightPasses(Stage):
             stats.warnings.append("direct shadows use shadow maps: ray tracing needs OpenGL 4.3")
             traced[:] = False
         ray_traced = RayTracedVisibility()
-        passes = [LightPass("direct light", b, near, ray_traced)
-                  for b in ray_traced.batches(samples.subset(np.flatnonzero(traced)), settings, 0)]
+        passes = [LightPass("direct light", b, near, ray_traced, k)
+                  for chosen, k in self._by_softness(samples, traced, settings.interleave)
+                  for b in ray_traced.batches(chosen, settings, 0)]
         mapped = samples.subset(np.flatnonzero(~traced))
         soft_ism = settings.soft_light_ism and mapped.kind.size > 0
         if soft_ism and self.gpu.ctx.version_code < 430:
@@ -208,11 +216,20 @@ class PlanLightPasses(Stage):
             mapped.kind, (KIND_COSINE, KIND_DIRECTIONAL)) if soft_ism \
             else np.zeros(len(mapped), bool)
         imperfect, triangles = ImperfectVisibility(), ShadowMapVisibility()
-        passes += [LightPass("direct light", b, near, triangles)
-                   for b in shadow_map_batches(mapped.subset(np.flatnonzero(~as_ism)),
-                                               self.gpu.max_texture)]
-        return passes + [LightPass("direct light", b, near, imperfect) for b in
-                         imperfect.batches(mapped.subset(np.flatnonzero(as_ism)), settings, 0)]
+        passes += [LightPass("direct light", b, near, triangles, k)
+                   for chosen, k in self._by_softness(mapped, ~as_ism, settings.interleave)
+                   for b in shadow_map_batches(chosen, self.gpu.max_texture)]
+        return passes + [LightPass("direct light", b, near, imperfect, settings.interleave)
+                         for b in imperfect.batches(mapped.subset(np.flatnonzero(as_ism)),
+                                                    settings, 0)]
+
+    @staticmethod
+    def _by_softness(samples: LightSamples, chosen: np.ndarray, interleave: int
+                     ) -> list[tuple[LightSamples, int]]:
+        """The ``chosen`` samples of soft lights with the frame's interleave, then those of
+        hard lights with none (each pixel takes every hard sample: exact edges)."""
+        return [(samples.subset(np.flatnonzero(chosen & soft)), k)
+                for soft, k in ((samples.soft, interleave), (~samples.soft, 1))]
 
 
 class Sanitize(Stage):

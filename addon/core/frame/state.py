@@ -19,6 +19,7 @@ from .result import Stats
 if TYPE_CHECKING:
     from .gather import Compensation, LightPass
     from .ism_maps import ImperfectShadowMapFrame
+    from .near_field import NearField
 
 
 class RenderError(RuntimeError):
@@ -57,7 +58,8 @@ class FrameState:
     vpl_keys: np.ndarray | None = None  # identities of the VPLs kept in vpl_samples
     vpl_samples: LightSamples | None = None
     light_passes: list[LightPass] = field(default_factory=list)
-    compensation: Compensation | None = None
+    compensation: Compensation | None = None  # bias compensation by gathering VPLs again
+    near_field: NearField | None = None  # bias compensation from the image
     ism_maps: ImperfectShadowMapFrame | None = None
     blur_radius: int = 0
     output: dict[str, np.ndarray] | None = None
