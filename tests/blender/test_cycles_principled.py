@@ -104,7 +104,7 @@ def test_cornell_default_principled_indirect(blender, tmp_path, without_specular
     # own: with it the reference measured 2 % darker than with 0 (docs/measurements.md)
     scene.cycles.blur_glossy = 0.0
     settings = scene.vpl_gi
-    settings.antialiasing, settings.light_samples = 2, 64
+    settings.antialiasing, settings.light_samples, settings.interleave = 2, 64, "4"
     settings.visibility, settings.clamp_distance, settings.vpl_count = "exact", 0.0, 2048
     settings.bounces = 4
     # VPLs reflect glossily too (glossy point emitters); measured in docs/measurements.md

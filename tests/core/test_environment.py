@@ -119,7 +119,9 @@ def test_constant_map_samples_like_the_constant_world():
 def test_constant_map_lights_the_floor_like_the_constant_world(renderer):
     radiance = np.array([0.2, 0.4, 0.6], np.float32)
     env = EnvironmentMap(np.broadcast_to(radiance, (16, 32, 3)).copy())
-    settings = Settings(bounces=0, antialiasing=1, world_samples=512)
+    # every pixel takes every sample: at the image border the blur cannot remove the
+    # interleaving pattern entirely (README, Known limits), which is not what this compares
+    settings = Settings(bounces=0, antialiasing=1, world_samples=512, interleave=1)
     plain, _ = renderer.render(floor_scene([], world=World(tuple(radiance))), settings)
     mapped, _ = renderer.render(floor_scene([], world=World(tuple(radiance), 1.0, env)),
                                 settings)

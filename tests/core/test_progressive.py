@@ -8,11 +8,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from addon.core.frame.progressive import Accumulator, pass_settings
+from addon.core.frame.progressive import Accumulator, pass_camera, pass_settings
 from addon.core.frame.renderer import RenderCancelled
 from addon.core.frame.result import Frame
+from addon.core.scene.model import Instance, Material, Scene, World
 from addon.core.settings import Settings, SettingsError
-from tests.core.builders import inside_sphere_camera
+from tests.core.builders import inside_sphere_camera, quad, top_down_camera, translation
 from tests.core.test_instant_radiosity import sphere_scene
 
 ALBEDO = 0.5
@@ -108,3 +109,31 @@ def test_noise_estimate_matches_the_noise_of_the_average() -> None:
 def test_bad_pass_settings_are_refused_before_work_starts(renderer, name, value) -> None:
     with pytest.raises(SettingsError, match=name):
         renderer.render_progressive(closed_sphere(), replace(BASE, **{name: value}))
+
+
+def test_passes_move_the_supersamples_so_edges_converge(renderer) -> None:
+    """A strip's edge a third of the way into pixel column 8: one sample per pixel at its
+    centre misses it, and passes whose samples move over the pixel cover a third of it."""
+    size, extent = 16, 6.0
+    pixel = extent / size
+    edge = -extent / 2 + 8 * pixel + pixel / 3
+    half = (edge + extent / 2) / 2
+    strip = Instance(quad(half, extent), translation(edge - half, 0, 0),
+                     [Material("strip", (0.5, 0.5, 0.5))])
+    scene = Scene([strip], [], World(color=(1.0, 1.0, 1.0)), top_down_camera(size, extent),
+                  film_transparent=True)
+    settings = Settings(antialiasing=1, bounces=0, world_samples=4)
+    one, _ = renderer.render_progressive(scene, settings)
+    many, _ = renderer.render_progressive(scene, replace(settings, passes=32))
+    assert np.all(one.passes["Combined"][:, 8, 3] == 0.0)
+    np.testing.assert_allclose(many.passes["Combined"][:, 8, 3], 1 / 3, atol=0.04)
+    np.testing.assert_array_equal(many.passes["Combined"][:, :8, 3], 1.0)
+
+
+def test_pass_offsets_stay_within_a_supersample_and_centre_on_it() -> None:
+    camera = top_down_camera(10)
+    assert pass_camera(camera, 0, 2) is camera
+    offsets = np.array([(pass_camera(camera, k, 2).projection_matrix
+                         - camera.projection_matrix)[:2, 3] * 10 * 2 / 2 for k in range(1, 65)])
+    assert np.all(np.abs(offsets) <= 0.5) and len(np.unique(offsets, axis=0)) == 64
+    np.testing.assert_allclose(offsets.mean(axis=0), 0.0, atol=0.02)

@@ -390,7 +390,8 @@ def random_settings(draw: st.DrawFn) -> Settings:
         visibility=draw(pick(["ism", "classic", "exact"])),
         vpl_shadow_resolution=draw(pick([16, 64])),
         clamp_distance=draw(st.floats(0, 1, **FLOATS)),
-        bias_compensation=draw(pick(["off", "full", "image"])), bias_samples=draw(st.integers(1, 4)),
+        bias_compensation=draw(pick(["off", "full", "image"])),
+        bias_samples=draw(st.integers(1, 4)),
         interleave=draw(pick([1, 2, 4, 8])), blur_radius=draw(st.integers(1, 32)),
         soft_light_ism=draw(st.booleans()), ism_points=draw(pick([16, 256, 1024])),
         ism_resolution=draw(pick([32, 64])), pull_push_levels=draw(st.integers(0, 12)))

@@ -25,7 +25,6 @@ from .state import CancelCallback, ProgressCallback
 UNFILTERED_PASSES = frozenset({"Depth", "Denoising Depth"})
 """Passes the last pass gives (a depth is not averaged over a pixel); the others are averaged."""
 SEED_STRIDE = 0x9E3779B1  # pass k's seed: seed + k × stride (mod 2³¹)
-R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's steps (Roberts 2018)
 MIN_PASSES_FOR_NOISE = 4  # passes before the noise estimate may stop a render
 
 
@@ -40,14 +39,25 @@ def pass_settings(settings: Settings, index: int) -> Settings:
 
 def pass_camera(camera: Camera, index: int, aa: int) -> Camera:
     """The camera of pass ``index``: its projection moved by a sub-sample offset in
-    [-1/2, 1/2)² supersamples from the R2 sequence (pass 0: the camera itself)."""
+    [-1/2, 1/2)² supersamples, the Halton point (bases 2, 3) of the index (pass 0: the camera
+    itself): 2^m passes spread over 2^m columns of the supersample."""
     if index == 0:
         return camera
-    offset = [((0.5 + index * step) % 1.0) - 0.5 for step in R2]
+    offset = [radical_inverse(index, base) - 0.5 for base in (2, 3)]
     shift = np.eye(4)
     shift[0, 3] = 2.0 * offset[0] / (camera.width * aa)  # NDC spans 2 over the image
     shift[1, 3] = 2.0 * offset[1] / (camera.height * aa)
     return replace(camera, projection_matrix=shift @ camera.projection_matrix)
+
+
+def radical_inverse(index: int, base: int) -> float:
+    """The index's digits in ``base`` mirrored behind the point (van der Corput)."""
+    value, scale = 0.0, 1.0 / base
+    while index:
+        index, digit = divmod(index, base)
+        value += digit * scale
+        scale /= base
+    return value
 
 
 @dataclass

@@ -219,17 +219,19 @@ class PlanLightPasses(Stage):
         passes += [LightPass("direct light", b, near, triangles, k)
                    for chosen, k in self._by_softness(mapped, ~as_ism, settings.interleave)
                    for b in shadow_map_batches(chosen, self.gpu.max_texture)]
-        return passes + [LightPass("direct light", b, near, imperfect, settings.interleave)
-                         for b in imperfect.batches(mapped.subset(np.flatnonzero(as_ism)),
-                                                    settings, 0)]
+        return passes + [LightPass("direct light", b, near, imperfect, k)
+                         for chosen, k in self._by_softness(mapped, as_ism, settings.interleave)
+                         for b in imperfect.batches(chosen, settings, 0)]
 
     @staticmethod
     def _by_softness(samples: LightSamples, chosen: np.ndarray, interleave: int
                      ) -> list[tuple[LightSamples, int]]:
-        """The ``chosen`` samples of soft lights with the frame's interleave, then those of
-        hard lights with none (each pixel takes every hard sample: exact edges)."""
-        return [(samples.subset(np.flatnonzero(chosen & soft)), k)
-                for soft, k in ((samples.soft, interleave), (~samples.soft, 1))]
+        """The ``chosen`` world samples with the frame's interleave, then the others with none:
+        each pixel takes every sample of lights whose shadows, spots or glossy highlights can
+        be sharp (the blur would smear them)."""
+        broad = samples.broad if samples.broad is not None else np.zeros(len(samples), bool)
+        return [(samples.subset(np.flatnonzero(chosen & subset)), k)
+                for subset, k in ((broad, interleave), (~broad, 1))]
 
 
 class Sanitize(Stage):

@@ -44,6 +44,8 @@ class LightSamples:
     spread: np.ndarray  # (n, 2) area-light spread: tan(half angle), normalisation; 0 = none
     glossy: np.ndarray | None = None  # (n, 4, 4) VPLs' glossy emission (VPLs.glossy); None
     # when no sample has one (the table then has no glossy texels)
+    broad: np.ndarray | None = None  # (n,) bool a sample of light from everywhere (the
+    # world), whose light varies smoothly over surfaces, diffuse and glossy; None: none is
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -120,7 +122,8 @@ class _Builder:
         self.rows: list[dict] = []
 
     def add(self, *, position, axis, kind, intensity, shadow, resolution,
-            spot_cos=NO_SPOT, spot_smooth=0.0, soft=False, spread=(0.0, 0.0)) -> None:
+            spot_cos=NO_SPOT, spot_smooth=0.0, soft=False, spread=(0.0, 0.0),
+            broad=False) -> None:
         position = np.atleast_2d(position)
         n = len(position)
         self.rows.append({
@@ -135,6 +138,8 @@ class _Builder:
             "generation": np.zeros(n, dtype=int),
             "soft": np.full(n, soft),
             "spread": np.broadcast_to(spread, (n, 2)),
+            "glossy": None,
+            "broad": np.full(n, broad),
         })
 
     def build(self) -> LightSamples:
@@ -144,7 +149,8 @@ class _Builder:
                                 np.zeros(0, int), np.zeros(0, int), np.zeros(0, bool),
                                 np.zeros((0, 2)))
         keys = self.rows[0].keys()
-        return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
+        return LightSamples(**{k: None if self.rows[0][k] is None else
+                               np.concatenate([r[k] for r in self.rows]) for k in keys})
 
 
 def area_light_points(light: Light, u: np.ndarray) -> np.ndarray:
@@ -252,7 +258,7 @@ def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator)
         sky, ratio = EnvironmentSampler(env).sample(fibonacci_square(n, rng))
         intensity = ratio / n
     b.add(position=np.zeros((n, 3)), axis=-sky, kind=KIND_DIRECTIONAL, intensity=intensity,
-          shadow=True, resolution=s.sample_shadow_resolution, soft=True)
+          shadow=True, resolution=s.sample_shadow_resolution, soft=True, broad=True)
 
 
 def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
