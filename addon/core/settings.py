@@ -299,8 +299,7 @@ class Settings:
     interleave: int = setting(
         8, "Interleave", "interleaving",
         "Interleaved sampling: each supersample of a K×K pattern gathers every K²-th VPL and "
-        "every K²-th sample of the soft lights (1 = off); a geometry-aware blur then removes "
-        "the pattern",
+        "every K²-th world sample (1 = off); a geometry-aware blur then removes the pattern",
         choices=(Choice(1, "Off", "every pixel gathers every VPL"),
                  Choice(2, "2×2", "each pixel gathers every 4th VPL"),
                  Choice(4, "4×4", "each pixel gathers every 16th VPL"),
