@@ -25,6 +25,7 @@ uniform int u_resolution;
 uniform float u_point_area;      // surface area each point stands for
 uniform float u_footprint_scale; // footprint side / the side of the point's projected area
 uniform int u_max_footprint;     // largest footprint side, texels
+uniform int u_first_row;         // the first VPL of this dispatch
 uniform vec3 u_scene_centre;     // bounding sphere of the scene, for directional maps
 uniform float u_scene_radius;
 
@@ -64,7 +65,7 @@ float plane_depth(vec3 t, vec3 b, vec3 n, vec2 uv, vec3 surface, vec3 d, float d
 
 void main() {
     int i = int(gl_GlobalInvocationID.x);
-    int row = int(gl_GlobalInvocationID.y);  // this dispatch's VPL
+    int row = u_first_row + int(gl_GlobalInvocationID.y);  // this invocation's VPL
     if (i >= u_points_per_vpl) return;
     int vpl = int(ism_vpls[2 * row + 1].w);  // its atlas tile, which also picks its points
     int tri;

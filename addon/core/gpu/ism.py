@@ -67,6 +67,8 @@ BINDING_POINT_OUT = 26  # ISM_BINDING_POINT_OUT in ism_points_comp.glsl
 BINDING_GUIDE = 27  # ISM_BINDING_GUIDE in ism_points_lib.glsl
 POINT_LOCAL_SIZE = 64  # local_size_x of ism_splat_comp.glsl and ism_lookup_comp.glsl
 IMAGE_LOCAL_SIZE = 8  # local_size_x and _y of ism_pull_comp.glsl and ism_push_comp.glsl
+SPLAT_POINTS_PER_DISPATCH = 1 << 20  # a splat dispatch's points (VPLs × points per VPL): about
+# 0.15 s on llvmpipe, which holds Python's lock for a whole dispatch (Ctrl-C waits for it)
 FAR = float(np.float32(3.0e38))  # ISM_FAR in ism_lib.glsl: the depth of texels left empty
 EMPTY_BITS = 0xFFFFFFFF  # ISM_EMPTY_BITS: an empty splat texel, above every float's bits
 BEHIND = 1.25  # ISM_BEHIND: a splat this many times as far as the surface around is a hole
@@ -368,7 +370,12 @@ class ImperfectShadowMaps:
         centre, radius = self._scene_sphere
         shader["u_scene_centre"] = tuple(float(c) for c in centre)
         shader["u_scene_radius"] = float(radius)
-        shader.run(-(-self._points_per_vpl // POINT_LOCAL_SIZE), vpl_count)
+        groups = -(-self._points_per_vpl // POINT_LOCAL_SIZE)
+        rows = max(1, SPLAT_POINTS_PER_DISPATCH // max(1, self._points_per_vpl))
+        for first in range(0, vpl_count, rows):  # Ctrl-C and Esc are heard between them
+            shader["u_first_row"] = first
+            shader.run(groups, min(rows, vpl_count - first))
+            self.ctx.finish()
         self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
 
     def _point_uniforms(self, shader: moderngl.ComputeShader) -> None:
