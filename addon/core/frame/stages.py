@@ -204,7 +204,7 @@ class PlanLightPasses(Stage):
             traced[:] = False
         ray_traced = RayTracedVisibility()
         passes = [LightPass("direct light", b, near, ray_traced, k)
-                  for chosen, k in self._by_softness(samples, traced, settings.interleave)
+                  for chosen, k in self._split_world(samples, traced, settings.interleave)
                   for b in ray_traced.batches(chosen, settings, 0)]
         mapped = samples.subset(np.flatnonzero(~traced))
         soft_ism = settings.soft_light_ism and mapped.kind.size > 0
@@ -217,14 +217,14 @@ class PlanLightPasses(Stage):
             else np.zeros(len(mapped), bool)
         imperfect, triangles = ImperfectVisibility(), ShadowMapVisibility()
         passes += [LightPass("direct light", b, near, triangles, k)
-                   for chosen, k in self._by_softness(mapped, ~as_ism, settings.interleave)
+                   for chosen, k in self._split_world(mapped, ~as_ism, settings.interleave)
                    for b in shadow_map_batches(chosen, self.gpu.max_texture)]
         return passes + [LightPass("direct light", b, near, imperfect, k)
-                         for chosen, k in self._by_softness(mapped, as_ism, settings.interleave)
+                         for chosen, k in self._split_world(mapped, as_ism, settings.interleave)
                          for b in imperfect.batches(chosen, settings, 0)]
 
     @staticmethod
-    def _by_softness(samples: LightSamples, chosen: np.ndarray, interleave: int
+    def _split_world(samples: LightSamples, chosen: np.ndarray, interleave: int
                      ) -> list[tuple[LightSamples, int]]:
         """The ``chosen`` world samples with the frame's interleave, then the others with none:
         each pixel takes every sample of lights whose shadows, spots or glossy highlights can
