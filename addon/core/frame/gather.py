@@ -33,6 +33,7 @@ class LightPass:
     min_distance: float
     visibility: Visibility
     interleave: int = 1
+    blurred: bool = False  # direct light: into the accumulator the blur smooths (world light)
 
     @property
     def indirect(self) -> bool:

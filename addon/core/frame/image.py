@@ -93,7 +93,7 @@ class GBufferStage(TileStage):
         glossy = work.gbuffer.glossy
         work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
         work.indirect = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
-        if any(p.interleave > 1 and not p.indirect for p in frame.light_passes):
+        if any(p.blurred for p in frame.light_passes):
             work.soft = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
 
 
@@ -113,7 +113,7 @@ class GatherStage(TileStage):
                 ctx.finish()
             with stats.timed(light_pass.name):
                 target = work.indirect if light_pass.indirect else \
-                    work.soft if light_pass.interleave > 1 else work.direct
+                    work.soft if light_pass.blurred else work.direct
                 gather(ctx, self.gpu.programs, light_pass, atlas, work.gbuffer, target,
                        data.scene, centre, radius, bias)
                 ctx.finish()

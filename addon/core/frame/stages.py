@@ -162,7 +162,7 @@ class PlanLightPasses(Stage):
         passes += [LightPass("indirect light", b, clamp, mode, settings.interleave)
                    for b in vpl_batches]
         frame.blur_radius = blur_radius(settings.interleave, settings.blur_radius) \
-            if any(p.interleave > 1 for p in passes) else 0
+            if any(p.interleave > 1 and (p.indirect or p.blurred) for p in passes) else 0
         if settings.bias_compensation != "off" and len(frame.vpls) and settings.clamp_distance:
             if settings.bias_compensation == "full":
                 frame.compensation = Compensation(settings.clamp_distance * radius,
@@ -192,20 +192,31 @@ class PlanLightPasses(Stage):
 
     def _direct_passes(self, frame: FrameState) -> list[LightPass]:
         """The light samples' passes: ray traced (all samples, or with ``hybrid`` those of
-        lights with hard shadows), the others with shadow maps (imperfect ones for soft lights
-        with soft_light_ism). The samples of soft lights are interleaved like VPLs (soft light
-        varies smoothly; the blur removes the pattern); hard lights' are not."""
+        lights with hard shadows and of suns with an angle), the others with shadow maps
+        (imperfect ones for soft lights with soft_light_ism). The world's samples are
+        interleaved like VPLs (its light varies smoothly; the blur removes the pattern); a
+        sun's angle samples are interleaved without the blur (each supersample traces one of
+        them: Cycles' one light sample per path, sharp where the penumbra is); the others go
+        to every supersample."""
         settings, stats, samples = frame.settings, frame.stats, frame.light_samples
         near = frame.radius * 1e-6
-        traced = {"ray_traced": np.ones(len(samples), bool), "hybrid": ~samples.soft,
+        sun_disc = self._sun_disc(samples)
+        traced = {"ray_traced": np.ones(len(samples), bool),
+                  "hybrid": ~samples.soft | sun_disc,
                   "shadow_maps": np.zeros(len(samples), bool)}[settings.direct_shadows]
         if traced.any() and self.gpu.ctx.version_code < 430:
             stats.warnings.append("direct shadows use shadow maps: ray tracing needs OpenGL 4.3")
             traced[:] = False
         ray_traced = RayTracedVisibility()
-        passes = [LightPass("direct light", b, near, ray_traced, k)
-                  for chosen, k in self._split_world(samples, traced, settings.interleave)
+        passes = [LightPass("direct light", b, near, ray_traced, k, blurred)
+                  for chosen, k, blurred in self._split_world(samples, traced & ~sun_disc,
+                                                              settings.interleave)
                   for b in ray_traced.batches(chosen, settings, 0)]
+        sun_samples = samples.subset(np.flatnonzero(traced & sun_disc))
+        if len(sun_samples):  # the smallest pattern that gives each supersample one sample
+            k = next((k for k in (1, 2, 4) if k * k >= len(sun_samples)), 8)
+            passes += [LightPass("direct light", b, near, ray_traced, k)
+                       for b in ray_traced.batches(sun_samples, settings, 0)]
         mapped = samples.subset(np.flatnonzero(~traced))
         soft_ism = settings.soft_light_ism and mapped.kind.size > 0
         if soft_ism and self.gpu.ctx.version_code < 430:
@@ -216,21 +227,29 @@ class PlanLightPasses(Stage):
             mapped.kind, (KIND_COSINE, KIND_DIRECTIONAL)) if soft_ism \
             else np.zeros(len(mapped), bool)
         imperfect, triangles = ImperfectVisibility(), ShadowMapVisibility()
-        passes += [LightPass("direct light", b, near, triangles, k)
-                   for chosen, k in self._split_world(mapped, ~as_ism, settings.interleave)
+        passes += [LightPass("direct light", b, near, triangles, k, blurred)
+                   for chosen, k, blurred in self._split_world(mapped, ~as_ism,
+                                                               settings.interleave)
                    for b in shadow_map_batches(chosen, self.gpu.max_texture)]
-        return passes + [LightPass("direct light", b, near, imperfect, k)
-                         for chosen, k in self._split_world(mapped, as_ism, settings.interleave)
+        return passes + [LightPass("direct light", b, near, imperfect, k, blurred)
+                         for chosen, k, blurred in self._split_world(mapped, as_ism,
+                                                                     settings.interleave)
                          for b in imperfect.batches(chosen, settings, 0)]
 
     @staticmethod
-    def _split_world(samples: LightSamples, chosen: np.ndarray, interleave: int
-                     ) -> list[tuple[LightSamples, int]]:
-        """The ``chosen`` world samples with the frame's interleave, then the others with none:
-        each pixel takes every sample of lights whose shadows, spots or glossy highlights can
-        be sharp (the blur would smear them)."""
+    def _sun_disc(samples: LightSamples) -> np.ndarray:
+        """The angle samples of suns (directional, soft, not the world's)."""
         broad = samples.broad if samples.broad is not None else np.zeros(len(samples), bool)
-        return [(samples.subset(np.flatnonzero(chosen & subset)), k)
+        return samples.soft & (samples.kind == KIND_DIRECTIONAL) & ~broad
+
+    @staticmethod
+    def _split_world(samples: LightSamples, chosen: np.ndarray, interleave: int
+                     ) -> list[tuple[LightSamples, int, bool]]:
+        """The ``chosen`` world samples, interleaved and blurred, then the other ``chosen``
+        samples, which each pixel takes all of: lights whose shadows, spots or glossy
+        highlights can be sharp (the blur would smear them)."""
+        broad = samples.broad if samples.broad is not None else np.zeros(len(samples), bool)
+        return [(samples.subset(np.flatnonzero(chosen & subset)), k, k > 1)
                 for subset, k in ((broad, interleave), (~broad, 1))]
 
 
