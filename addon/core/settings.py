@@ -173,8 +173,10 @@ class Settings:
         "hybrid", "Direct Shadows", "shadows",
         "How the shadows of direct light (lights, emissive surfaces, the world) are found",
         choices=(Choice("hybrid", "Hybrid",
-                        "ray traced for lights with hard shadows (point, spot and sun lights "
-                        "of no size): exact edges; shadow maps for the samples of soft lights"),
+                        "ray traced for point and spot lights of no size and for suns (a sun "
+                        "with an angle: one of its samples per supersample): exact edges; "
+                        "shadow maps for the samples of area and sphere lights, emission and "
+                        "the world"),
                  Choice("ray_traced", "Ray Traced",
                         "a ray per pixel and light sample on the GPU ray tracer (exact; slow "
                         "for many samples without a hardware GPU)"),
