@@ -68,6 +68,7 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
 #ifdef BIAS_COMPENSATION
 #include "raytrace_lib.glsl"
 #include "materials_lib.glsl"
+#include "compensation_lib.glsl"
 // The scene's position stream (x, y, z of 3 vertices per triangle, in the order whose
 // triangle indices the ray tracer returns), read as floats: std430 pads vec3 arrays.
 layout(std430, binding = SURFACE_VERTICES_BINDING) readonly buffer TriangleVertices {
@@ -78,47 +79,25 @@ vec3 triangle_vertex(int triangle, int corner) {
     int i = 9 * triangle + 3 * corner;
     return vec3(triangle_positions[i], triangle_positions[i + 1], triangle_positions[i + 2]);
 }
-uniform float u_clamp_distance;
 uniform int u_bias_samples;
-uniform uint u_seed;
 uniform int u_max_generation;  // light that may bounce once more at y
 
-vec2 random2(uvec2 pixel, uint k) {
-    uint h = pcg(pixel.x + pcg(pixel.y + pcg(k + pcg(u_seed))));
-    return vec2(float(h & 0xffffu), float(h >> 16u)) / 65536.0;
-}
-
-vec3 cosine_direction(vec3 n, vec2 u) {
-    vec3 t, b;
-    basis_of(n, t, b);
-    float r = sqrt(u.x);
-    float phi = 2.0 * PI * u.y;
-    return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u.x)) * n);
+// The hit's radiance: this batch's light gathered there, reflected by its albedo.
+bool hit_radiance(vec3 origin, vec3 dir, float t, int triangle, out vec3 radiance) {
+    vec3 a = triangle_vertex(triangle, 0);
+    vec3 n_y = normalize(cross(triangle_vertex(triangle, 1) - a,
+                               triangle_vertex(triangle, 2) - a));
+    if (dot(n_y, dir) > 0.0) n_y = -n_y;
+    vec3 unused;
+    radiance = material_of(triangle).albedo.rgb / PI
+               * gather(origin + dir * t, n_y, n_y, u_max_generation,
+                        Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0)), unused);
+    return true;
 }
 
 vec3 compensation(vec3 world, vec3 normal, vec3 geometric) {
-    vec3 sum = vec3(0.0);
-    vec3 origin = world + geometric * u_ray_offset;
-    for (int k = 0; k < u_bias_samples; ++k) {
-        vec3 dir = cosine_direction(normal, random2(uvec2(gl_FragCoord.xy), uint(k)));
-        float t;
-        int triangle;
-        vec2 uv;
-        if (!rt_closest_hit(origin, dir, 0.0, u_clamp_distance, t, triangle, uv)) continue;
-        vec3 a = triangle_vertex(triangle, 0);
-        vec3 n_y = normalize(cross(triangle_vertex(triangle, 1) - a,
-                                   triangle_vertex(triangle, 2) - a));
-        if (dot(n_y, dir) > 0.0) n_y = -n_y;
-        float weight = 1.0 - (t * t) / (u_clamp_distance * u_clamp_distance);
-        vec3 y = origin + dir * t;
-        vec3 unused;
-        vec3 radiance = material_of(triangle).albedo.rgb / PI
-                        * gather(y, n_y, n_y, u_max_generation, Lobe(vec4(0.0), vec4(0.0),
-                                                                      vec4(0.0), vec3(0.0)),
-                                 unused);
-        sum += weight * radiance;
-    }
-    return sum / float(u_bias_samples);
+    return compensation_sum(ivec2(gl_FragCoord.xy), world + geometric * u_ray_offset, normal,
+                            0, u_bias_samples) / float(u_bias_samples);
 }
 #endif
 

@@ -7,9 +7,11 @@
 // weight 1 - d²/clamp² (with one bounce only, y's direct light: its indirect light would
 // bounce twice; with more, y's indirect light is all of its VPLs', one bounce too many for the
 // last generation, a share of the clamp's share). Surfaces the camera does not see contribute
-// nothing (the bias stays there). Output in pass units (irradiance / pi), added to the indirect light before its blur.
+// nothing (the bias stays there). Output in pass units (irradiance / pi), added to the
+// indirect light before its blur.
 #include "common_lib.glsl"
 #include "raytrace_lib.glsl"
+#include "compensation_lib.glsl"
 
 in vec2 v_uv;
 
@@ -23,34 +25,20 @@ uniform sampler2D u_indirect;   // indirect light (clamped VPLs), pass units
 uniform sampler2D u_soft_direct; // soft lights' direct light, interleaved, pass units
 #endif
 uniform mat4 u_view_projection; // world to the tile's clip space
-uniform float u_clamp_distance;
 uniform float u_ray_offset;
 uniform float u_match_distance; // how far y may lie from the surface seen at its pixel
 uniform int u_samples;      // rays per pixel in all
 uniform int u_first;        // this draw's rays: u_first .. u_first + u_count - 1
 uniform int u_count;
-uniform uint u_seed;
 
 layout(location = 0) out vec4 out_light;
 #ifdef GLOSSY
 layout(location = 1) out vec4 out_glossy;
 #endif
 
-vec2 random2(uvec2 pixel, uint k) {
-    uint h = pcg(pixel.x + pcg(pixel.y + pcg(k + pcg(u_seed))));
-    return vec2(float(h & 0xffffu), float(h >> 16u)) / 65536.0;
-}
-
-vec3 cosine_direction(vec3 n, vec2 u) {
-    vec3 t, b;
-    basis_of(n, t, b);
-    float r = sqrt(u.x);
-    float phi = 2.0 * PI * u.y;
-    return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u.x)) * n);
-}
-
 // y's diffuse radiance from the image, or false where the camera does not see y from x's side.
-bool image_radiance(vec3 y, vec3 dir, out vec3 radiance) {
+bool hit_radiance(vec3 origin, vec3 dir, float t, int triangle, out vec3 radiance) {
+    vec3 y = origin + dir * t;
     vec4 clip = u_view_projection * vec4(y, 1.0);
     if (clip.w <= 0.0) return false;
     vec2 ndc = clip.xy / clip.w;
@@ -81,16 +69,6 @@ void main() {
     if (normal.w == 0.0) return;
     vec3 origin = texelFetch(u_position, px, 0).xyz
                   + texelFetch(u_geometric, px, 0).xyz * u_ray_offset;
-    float c2 = u_clamp_distance * u_clamp_distance;
-    vec3 sum = vec3(0.0);
-    for (int k = u_first; k < u_first + u_count; ++k) {
-        vec3 dir = cosine_direction(normal.xyz, random2(uvec2(px), uint(k)));
-        float t;
-        int triangle;
-        vec2 uv;
-        if (!rt_closest_hit(origin, dir, 0.0, u_clamp_distance, t, triangle, uv)) continue;
-        vec3 radiance;
-        if (image_radiance(origin + dir * t, dir, radiance)) sum += (1.0 - t * t / c2) * radiance;
-    }
-    out_light = vec4(sum / float(u_samples), 0.0);
+    out_light = vec4(compensation_sum(px, origin, normal.xyz, u_first, u_count)
+                     / float(u_samples), 0.0);
 }
