@@ -22,6 +22,7 @@ if TYPE_CHECKING:
 
 SURFACE_VERTICES_BINDING = 4  # the position stream as gather_frag.glsl's storage buffer
 LOBE_UNITS = 9, 10, 11  # the g-buffer's glossy lobe layers (units 6-8: the scene's tables)
+RAY_OFFSET = 1e-4  # rays from a pixel start this fraction of the scene's radius off its surface
 
 
 @dataclass
@@ -118,7 +119,7 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
                      u_shadow_atlas=4, u_atlas_columns=batch.columns,
                      u_interleave=light_pass.interleave, u_ism_bias=ISM_BIAS_TEXELS,
                      u_scene_centre=tuple(centre), u_scene_radius=radius, u_shadow_bias=bias,
-                     u_min_distance2=light_pass.min_distance**2, u_ray_offset=1e-4 * radius,
+                     u_min_distance2=light_pass.min_distance**2, u_ray_offset=RAY_OFFSET * radius,
                      **uniforms)
         if compensation is not None:  # the surfaces rays reach: positions and materials
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)

@@ -38,10 +38,12 @@ class Tile:
 @dataclass
 class GBuffer:
     """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays;
-    ``view``: the camera uniforms a glossy gather needs (empty without GLOSSY_LAYERS)."""
+    ``view_projection``: world to the tile's clip space, as a mat4 uniform; ``view``: the
+    camera uniforms a glossy gather needs (empty without GLOSSY_LAYERS)."""
 
     textures: dict[str, moderngl.Texture]
     images: dict[str, np.ndarray]
+    view_projection: tuple[float, ...]
     view: dict[str, object] = field(default_factory=dict)
 
     @property
@@ -110,4 +112,4 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
               for name, tex in by_name.items()}
     view = {name: uniforms[name] for name in ("u_camera_position", "u_camera_forward",
                                               "u_orthographic")} if glossy else {}
-    return GBuffer(by_name, images, view)
+    return GBuffer(by_name, images, uniforms["u_view_projection"], view)

@@ -14,8 +14,8 @@ from ..gpu.texture_array import upload as upload_textures
 from ..scene.geometry import WorldGeometry
 from .compose import compose
 from .denoise import DenoisingData
-from .gather import gather, new_accumulator, read_accumulator
-from .gbuffer import GBuffer, Tile, render_gbuffer, tile_projection
+from .gather import RAY_OFFSET, gather, new_accumulator, read_accumulator
+from .gbuffer import GBuffer, Tile, render_gbuffer
 from .gpu_scope import GpuScope
 from .gpu_session import GpuSession
 from .near_field import compensate_from_image
@@ -138,14 +138,11 @@ class NearFieldStage(TileStage):
         if frame.near_field is None:
             return
         frame.check_cancelled()
-        camera = frame.camera
         with frame.stats.timed(self.name):
             self.gpu.tracer.bind()
-            view_projection = tile_projection(camera.projection_matrix, work.tile) \
-                @ camera.view_matrix
             compensate_from_image(self.gpu.ctx, self.gpu.programs, frame.near_field,
                                   work.gbuffer, (work.direct, work.soft), work.indirect,
-                                  view_projection, 1e-4 * frame.radius)
+                                  RAY_OFFSET * frame.radius)
             self.gpu.ctx.finish()
 
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import moderngl
-import numpy as np
 
 from ..gpu.gl import ProgramCache, set_uniforms
 from .gbuffer import GBuffer
@@ -31,8 +30,7 @@ class NearField:
 def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: NearField,
                           gbuffer: GBuffer,
                           direct: tuple[moderngl.Framebuffer, moderngl.Framebuffer | None],
-                          indirect: moderngl.Framebuffer, view_projection: np.ndarray,
-                          ray_offset: float) -> None:
+                          indirect: moderngl.Framebuffer, ray_offset: float) -> None:
     """Add the near-field light to ``indirect`` (additive blending). ``direct``: the direct
     light's accumulators, hard and (when soft lights are interleaved) soft. The ray tracer's
     scene must be bound."""
@@ -55,7 +53,7 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
         program = programs.get("fullscreen_vert.glsl", "near_field_frag.glsl", defines,
                                version=430)
         set_uniforms(program, **{name: unit for unit, name in enumerate(units)},
-                     u_view_projection=tuple(view_projection.T.astype("f4").ravel()),
+                     u_view_projection=gbuffer.view_projection,
                      u_clamp_distance=near.clamp_distance, u_ray_offset=ray_offset,
                      u_match_distance=MATCH_FRACTION * near.clamp_distance,
                      u_samples=near.samples, u_seed=near.seed)

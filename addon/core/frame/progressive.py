@@ -19,6 +19,7 @@ import numpy as np
 
 from ..scene.model import Camera, Scene
 from ..settings import Settings
+from ..transport.sequences import radical_inverse
 from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
 
@@ -48,16 +49,6 @@ def pass_camera(camera: Camera, index: int, aa: int) -> Camera:
     shift[0, 3] = 2.0 * offset[0] / (camera.width * aa)  # NDC spans 2 over the image
     shift[1, 3] = 2.0 * offset[1] / (camera.height * aa)
     return replace(camera, projection_matrix=shift @ camera.projection_matrix)
-
-
-def radical_inverse(index: int, base: int) -> float:
-    """The index's digits in ``base`` mirrored behind the point (van der Corput)."""
-    value, scale = 0.0, 1.0 / base
-    while index:
-        index, digit = divmod(index, base)
-        value += digit * scale
-        scale /= base
-    return value
 
 
 @dataclass

@@ -19,6 +19,17 @@ def primes(count: int) -> np.ndarray:
     return np.flatnonzero(sieve)[:count]
 
 
+def radical_inverse(index: int, base: int) -> float:
+    """The index's digits in ``base`` mirrored behind the point (van der Corput; unscrambled,
+    so the same in every process)."""
+    value, scale = 0.0, 1.0 / base
+    while index:
+        index, digit = divmod(index, base)
+        value += digit * scale
+        scale /= base
+    return value
+
+
 def scrambled_halton(count: int, dimensions: int, seed: int) -> np.ndarray:
     """``count`` points in [0, 1)^dimensions: dimension k is the radical inverse in the k-th prime
     base with an independent random permutation of the digits at every digit position."""
