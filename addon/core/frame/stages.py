@@ -239,8 +239,7 @@ class PlanLightPasses(Stage):
     @staticmethod
     def _sun_disc(samples: LightSamples) -> np.ndarray:
         """The angle samples of suns (directional, soft, not the world's)."""
-        broad = samples.broad if samples.broad is not None else np.zeros(len(samples), bool)
-        return samples.soft & (samples.kind == KIND_DIRECTIONAL) & ~broad
+        return samples.soft & (samples.kind == KIND_DIRECTIONAL) & ~samples.of_world
 
     @staticmethod
     def _split_world(samples: LightSamples, chosen: np.ndarray, interleave: int
@@ -248,9 +247,9 @@ class PlanLightPasses(Stage):
         """The ``chosen`` world samples, interleaved and blurred, then the other ``chosen``
         samples, which each pixel takes all of: lights whose shadows, spots or glossy
         highlights can be sharp (the blur would smear them)."""
-        broad = samples.broad if samples.broad is not None else np.zeros(len(samples), bool)
+        world = samples.of_world
         return [(samples.subset(np.flatnonzero(chosen & subset)), k, k > 1)
-                for subset, k in ((broad, interleave), (~broad, 1))]
+                for subset, k in ((world, interleave), (~world, 1))]
 
 
 class Sanitize(Stage):

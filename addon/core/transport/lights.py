@@ -51,6 +51,11 @@ class LightSamples:
         return len(self.kind)
 
     @property
+    def of_world(self) -> np.ndarray:
+        """(n,) bool: the samples of the world (``broad``; none where it is None)."""
+        return self.broad if self.broad is not None else np.zeros(len(self), bool)
+
+    @property
     def tiles_per_sample(self) -> np.ndarray:
         """Atlas tiles each sample's shadow map needs (6 cube faces, 1 directional map)."""
         tiles = np.where(self.kind == KIND_DIRECTIONAL, 1, 6)
@@ -138,7 +143,6 @@ class _Builder:
             "generation": np.zeros(n, dtype=int),
             "soft": np.full(n, soft),
             "spread": np.broadcast_to(spread, (n, 2)),
-            "glossy": None,
             "broad": np.full(n, broad),
         })
 
@@ -149,8 +153,7 @@ class _Builder:
                                 np.zeros(0, int), np.zeros(0, int), np.zeros(0, bool),
                                 np.zeros((0, 2)))
         keys = self.rows[0].keys()
-        return LightSamples(**{k: None if self.rows[0][k] is None else
-                               np.concatenate([r[k] for r in self.rows]) for k in keys})
+        return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
 
 
 def area_light_points(light: Light, u: np.ndarray) -> np.ndarray:
