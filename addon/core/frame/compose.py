@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene.environment import background
-from ..scene.model import Scene
 from .result import Stats
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
@@ -37,21 +35,21 @@ def _per_colour(radiance: np.ndarray, color: np.ndarray) -> np.ndarray:
 
 
 def compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray], direct: np.ndarray,
-            indirect: np.ndarray, scene: Scene, aa: int, x0: int, y0: int,
+            indirect: np.ndarray, background: np.ndarray | None, aa: int, x0: int, y0: int,
             passes: frozenset[str]) -> None:
     """Write one supersampled tile's ``passes`` into ``output`` at output resolution.
     ``direct`` and ``indirect`` are (h, w, 4) diffuse light, or (h, w, 8) with glossy
-    radiance in channels 4-6."""
+    radiance in channels 4-6; ``background``: the radiance of the rays that miss every surface
+    (environment.background), None with a transparent film."""
     covered = gbuffer["normal"][..., 3:4]
     albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
     diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
     gloss_col, gloss_dir, gloss_ind = _glossy(gbuffer, direct, indirect)
     combined = np.concatenate([(diff_dir + diff_ind) * albedo + gloss_dir + gloss_ind
                                + emission, covered], axis=-1)
-    if not scene.film_transparent:
+    if background is not None:
         combined[..., 3:] += 1.0 - covered
-        combined[..., :3] += (1.0 - covered) * background(
-            scene.world, scene.camera, aa, x0, y0, covered.shape[1], covered.shape[0])
+        combined[..., :3] += (1.0 - covered) * background
     h, w = covered.shape[0] // aa, covered.shape[1] // aa
     region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
     images = {"Combined": lambda: combined, "DiffDir": lambda: diff_dir,

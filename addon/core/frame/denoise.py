@@ -32,7 +32,6 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from ..scene.environment import background
 from .compose import downsample
 from .state import FrameState, Stage
 
@@ -119,7 +118,7 @@ class DenoisingData:
 
 def write_denoising_data(frame: FrameState, work: TileWork, wanted: set[str]) -> None:
     """Write the ``wanted`` Denoising Data passes of one supersampled tile into the output."""
-    images, camera, scene = work.gbuffer.images, frame.camera, frame.scene
+    images, camera = work.gbuffer.images, frame.camera
     aa, tile = frame.settings.antialiasing, work.tile
     covered = images["normal"][..., 3:4]
     h, w = covered.shape[0] // aa, covered.shape[1] // aa
@@ -127,9 +126,8 @@ def write_denoising_data(frame: FrameState, work: TileWork, wanted: set[str]) ->
     output = frame.output
     if "Denoising Albedo" in wanted:
         albedo = (images["albedo"][..., :3] + images["emission"][..., :3]) * covered
-        if not scene.film_transparent:
-            albedo = albedo + (1.0 - covered) * background(
-                scene.world, camera, aa, tile.x0, tile.y0, covered.shape[1], covered.shape[0])
+        if work.background is not None:  # composed before: the same background
+            albedo = albedo + (1.0 - covered) * work.background
         output["Denoising Albedo"][region] = downsample(albedo, aa)
     if "Denoising Normal" in wanted:
         # Cycles' camera space: +X right, +Y up, +Z forward (Blender's camera looks along -Z).

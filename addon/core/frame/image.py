@@ -11,6 +11,7 @@ import numpy as np
 
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.texture_array import upload as upload_textures
+from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
 from .compose import compose
 from .denoise import DenoisingData
@@ -50,6 +51,7 @@ class TileWork:
     indirect: moderngl.Framebuffer | None = None
     soft_light: np.ndarray | None = None  # after the blur
     indirect_light: np.ndarray | None = None
+    background: np.ndarray | None = None  # what rays that miss see (None: transparent film)
 
 
 def tiles_of(width: int, height: int, aa: int) -> list[Tile]:
@@ -180,9 +182,12 @@ class ComposeStage(TileStage):
             direct = read_accumulator(work.direct)
             if work.soft_light is not None:
                 direct += work.soft_light
-            compose(frame.output, work.gbuffer.images, direct,
-                    work.indirect_light, frame.scene, frame.settings.antialiasing,
-                    work.tile.x0, work.tile.y0, frame.plan.passes)
+            aa, tile, scene = frame.settings.antialiasing, work.tile, frame.scene
+            if not scene.film_transparent:  # through this pass's camera (sub-sample offset)
+                work.background = background(scene.world, frame.camera, aa, tile.x0, tile.y0,
+                                             *tile.size)
+            compose(frame.output, work.gbuffer.images, direct, work.indirect_light,
+                    work.background, aa, tile.x0, tile.y0, frame.plan.passes)
 
 
 class RenderImage(Stage):
