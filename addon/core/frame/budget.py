@@ -29,6 +29,10 @@ from .state import CancelCallback, ProgressCallback
 BUDGET_SPLIT = 2
 """Passes the budget is planned as: pass 0 gets this fraction of it (measured on the interior,
 docs/measurements.md: 1 pass / 2 / 4 at equal budgets)."""
+PLAN_HEADROOM = 0.9
+"""Share of the rest of the budget the later passes are planned for: the rest is measured
+before the choice is made again, and a pass predicted to fill all of it would not start, since
+the choice's own time is past by then (progressive.py starts a pass only when it fits)."""
 MAX_BUDGET_PASSES = 1 << 16  # the passes setting's own limit
 LEAST_BUDGET = 0.01  # the time_budget setting's own limit
 CHOSEN_STAGES = ("vpl generation", "ism ", "indirect light", "blur")
@@ -87,7 +91,8 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         chosen = chooser.last[2]
         fixed, variable = split_seconds(wall, stats)
         rest = max(budget - (time.perf_counter() - start), 0.0)
-        again = chooser.rechoose(fixed, variable, rest / max(1, BUDGET_SPLIT - 1))
+        again = chooser.rechoose(fixed, variable,
+                                 PLAN_HEADROOM * rest / max(1, BUDGET_SPLIT - 1))
         later = replace(again.settings if again is not None else chosen.settings,
                         auto_parameters="off", time_budget=budget)
         if again is not None:
