@@ -5,9 +5,14 @@
 // weighted by the g-buffer: the similarity of its normal, pow(max(n_p·n_q, 0), u_normal_power),
 // and its distance from the centre's tangent plane relative to the centre's view depth,
 // exp(-(|(x_q - x_p)·n_p| / (depth_p · u_plane_tolerance))²). Background pixels (normal.w = 0)
-// keep their value and never contribute.
+// keep their value and never contribute. SOURCES light textures (default 1) are blurred at
+// once, into as many outputs, with the same weights.
 
-uniform sampler2D u_source;    // RGBA32F light
+#ifndef SOURCES
+#define SOURCES 1
+#endif
+
+uniform sampler2D u_source[SOURCES];  // RGBA32F light
 uniform sampler2D u_position;  // xyz world position, w view depth
 uniform sampler2D u_normal;    // xyz shading normal, w 1 on surfaces
 uniform ivec2 u_axis;          // (1, 0) or (0, 1)
@@ -15,19 +20,20 @@ uniform int u_radius;
 uniform float u_normal_power;
 uniform float u_plane_tolerance;
 
-out vec4 out_light;
+layout(location = 0) out vec4 out_light[SOURCES];
 
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
-    ivec2 size = textureSize(u_source, 0);
+    ivec2 size = textureSize(u_normal, 0);
     vec4 normal = texelFetch(u_normal, p, 0);
+    vec4 sum[SOURCES];
+    for (int s = 0; s < SOURCES; ++s) sum[s] = texelFetch(u_source[s], p, 0);
     if (normal.w == 0.0) {
-        out_light = texelFetch(u_source, p, 0);
+        for (int s = 0; s < SOURCES; ++s) out_light[s] = sum[s];
         return;
     }
     vec4 position = texelFetch(u_position, p, 0);
     float plane_scale = 1.0 / max(abs(position.w) * u_plane_tolerance, 1e-30);
-    vec4 sum = texelFetch(u_source, p, 0);
     float total = 1.0;
     for (int j = -u_radius; j <= u_radius; ++j) {
         ivec2 q = p + j * u_axis;
@@ -39,8 +45,8 @@ void main() {
         float weight = (abs(j) == u_radius ? 0.5 : 1.0)
                        * pow(max(dot(normal.xyz, n_q.xyz), 0.0), u_normal_power)
                        * exp(-plane * plane);
-        sum += weight * texelFetch(u_source, q, 0);
+        for (int s = 0; s < SOURCES; ++s) sum[s] += weight * texelFetch(u_source[s], q, 0);
         total += weight;
     }
-    out_light = sum / total;
+    for (int s = 0; s < SOURCES; ++s) out_light[s] = sum[s] / total;
 }

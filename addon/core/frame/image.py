@@ -155,23 +155,28 @@ class BlurStage(TileStage):
     name = "blur"
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
-        work.indirect_light = self._blurred(frame, work, work.indirect)
+        accumulators = [work.indirect] + ([work.soft] if work.soft is not None else [])
+        lights = self._blurred(frame, work, accumulators)
+        work.indirect_light = lights[0]
         if work.soft is not None:
-            work.soft_light = self._blurred(frame, work, work.soft)
+            work.soft_light = lights[1]
 
-    def _blurred(self, frame: FrameState, work: TileWork, accumulator: moderngl.Framebuffer
-                 ) -> np.ndarray:
+    def _blurred(self, frame: FrameState, work: TileWork,
+                 accumulators: list[moderngl.Framebuffer]) -> list[np.ndarray]:
+        """Each accumulator's light (diffuse, then glossy, side by side), blurred in one
+        draw per axis."""
         if not frame.blur_radius:
-            return read_accumulator(accumulator)
+            return [read_accumulator(a) for a in accumulators]
         with frame.stats.timed(self.name):
             textures = work.gbuffer.textures
-            blurred = []
-            for target in accumulator.color_attachments:  # diffuse, then glossy light
-                result = work.scope.own(self.gpu.blur.apply(
-                    target, textures["position"], textures["normal"], frame.blur_radius))
-                w, h = result.size
-                blurred.append(np.frombuffer(result.read(), dtype=np.float32).reshape(h, w, 4))
-            return np.concatenate(blurred, axis=-1)
+            targets = [t for a in accumulators for t in a.color_attachments]
+            results = [work.scope.own(t) for t in self.gpu.blur.apply(
+                targets, textures["position"], textures["normal"], frame.blur_radius)]
+            w, h = results[0].size
+            images = iter(np.frombuffer(r.read(), dtype=np.float32).reshape(h, w, 4)
+                          for r in results)
+            return [np.concatenate([next(images) for _ in a.color_attachments], axis=-1)
+                    for a in accumulators]
 
 
 class ComposeStage(TileStage):

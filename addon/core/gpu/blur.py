@@ -3,62 +3,76 @@ interleave_lib.glsl) from the indirect light without blurring across depth or no
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import moderngl
 
-from .gl import ProgramCache
+from .gl import ProgramCache, set_uniforms
 
 AXES = ((1, 0), (0, 1))
+MAX_SOURCES = 4  # light textures per draw (every OpenGL 3.3 context has 8 draw buffers)
 
 
 class GeometryAwareBlur:
-    """A separable cross-bilateral filter over an RGBA32F light texture, steered by the g-buffer's
-    position (xyz world, w view depth) and normal (xyz, w 1 on surfaces) textures."""
+    """A separable cross-bilateral filter over RGBA32F light textures, steered by the g-buffer's
+    position (xyz world, w view depth) and normal (xyz, w 1 on surfaces) textures. Several light
+    textures of one g-buffer are blurred in one draw per axis (the weights computed once)."""
 
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache) -> None:
         self.ctx = ctx
-        self.program = programs.get("fullscreen_vert.glsl", "blur_frag.glsl")
-        self._vao = ctx.vertex_array(self.program, [])
+        self.programs = programs
+        self._vao: dict[int, moderngl.VertexArray] = {}
 
-    def apply(self, source: moderngl.Texture, position: moderngl.Texture,
+    def apply(self, sources: Sequence[moderngl.Texture], position: moderngl.Texture,
               normal: moderngl.Texture, radius: int, normal_power: float = 32.0,
-              plane_tolerance: float = 0.01) -> moderngl.Texture:
-        """A new RGBA32F texture (the caller releases it) of ``source`` blurred over 2·radius
-        pixels per axis; with interleave size K dividing 2·radius the K×K pattern cancels on
-        flat surfaces. ``normal_power`` sharpens the normal weight, ``plane_tolerance`` is the
-        tangent-plane distance, relative to view depth, at which a tap's weight drops to 1/e.
-        Leaves blending disabled and texture units 0-2 bound."""
+              plane_tolerance: float = 0.01) -> list[moderngl.Texture]:
+        """New RGBA32F textures (the caller releases them), one per source, each blurred over
+        2·radius pixels per axis; with interleave size K dividing 2·radius the K×K pattern
+        cancels on flat surfaces. ``normal_power`` sharpens the normal weight,
+        ``plane_tolerance`` is the tangent-plane distance, relative to view depth, at which a
+        tap's weight drops to 1/e. Leaves blending disabled and texture units 0.. bound."""
         if radius < 0:
             raise ValueError(f"blur radius must be ≥ 0, not {radius}")
-        if not source.size == position.size == normal.size:
+        if not 1 <= len(sources) <= MAX_SOURCES:
+            raise ValueError(f"blur takes 1 to {MAX_SOURCES} light textures, not {len(sources)}")
+        if any(t.size != position.size for t in sources) or normal.size != position.size:
             raise ValueError("light, position and normal textures differ in size")
-        position.use(1)
-        normal.use(2)
-        self.program["u_source"].value = 0
-        self.program["u_position"].value = 1
-        self.program["u_normal"].value = 2
-        self.program["u_radius"].value = radius
-        self.program["u_normal_power"].value = normal_power
-        self.program["u_plane_tolerance"].value = plane_tolerance
+        count = len(sources)
+        program = self.programs.get("fullscreen_vert.glsl", "blur_frag.glsl",
+                                    {"SOURCES": count})
+        if count not in self._vao:
+            self._vao[count] = self.ctx.vertex_array(program, [])
+        position.use(0)
+        normal.use(1)
+        set_uniforms(program, u_position=0, u_normal=1, u_radius=radius,
+                     u_normal_power=normal_power, u_plane_tolerance=plane_tolerance)
+        program["u_source"].value = [2 + i for i in range(count)] if count > 1 else 2
         self.ctx.disable(moderngl.BLEND)
-        across = self._pass(source, AXES[0])
+        across = self._pass(self._vao[count], program, sources, AXES[0])
         try:
-            return self._pass(across, AXES[1])
+            return self._pass(self._vao[count], program, across, AXES[1])
         finally:
-            across.release()
+            for texture in across:
+                texture.release()
 
-    def _pass(self, source: moderngl.Texture, axis: tuple[int, int]) -> moderngl.Texture:
-        """Blur ``source`` along one axis into a new texture."""
-        target = self.ctx.texture(source.size, 4, dtype="f4")
-        fbo = self.ctx.framebuffer([target])
+    def _pass(self, vao: moderngl.VertexArray, program: moderngl.Program,
+              sources: Sequence[moderngl.Texture], axis: tuple[int, int]
+              ) -> list[moderngl.Texture]:
+        """Blur ``sources`` along one axis into new textures."""
+        targets = [self.ctx.texture(t.size, 4, dtype="f4") for t in sources]
+        fbo = self.ctx.framebuffer(targets)
         try:
             fbo.use()
-            source.use(0)
-            self.program["u_axis"].value = axis
-            self._vao.render(moderngl.TRIANGLES, vertices=3)
+            for unit, texture in enumerate(sources, start=2):
+                texture.use(unit)
+            program["u_axis"].value = axis
+            vao.render(moderngl.TRIANGLES, vertices=3)
         finally:
             fbo.release()
-        return target
+        return targets
 
     def release(self) -> None:
-        """Free the vertex array (the program belongs to the ProgramCache)."""
-        self._vao.release()
+        """Free the vertex arrays (the programs belong to the ProgramCache)."""
+        for vao in self._vao.values():
+            vao.release()
+        self._vao.clear()
