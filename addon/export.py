@@ -14,7 +14,8 @@ import bpy
 import numpy as np
 
 from . import bake
-from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, cycles_output_node, uses_nodes
+from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, uses_nodes
+from .blender_read import active_uvs, surface_node
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
@@ -255,7 +256,7 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
     slots = np.zeros(len(face), np.int32) if material_index is None else material_index[face]
     corner, position_index = corner.ravel(), vertex.ravel()
     normals, normal_index = _normals(mesh, corner, face, position_index)
-    uvs = _uvs(mesh)
+    uvs = active_uvs(mesh)
     return Mesh(name, co, normals, slots, uvs, position_index, normal_index,
                 None if uvs is None else corner), problems
 
@@ -263,17 +264,6 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
 def read_mesh(mesh: bpy.types.Mesh, name: str) -> Mesh:
     """The triangles of a mesh datablock (a bake's temporary copy), problems left out."""
     return _mesh_arrays(mesh, name, f"mesh '{name}'", faces_expected=True)[0]
-
-
-def _uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
-    """The active render UV map's coordinates per corner, (L, 2), or None without one."""
-    layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
-    attribute = mesh.attributes.get(layer.name) if layer is not None else None
-    if attribute is None:
-        return None
-    uv = np.empty(len(mesh.loops) * 2, dtype=np.float32)
-    attribute.data.foreach_get("vector", uv)
-    return uv.reshape(-1, 2)
 
 
 @dataclass
@@ -320,15 +310,6 @@ def _fingerprint(obj: bpy.types.Object) -> tuple[int, ...]:
 
 
 # -- materials ------------------------------------------------------------------------------
-
-def _surface_node(tree: bpy.types.NodeTree | None, output_type: str):
-    """The shader node linked to the Surface socket of the output Cycles renders from (an
-    output for EEVEE only is skipped, as Cycles skips it), or None."""
-    output = cycles_output_node(tree)
-    if output is None or output.type != output_type or not output.inputs["Surface"].is_linked:
-        return None
-    return output.inputs["Surface"].links[0].from_node
-
 
 def _input_value(node, name: str, default):
     socket = node.inputs.get(name)
@@ -438,7 +419,7 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
         warnings.append(f"material '{material.name}' has no shader nodes: rendered as a "
                         f"diffuse surface in its viewport colour (as Cycles does)")
         return viewport
-    node = _surface_node(material.node_tree, "OUTPUT_MATERIAL")
+    node = surface_node(material.node_tree)
     try:
         return _shader(node, material.name, images or ImageReader(warnings))
     except (_Unsupported, UnsupportedLink) as reason:
@@ -563,7 +544,7 @@ def export_world(world: bpy.types.World | None, warnings: list[str]) -> World:
     """The world's Background colour × strength, or its Environment Texture."""
     if world is None:
         return World()
-    node = _surface_node(world.node_tree, "OUTPUT_WORLD") if uses_nodes(world) else None
+    node = surface_node(world.node_tree, "OUTPUT_WORLD") if uses_nodes(world) else None
     if node is None or node.type != "BACKGROUND":
         return World(_rgb(world.color), 1.0)
     strength = float(_input_value(node, "Strength", 1.0))
