@@ -17,6 +17,30 @@ def read_array(collection: bpy.types.bpy_prop_collection, attribute: str, count:
     return values
 
 
+def int_attribute(mesh: bpy.types.Mesh, name: str, size: int) -> np.ndarray | None:
+    """The values of an INT attribute of ``size`` elements, or None without one."""
+    attribute = mesh.attributes.get(name)
+    if attribute is None or attribute.data_type != "INT" or len(attribute.data) != size:
+        return None
+    return read_array(attribute.data, "value", size, np.int32)
+
+
+def positions(mesh: bpy.types.Mesh) -> np.ndarray:
+    """The vertices' positions, (V, 3) float32 (from the position attribute: reading each
+    vertex's ``co`` is about 200× slower)."""
+    position = mesh.attributes.get("position")
+    data, name = (mesh.vertices, "co") if position is None else (position.data, "vector")
+    return read_array(data, name, len(mesh.vertices) * 3, np.float32).reshape(-1, 3)
+
+
+def corner_verts(mesh: bpy.types.Mesh) -> np.ndarray:
+    """The vertex of each face corner (loop), (L,) int32 (from the .corner_vert attribute:
+    reading each loop's ``vertex_index`` is about 700× slower)."""
+    found = int_attribute(mesh, ".corner_vert", len(mesh.loops))
+    return read_array(mesh.loops, "vertex_index", len(mesh.loops), np.int32) \
+        if found is None else found
+
+
 def active_uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
     """The active render UV map's coordinates per corner, (L, 2) float32, or None without
     one."""

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import bake
 from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, uses_nodes
-from .blender_read import active_uvs, surface_node
+from .blender_read import active_uvs, corner_verts, int_attribute, positions, surface_node
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
@@ -81,15 +81,6 @@ def _rgb(value) -> tuple[float, float, float]:
 
 
 # -- meshes ---------------------------------------------------------------------------------
-
-def _int_attribute(mesh: bpy.types.Mesh, name: str, size: int) -> np.ndarray | None:
-    attribute = mesh.attributes.get(name)
-    if attribute is None or attribute.data_type != "INT" or len(attribute.data) != size:
-        return None
-    values = np.empty(size, dtype=np.int32)
-    attribute.data.foreach_get("value", values)
-    return values
-
 
 def _vectors(collection: bpy.types.bpy_prop_collection, size: int) -> np.ndarray:
     """The 'vector' of each of ``size`` items (normals), (size, 3) float32."""
@@ -221,17 +212,8 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
     Triangles with NaN/Inf corners or zero area are left out (one warning each kind); a mesh
     object with vertices but no faces gets a warning (curves without bevel do not)."""
     problems: list[str] = []
-    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    position = mesh.attributes.get("position")  # the fast path; vertices' co is per element
-    if position is None:
-        mesh.vertices.foreach_get("co", co)
-    else:
-        position.data.foreach_get("vector", co)
-    co = co.reshape(-1, 3)
-    corner_vert = _int_attribute(mesh, ".corner_vert", len(mesh.loops))
-    if corner_vert is None:
-        corner_vert = np.empty(len(mesh.loops), dtype=np.int32)
-        mesh.loops.foreach_get("vertex_index", corner_vert)
+    co = positions(mesh)
+    corner_vert = corner_verts(mesh)
     with np.errstate(invalid="ignore", over="ignore"):  # NaN/Inf vertices are reported below
         corner, vertex, face, zero = _triangles(mesh, co.T.copy(), corner_vert)
     count = len(face)
@@ -252,7 +234,7 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
                         f"and were left out")
     if not keep.all():
         corner, vertex, face = corner[keep], vertex[keep], face[keep]
-    material_index = _int_attribute(mesh, "material_index", len(mesh.polygons))
+    material_index = int_attribute(mesh, "material_index", len(mesh.polygons))
     slots = np.zeros(len(face), np.int32) if material_index is None else material_index[face]
     corner, position_index = corner.ravel(), vertex.ravel()
     normals, normal_index = _normals(mesh, corner, face, position_index)
