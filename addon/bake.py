@@ -418,18 +418,24 @@ def baked_material(material: Material, source: bpy.types.Material, entry: Baked)
 
 def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
           fallbacks: dict[str, str], named: dict[str, frozenset[str]], resolution: int,
-          notes: list[str], warnings: list[str]) -> tuple[Mesh, list[Material]]:
+          notes: list[str], warnings: list[str], unbaked: set[str]) -> tuple[Mesh, list[Material]]:
     """An exported object's mesh and materials with its cached bake applied (the bake's UV
-    mesh and textures), or unchanged with a warning per material when the bake is missing."""
+    mesh and textures), or unchanged with a warning per material when the bake is missing;
+    ``unbaked`` gets the materials whose bake a bake pass would make (not those whose bake
+    failed or cannot be made)."""
     reasons = needed(obj, fallbacks, named) if mesh.triangle_count else {}
     if not reasons:
         return mesh, materials
     key = bake_key(obj, resolution) if obj.original.type == "MESH" else None
     entry = CACHE.entries.get(key)
     if not _valid(entry, obj):
-        why = NOT_BAKED if key not in CACHE.failed else f"not baked: {CACHE.failed[key]}"
         if key is None:
             why = f"not baked: {obj.original.type.lower()} objects are not baked"
+        elif key in CACHE.failed:
+            why = f"not baked: {CACHE.failed[key]}"
+        else:
+            why = NOT_BAKED
+            unbaked.update(reasons)
         for name, reason in reasons.items():
             message = f"material '{name}': {reason}; using its viewport colour ({why})"
             if message not in warnings:

@@ -264,11 +264,13 @@ class ExportCache:
     Keys: an unmodified mesh object's mesh datablock (shared by every object using it), an
     evaluated object otherwise, and an instancer for geometry it generates (geometry nodes).
     The caller (the viewport) forgets what Blender reports as changed; meshes no export used
-    are dropped at the end of each export."""
+    are dropped at the end of each export. ``unbaked``: the materials the last export showed
+    in their viewport colour for want of a bake that a bake pass would make."""
 
     def __init__(self) -> None:
         self._entries: dict[tuple, _Entry] = {}
         self.stats: dict[str, int] = {"meshes_read": 0, "meshes_reused": 0}
+        self.unbaked: set[str] = set()
 
     def forget(self, name: str) -> None:
         """Read the geometry of the object, mesh datablock or instancer ``name`` again."""
@@ -683,7 +685,7 @@ class _Export:
         if self.fallbacks or self.named_uvs:
             mesh, materials = bake.apply(obj, mesh, materials, self.fallbacks, self.named_uvs,
                                          self.bake_resolution, self.result.notes,
-                                         self.result.warnings)
+                                         self.result.warnings, self.cache.unbaked)
         return mesh, materials, obj.name
 
 
@@ -691,11 +693,13 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     """Everything the renderer needs from the evaluated depsgraph.
 
     With a cache, meshes read by earlier exports are reused unless forgotten (see ExportCache);
-    ``cache.stats`` counts the meshes this export read and reused."""
+    ``cache.stats`` counts the meshes this export read and reused, ``cache.unbaked`` names the
+    materials waiting for a bake."""
     scene_eval = depsgraph.scene_eval
     result = Scene()
     cache = cache if cache is not None else ExportCache()
     cache.stats.update(meshes_read=0, meshes_reused=0)
+    cache.unbaked.clear()
     state = _Export(depsgraph, cache, result)
     placed: list[tuple[Mesh, list[Material], str]] = []
     # Per (object, data): its mesh, materials and name, or None when no ray sees it. Keyed by
