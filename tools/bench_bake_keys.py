@@ -25,8 +25,10 @@ EXPORTS = 20
 
 def noise_material(bpy, name: str):
     """A Diffuse BSDF coloured by Noise Texture → ColorRamp (baked: the export cannot read it)."""
+    from addon.blender_compat import ensure_nodes
+
     material = bpy.data.materials.new(name)
-    material.use_nodes = True  # 4.x; on 5.x every material has nodes and this only warns
+    ensure_nodes(material)
     nodes, links = material.node_tree.nodes, material.node_tree.links
     shader = next(n for n in nodes if n.type == "BSDF_PRINCIPLED")
     ramp = nodes.new("ShaderNodeValToRGB")
