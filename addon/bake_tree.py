@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import bpy
 
 from .blender_compat import cycles_output_node
+from .blender_read import surface_node
 
 CHANNELS = ("albedo", "emission")
 """What a bake holds: the diffuse colour, or the emitted radiance (colour × strength)."""
@@ -115,14 +116,6 @@ def _node_of(socket):
     return socket.links[0].from_node if socket.is_linked else None
 
 
-def surface(material: bpy.types.Material):
-    """The shader linked to the Cycles output's Surface socket, or None."""
-    output = cycles_output_node(material.node_tree)
-    if output is None or not output.inputs["Surface"].is_linked:
-        return None
-    return output.inputs["Surface"].links[0].from_node
-
-
 def check(node) -> None:
     """Raise NotBakeable (naming the node) unless every closure under ``node`` is one whose
     diffuse colour and emission the bake can express."""
@@ -157,7 +150,7 @@ def linked_inputs(node) -> list[str]:
 def specular_constants(material: bpy.types.Material) -> dict[str, object]:
     """The specular inputs of a surface that is one Principled BSDF, where they are
     constants (a baked material keeps them; linked ones keep the Material's defaults)."""
-    node = surface(material)
+    node = surface_node(material.node_tree)
     while node is not None and node.type == "REROUTE":
         node = _node_of(node.inputs[0])
     if node is None or node.type != "BSDF_PRINCIPLED":
@@ -239,7 +232,7 @@ class _Builder:
 def constant_channel(material: bpy.types.Material, channel: str) -> Term | None:
     """The channel's value when it is a constant (no socket to evaluate), else None. Reads
     the material without changing it."""
-    term = _Inspector().channel(surface(material), channel)
+    term = _Inspector().channel(surface_node(material.node_tree), channel)
     return None if term.socket is not None else term
 
 
@@ -267,7 +260,7 @@ def show_channel(copy: bpy.types.Material, channel: str, image: bpy.types.Image)
     tree = copy.node_tree
     output = cycles_output_node(tree) or tree.nodes.new("ShaderNodeOutputMaterial")
     builder = _Builder(tree)
-    term = builder.channel(surface(copy), channel)
+    term = builder.channel(surface_node(tree), channel)
     emission = tree.nodes.new("ShaderNodeEmission")
     emission.inputs["Strength"].default_value = 1.0
     builder.feed(emission.inputs["Color"], term)

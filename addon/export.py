@@ -14,7 +14,8 @@ import bpy
 import numpy as np
 
 from . import bake
-from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, cycles_output_node, uses_nodes
+from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, uses_nodes
+from .blender_read import active_uvs, corner_verts, int_attribute, positions, surface_node
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
@@ -80,15 +81,6 @@ def _rgb(value) -> tuple[float, float, float]:
 
 
 # -- meshes ---------------------------------------------------------------------------------
-
-def _int_attribute(mesh: bpy.types.Mesh, name: str, size: int) -> np.ndarray | None:
-    attribute = mesh.attributes.get(name)
-    if attribute is None or attribute.data_type != "INT" or len(attribute.data) != size:
-        return None
-    values = np.empty(size, dtype=np.int32)
-    attribute.data.foreach_get("value", values)
-    return values
-
 
 def _vectors(collection: bpy.types.bpy_prop_collection, size: int) -> np.ndarray:
     """The 'vector' of each of ``size`` items (normals), (size, 3) float32."""
@@ -220,17 +212,8 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
     Triangles with NaN/Inf corners or zero area are left out (one warning each kind); a mesh
     object with vertices but no faces gets a warning (curves without bevel do not)."""
     problems: list[str] = []
-    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    position = mesh.attributes.get("position")  # the fast path; vertices' co is per element
-    if position is None:
-        mesh.vertices.foreach_get("co", co)
-    else:
-        position.data.foreach_get("vector", co)
-    co = co.reshape(-1, 3)
-    corner_vert = _int_attribute(mesh, ".corner_vert", len(mesh.loops))
-    if corner_vert is None:
-        corner_vert = np.empty(len(mesh.loops), dtype=np.int32)
-        mesh.loops.foreach_get("vertex_index", corner_vert)
+    co = positions(mesh)
+    corner_vert = corner_verts(mesh)
     with np.errstate(invalid="ignore", over="ignore"):  # NaN/Inf vertices are reported below
         corner, vertex, face, zero = _triangles(mesh, co.T.copy(), corner_vert)
     count = len(face)
@@ -251,11 +234,11 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
                         f"and were left out")
     if not keep.all():
         corner, vertex, face = corner[keep], vertex[keep], face[keep]
-    material_index = _int_attribute(mesh, "material_index", len(mesh.polygons))
+    material_index = int_attribute(mesh, "material_index", len(mesh.polygons))
     slots = np.zeros(len(face), np.int32) if material_index is None else material_index[face]
     corner, position_index = corner.ravel(), vertex.ravel()
     normals, normal_index = _normals(mesh, corner, face, position_index)
-    uvs = _uvs(mesh)
+    uvs = active_uvs(mesh)
     return Mesh(name, co, normals, slots, uvs, position_index, normal_index,
                 None if uvs is None else corner), problems
 
@@ -263,17 +246,6 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
 def read_mesh(mesh: bpy.types.Mesh, name: str) -> Mesh:
     """The triangles of a mesh datablock (a bake's temporary copy), problems left out."""
     return _mesh_arrays(mesh, name, f"mesh '{name}'", faces_expected=True)[0]
-
-
-def _uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
-    """The active render UV map's coordinates per corner, (L, 2), or None without one."""
-    layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
-    attribute = mesh.attributes.get(layer.name) if layer is not None else None
-    if attribute is None:
-        return None
-    uv = np.empty(len(mesh.loops) * 2, dtype=np.float32)
-    attribute.data.foreach_get("vector", uv)
-    return uv.reshape(-1, 2)
 
 
 @dataclass
@@ -292,11 +264,13 @@ class ExportCache:
     Keys: an unmodified mesh object's mesh datablock (shared by every object using it), an
     evaluated object otherwise, and an instancer for geometry it generates (geometry nodes).
     The caller (the viewport) forgets what Blender reports as changed; meshes no export used
-    are dropped at the end of each export."""
+    are dropped at the end of each export. ``unbaked``: the materials the last export showed
+    in their viewport colour for want of a bake that a bake pass would make."""
 
     def __init__(self) -> None:
         self._entries: dict[tuple, _Entry] = {}
         self.stats: dict[str, int] = {"meshes_read": 0, "meshes_reused": 0}
+        self.unbaked: set[str] = set()
 
     def forget(self, name: str) -> None:
         """Read the geometry of the object, mesh datablock or instancer ``name`` again."""
@@ -320,15 +294,6 @@ def _fingerprint(obj: bpy.types.Object) -> tuple[int, ...]:
 
 
 # -- materials ------------------------------------------------------------------------------
-
-def _surface_node(tree: bpy.types.NodeTree | None, output_type: str):
-    """The shader node linked to the Surface socket of the output Cycles renders from (an
-    output for EEVEE only is skipped, as Cycles skips it), or None."""
-    output = cycles_output_node(tree)
-    if output is None or output.type != output_type or not output.inputs["Surface"].is_linked:
-        return None
-    return output.inputs["Surface"].links[0].from_node
-
 
 def _input_value(node, name: str, default):
     socket = node.inputs.get(name)
@@ -438,7 +403,7 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
         warnings.append(f"material '{material.name}' has no shader nodes: rendered as a "
                         f"diffuse surface in its viewport colour (as Cycles does)")
         return viewport
-    node = _surface_node(material.node_tree, "OUTPUT_MATERIAL")
+    node = surface_node(material.node_tree)
     try:
         return _shader(node, material.name, images or ImageReader(warnings))
     except (_Unsupported, UnsupportedLink) as reason:
@@ -563,7 +528,7 @@ def export_world(world: bpy.types.World | None, warnings: list[str]) -> World:
     """The world's Background colour × strength, or its Environment Texture."""
     if world is None:
         return World()
-    node = _surface_node(world.node_tree, "OUTPUT_WORLD") if uses_nodes(world) else None
+    node = surface_node(world.node_tree, "OUTPUT_WORLD") if uses_nodes(world) else None
     if node is None or node.type != "BACKGROUND":
         return World(_rgb(world.color), 1.0)
     strength = float(_input_value(node, "Strength", 1.0))
@@ -720,7 +685,7 @@ class _Export:
         if self.fallbacks or self.named_uvs:
             mesh, materials = bake.apply(obj, mesh, materials, self.fallbacks, self.named_uvs,
                                          self.bake_resolution, self.result.notes,
-                                         self.result.warnings)
+                                         self.result.warnings, self.cache.unbaked)
         return mesh, materials, obj.name
 
 
@@ -728,11 +693,13 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     """Everything the renderer needs from the evaluated depsgraph.
 
     With a cache, meshes read by earlier exports are reused unless forgotten (see ExportCache);
-    ``cache.stats`` counts the meshes this export read and reused."""
+    ``cache.stats`` counts the meshes this export read and reused, ``cache.unbaked`` names the
+    materials waiting for a bake."""
     scene_eval = depsgraph.scene_eval
     result = Scene()
     cache = cache if cache is not None else ExportCache()
     cache.stats.update(meshes_read=0, meshes_reused=0)
+    cache.unbaked.clear()
     state = _Export(depsgraph, cache, result)
     placed: list[tuple[Mesh, list[Material], str]] = []
     # Per (object, data): its mesh, materials and name, or None when no ray sees it. Keyed by

@@ -100,7 +100,7 @@ class ViewportState:
         scene = export_scene(depsgraph, self.cache) if changes.needs_export or not \
             self.exported else None
         self.exported = True
-        if scene is not None and any(bake.NOT_BAKED in w for w in scene.warnings):
+        if scene is not None and self.cache.unbaked:
             bake.bake_soon(self._baked)
         self.session.edit(changes, scene=scene, camera=region_camera(context), settings=settings,
                           display=self.display)

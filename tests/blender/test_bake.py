@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from addon import bake
-from addon.export import export_scene
+from addon.export import ExportCache, export_scene
 from tests.blender.rendering import configure_cycles, render_linear
 from tests.blender.test_cli import run_cli
 from tests.blender.test_cycles_direct import errors
@@ -231,13 +231,16 @@ def test_cache_and_user_data(blender):
 
 
 def test_missing_bake_and_memory_cap(blender):
-    """Without a bake the material keeps its viewport colour with a warning naming why; a
-    bake over the memory cap is refused with a message naming the settings."""
+    """Without a bake the material keeps its viewport colour with a warning naming why, and
+    the export names it as waiting for a bake; a bake over the memory cap is refused with a
+    message naming the settings, and the material no longer waits."""
     bpy = blender
     scene = case_scene(bpy, "noise")
     bake.CACHE.clear()
-    exported = export_scene(bpy.context.evaluated_depsgraph_get())
+    exports = ExportCache()
+    exported = export_scene(bpy.context.evaluated_depsgraph_get(), exports)
     assert exported.instances[0].materials[0].base_color_texture is None
+    assert exports.unbaked == {"Noise"}
     assert len(exported.warnings) == 1 and "Noise Texture" in exported.warnings[0]
     text = bpy.data.objects.new("Text", bpy.data.curves.new("Text", "FONT"))
     text.data.materials.append(bpy.data.materials["Noise"])
@@ -252,7 +255,8 @@ def test_missing_bake_and_memory_cap(blender):
     cache = bake.bake_scene(bpy.context.evaluated_depsgraph_get())
     assert cache.baked == [] and len(cache.problems) == 1
     assert "Bake Resolution" in cache.problems[0] and "16 MiB" in cache.problems[0]
-    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+    warnings = export_scene(bpy.context.evaluated_depsgraph_get(), exports).warnings
+    assert exports.unbaked == set()
     assert len(warnings) == 1 and "not baked: its 256 MiB bake does not fit the bake memory " \
         "cap of 16 MiB" in warnings[0]
 
