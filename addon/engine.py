@@ -42,13 +42,22 @@ OPTIONAL_PASSES = {
 }
 
 
+def toggle_owner(layer: object, toggle: str) -> tuple[object, str] | None:
+    """The property group that holds the view layer's ``toggle`` (an attribute, or a dotted
+    path) and the toggle's name; None where it does not exist (Cycles' settings need the
+    Cycles add-on enabled)."""
+    *path, name = toggle.split(".")
+    owner = layer
+    for part in path:
+        owner = getattr(owner, part, None)
+    return (owner, name) if owner is not None and hasattr(owner, name) else None
+
+
 def toggled(layer: object, toggle: str) -> bool:
-    """Whether the view layer's ``toggle`` (an attribute, or a dotted path) is on; False where
-    it does not exist (Cycles' settings need the Cycles add-on enabled)."""
-    value = layer
-    for name in toggle.split("."):
-        value = getattr(value, name, None)
-    return bool(value)
+    """Whether the view layer's ``toggle`` (see :func:`toggle_owner`) is on; False where it
+    does not exist."""
+    found = toggle_owner(layer, toggle)
+    return found is not None and bool(getattr(*found))
 
 
 @dataclass

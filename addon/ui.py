@@ -91,16 +91,16 @@ class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
     bl_context = "view_layer"
 
     def draw(self, context: bpy.types.Context) -> None:
-        from .engine import OPTIONAL_PASSES
+        from .engine import OPTIONAL_PASSES, toggle_owner
 
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
         column = layout.column(heading="Include", align=True)
         for toggle in dict.fromkeys(toggle for *_, toggle in OPTIONAL_PASSES.values()):
-            owner, _, name = toggle.rpartition(".")
-            group = getattr(context.view_layer, owner, None) if owner else context.view_layer
-            if group is not None and hasattr(group, name):
+            found = toggle_owner(context.view_layer, toggle)
+            if found is not None:
+                group, name = found
                 text = "Denoising Data" if name == "denoising_store_passes" else None
                 column.prop(group, name, text=text)
 

@@ -1,4 +1,4 @@
-"""Fit the automatic mode's error model (addon/core/error_model.json) on measurements.
+"""Fit the automatic mode's error model (addon/core/frame/error_model.json) on measurements.
 
 - Noise and floor: from error-against-time reports (``python -m devtools report``), the VPL GI
   imperfect-shadow-map lines: relative RMSE² = floor² + noise² / paths, least squares per
@@ -26,6 +26,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from addon.core.frame.autotune import ERROR_MODEL_FILE  # noqa: E402
 from tools.bench_visibility import export  # noqa: E402
 
 ISM_PAIRS = ((64, 1024), (64, 8192), (128, 1024), (128, 8192), (256, 1024), (256, 8192))
@@ -96,8 +97,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("reports", type=Path, nargs="+")
     parser.add_argument("--size", type=int, default=128)
-    parser.add_argument("-o", "--output", type=Path,
-                        default=REPO / "addon" / "core" / "error_model.json")
+    parser.add_argument("-o", "--output", type=Path, default=ERROR_MODEL_FILE)
     args = parser.parse_args()
     reports = [json.loads(p.read_text()) for p in args.reports]
     noise, floors, factors = fit_noise(reports)

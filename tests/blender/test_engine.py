@@ -200,6 +200,40 @@ def test_settings_panels_draw_every_setting_once(blender):
     assert sorted(drawn) == sorted([f.name for f in fields(Settings)] + viewport_only)
 
 
+def test_passes_panel_draws_the_toggles_the_engine_reads(blender):
+    """The Passes panel draws every view-layer toggle of the optional passes once (Cycles'
+    Denoising Data among them), on the property group engine.toggled reads it from."""
+    from types import SimpleNamespace
+
+    from addon.engine import OPTIONAL_PASSES, toggle_owner, toggled
+    from addon.ui import VIEWLAYER_PT_vpl_gi_passes
+
+    drawn: list[tuple[object, str]] = []
+
+    class Recorder(_Layout):
+        def column(self, **_kwargs) -> Recorder:
+            return self
+
+        def prop(self, data, name: str, **_kwargs) -> None:
+            drawn.append((data, name))
+
+    VIEWLAYER_PT_vpl_gi_passes.draw(SimpleNamespace(layout=Recorder({})), blender.context)
+    toggles = {toggle.rpartition(".")[2]: toggle for *_, toggle in OPTIONAL_PASSES.values()}
+    assert sorted(name for _, name in drawn) == sorted(toggles)
+    layer = blender.context.view_layer
+    for data, name in drawn:
+        before = getattr(data, name)
+        try:
+            for value in (True, False):
+                setattr(data, name, value)
+                assert toggled(layer, toggles[name]) is value, name
+        finally:
+            setattr(data, name, before)
+    assert toggle_owner(layer, "cycles.no_such_toggle") is None
+    assert toggle_owner(layer, "no_such_group.use_pass_z") is None
+    assert not toggled(layer, "no_such_group.use_pass_z")
+
+
 def test_settings_that_do_not_apply_are_greyed_out(blender):
     settings = blender.context.scene.vpl_gi
     settings.visibility, settings.interleave, settings.auto_parameters = "classic", "1", "time"

@@ -10,6 +10,7 @@ from addon.core.frame.renderer import Renderer
 from addon.core.scene.textures import decode_srgb
 from addon.core.settings import Settings
 from addon.export import export_scene
+from devtools import metrics
 from tests.blender.rendering import configure_cycles, render_linear
 from tests.blender.test_export import add_light, add_mesh, add_plane, engine_export, new_scene
 
@@ -93,8 +94,7 @@ def test_textured_planes_match_cycles(blender, tmp_path):
     rows = (np.abs(pixel) < 0.9)[:, None]
     for name, centre in (("base colour", -1.05), ("emission", 1.05)):
         inside = rows & (np.abs(pixel - centre) < 0.9)[None, :]
-        error = np.sqrt(np.mean((ours[inside] - reference[inside]) ** 2)) / \
-            reference[inside].mean()
+        error = metrics.relative_rmse(ours[inside], reference[inside])
         print(f"{name}: relRMSE {error:.4f}")
         assert error < TEXTURE_BOUND
 
@@ -147,9 +147,8 @@ def mode_errors(ours: np.ndarray, reference: np.ndarray) -> dict[tuple[str, str]
             window = (slice(row * cell + margin, (row + 1) * cell - margin),
                       slice(column * cell + margin, (column + 1) * cell - margin))
             got, expected = ours[window], reference[window]
-            energy = got.sum() / expected.sum() - 1
-            rmse = np.sqrt(np.mean((got - expected) ** 2)) / expected.mean()
-            errors[interpolation, extension] = (float(energy), float(rmse))
+            errors[interpolation, extension] = (metrics.mean_relative_energy(got, expected),
+                                                metrics.relative_rmse(got, expected))
     return errors
 
 

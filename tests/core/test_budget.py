@@ -75,3 +75,30 @@ def test_a_budget_below_the_cheapest_useful_frame_renders_that_and_says_so(rende
     assert f"({chosen} light paths" in warning and "auto_parameters off" in warning
     indirect = frame.passes["DiffInd"]
     assert float(indirect.mean()) > 0  # not a dark image
+
+
+def test_a_budget_render_reads_the_model_files_once(renderer, cached_cost, monkeypatch):
+    """The cost-model cache and the error model are read at most once per render (the choice,
+    the later passes' choice and the budget each need them), and again only when the file
+    changes."""
+    reads: list[str] = []
+    read_text = autotune.Path.read_text
+
+    def counted(path, *args, **kwargs):
+        reads.append(path.name)
+        return read_text(path, *args, **kwargs)
+
+    monkeypatch.setattr(autotune.Path, "read_text", counted)
+    models = {renderer.cost_cache.name, autotune.ERROR_MODEL_FILE.name}
+    renderer.forget_frames()
+    renderer.render_progressive(scene(), replace(BASE, time_budget=0.01))
+    first = [name for name in reads if name in models]
+    assert first.count(renderer.cost_cache.name) == 1  # a new cache file
+    assert first.count(autotune.ERROR_MODEL_FILE.name) <= 1  # read by an earlier test maybe
+    reads.clear()
+    renderer.forget_frames()
+    renderer.render_progressive(scene(), replace(BASE, time_budget=0.01))
+    assert not [name for name in reads if name in models]
+    renderer.cost_cache.write_text(json.dumps(asdict(replace(cached_cost, pixels=1e-3))))
+    renderer.render_progressive(scene(), replace(BASE, time_budget=0.01))
+    assert [name for name in reads if name in models] == [renderer.cost_cache.name]

@@ -9,6 +9,7 @@ import numpy as np
 from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import Settings
 from addon.core.transport.guidance import MIN_ACCEPTANCE, acceptance
+from devtools import metrics
 from tests.core.builders import floor_scene, light, quad, rotation_x, translation
 
 BASE = Settings(antialiasing=1, bounces=1, vpl_count=256, visibility="exact", interleave=1,
@@ -36,8 +37,8 @@ def test_guided_vpls_light_the_view_with_less_error_and_the_same_energy(renderer
         frame, stats[guidance] = renderer.render_progressive(
             mostly_wasted_scene(), replace(BASE, vpl_guidance=guidance, passes=4))
         image = frame.passes["DiffInd"]
-        error[guidance] = float(np.sqrt(np.mean((image - truth) ** 2)) / truth.mean())
-        energy[guidance] = float(image.mean() / truth.mean() - 1)
+        error[guidance] = metrics.relative_rmse(image, truth)
+        energy[guidance] = metrics.mean_relative_energy(image, truth)
     guided = stats["camera"].counts
     assert guided["vpls_in_view_pct"] >= 70 > guided["candidates_in_view_pct"] + 40, guided
     assert error["camera"] < 0.75 * error["off"], error

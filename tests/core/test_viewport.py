@@ -19,6 +19,7 @@ from addon.core.viewport_session import (
     display_image,
     refinement_levels,
 )
+from devtools import metrics
 from tests.core.builders import floor_scene, icosphere, light, top_down_camera, translation
 
 # shadow maps for direct light: the tests follow what edits keep (a ray-traced light keeps
@@ -190,8 +191,7 @@ def test_idle_passes_converge_and_an_edit_starts_over(renderer):
             settings=settings, display="indirect")
         full = [f for f in frames if f.image.shape[:2] == truth.shape[:2]]
         assert [f.passes for f in full] == list(range(1, 9))
-        error = [float(np.sqrt(np.mean((f.image[..., :3] - truth) ** 2)) / truth.mean())
-                 for f in full]
+        error = [metrics.relative_rmse(f.image, truth) for f in full]
         assert error[-1] < 0.6 * error[0], error
         assert session.records[-1].passes == 8
 

@@ -37,11 +37,17 @@ class ChooseParameters(Stage):
         """Where the measured cost model is kept (None: measure each time)."""
         self.last: tuple[Settings, autotune.Workload, autotune.Choice] | None = None
         """The last frame's settings, workload and choice (for :meth:`rechoose`)."""
+        self._cost: tuple[tuple, autotune.CostModel] | None = None
+        self._error: tuple[tuple, autotune.ErrorModel] | None = None
 
     def cost_model(self, stats: Stats, report: Callable[[float, str], None]
                    ) -> autotune.CostModel:
-        """This machine's cost model: cached, or measured now (once) and cached."""
+        """This machine's cost model: cached, or measured now (once) and cached. The file is
+        read again only when it changed (its path, size or modification time)."""
         name = str(self.gpu.ctx.info["GL_RENDERER"])
+        key = (name, _file_stamp(self.cost_cache))
+        if self._cost is not None and key[1] is not None and self._cost[0] == key:
+            return self._cost[1]
 
         def measure() -> autotune.CostModel:
             report(0.0, "Measuring this machine's cost model (once)")
@@ -51,7 +57,16 @@ class ChooseParameters(Stage):
             self.kept.forget(anchors=False)
             return model
 
-        return autotune.cached_cost_model(self.cost_cache, name, measure)
+        model = autotune.cached_cost_model(self.cost_cache, name, measure)
+        self._cost = ((name, _file_stamp(self.cost_cache)), model)  # the file may be new
+        return model
+
+    def error_model(self) -> autotune.ErrorModel:
+        """The error model (autotune.ERROR_MODEL_FILE), read again only when it changed."""
+        key = _file_stamp(autotune.ERROR_MODEL_FILE)
+        if self._error is None or self._error[0] != key:
+            self._error = (key, autotune.load_error_model())
+        return self._error[1]
 
     def rechoose(self, fixed: float, chosen: float, budget: float) -> autotune.Choice | None:
         """The last frame's choice made again for ``budget`` seconds, from its measured
@@ -68,7 +83,7 @@ class ChooseParameters(Stage):
         work = replace(work, fixed=fixed, scale=scale,
                        area_table=self._ism_area_table(work.triangles))
         return autotune.choose(replace(settings, time_budget=budget), work, cost,
-                               autotune.load_error_model())
+                               self.error_model())
 
     def run(self, frame: FrameState) -> None:
         self.last = None
@@ -85,7 +100,7 @@ class ChooseParameters(Stage):
                 vpls_per_path=self._vpls_per_path(frame),
                 bounces=settings.bounces,
                 area_table=self._ism_area_table(frame.geometry.vertex_count // 3))
-        choice = autotune.choose(settings, work, cost, autotune.load_error_model())
+        choice = autotune.choose(settings, work, cost, self.error_model())
         self.last = (settings, work, choice)
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
                            f"{choice.describe()}")
@@ -121,3 +136,14 @@ class ChooseParameters(Stage):
                 "pixels": camera.width * camera.height * settings.antialiasing**2,
                 "triangles": stats.counts["triangles"],
                 "shadow_tiles": stats.counts["shadow_maps"]}
+
+
+def _file_stamp(path: Path | None) -> tuple[str, int, int] | None:
+    """A file's path, size and modification time (ns), or None when there is no such file."""
+    if path is None:
+        return None
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return str(path), stat.st_size, stat.st_mtime_ns

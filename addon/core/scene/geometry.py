@@ -105,11 +105,16 @@ class WorldGeometry:
         return bool(self.textures)
 
     def albedo_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
-        """Reflectance for light paths (m, 3) at points on triangles (``albedo``'s, with the
-        base colour from ``base_at``)."""
+        """Reflectance for light paths (m, 3) at points on triangles (``path_albedo`` of the
+        base colour there)."""
+        return self.path_albedo(triangle, self.base_at(triangle, position))
+
+    def path_albedo(self, triangle: np.ndarray, base: np.ndarray) -> np.ndarray:
+        """Reflectance for light paths (m, 3) at points on triangles whose base colour is
+        ``base`` (m, 3) (``base_at``'s): ``albedo``'s, per point."""
         if not self.has_textures or len(triangle) == 0:
             return self.albedo[triangle].astype(np.float64)
-        albedo = self.base_at(triangle, position)
+        albedo = base.copy()
         material = self.triangle_material[triangle]
         for row in np.unique(material):
             if self.materials[row, SPECULAR + 7] > 0:
@@ -117,12 +122,13 @@ class WorldGeometry:
                 albedo[group] = self._path_albedo(albedo[group], row)
         return albedo
 
-    def reflectance_split(self, triangle: np.ndarray, position: np.ndarray,
+    def reflectance_split(self, triangle: np.ndarray, base: np.ndarray,
                           mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """What a light path arriving at cosine ``mu`` (m,) keeps at points on triangles: the
-        diffuse reflectance (m, 3) (base colour × the diffuse weight averaged over outgoing
-        directions), the glossy albedo (m, 3) at ``mu``, and the lobe's roughness (m,)."""
-        diffuse = self.base_at(triangle, position)
+        """What a light path arriving at cosine ``mu`` (m,) keeps at points on triangles whose
+        base colour is ``base`` (m, 3): the diffuse reflectance (m, 3) (base colour × the
+        diffuse weight averaged over outgoing directions), the glossy albedo (m, 3) at ``mu``,
+        and the lobe's roughness (m,)."""
+        diffuse = base.copy()
         gloss, rough = np.zeros_like(diffuse), np.zeros(len(triangle))
         material = self.triangle_material[triangle]
         for row in np.unique(material):
@@ -136,25 +142,26 @@ class WorldGeometry:
             rough[group] = params[0]
         return diffuse, gloss, rough
 
-    def lobe_texels(self, triangle: np.ndarray, position: np.ndarray,
+    def lobe_texels(self, triangle: np.ndarray, base: np.ndarray,
                     mu: np.ndarray) -> np.ndarray:
-        """The glossy lobes (m, 3, 4) at points on triangles for light arriving at cosine
-        ``mu`` (m,) (principled.lobe_texels; zero for materials without one)."""
+        """The glossy lobes (m, 3, 4) at points on triangles whose base colour is ``base``
+        (m, 3), for light arriving at cosine ``mu`` (m,) (principled.lobe_texels; zero for
+        materials without one)."""
         out = np.zeros((len(triangle), principled.LOBE_TEXELS, 4))
         material = self.triangle_material[triangle]
         for row in np.unique(material):
             params = self.materials[row, SPECULAR:]
             if params[7] > 0:
                 group = np.flatnonzero(material == row)
-                out[group] = principled.lobe_texels(
-                    self.base_at(triangle[group], position[group]), params, mu[group])
+                out[group] = principled.lobe_texels(base[group], params, mu[group])
         return out
 
     def base_at(self, triangle: np.ndarray, position: np.ndarray) -> np.ndarray:
         """Base colour (m, 3) at points on triangles: the material's, or the texture sampled
         at the interpolated UV (with its interpolation and extension), capped like base
         colours."""
-        albedo = np.clip(self._per_triangle(0)[triangle].astype(np.float64), 0.0, MAX_ALBEDO)
+        albedo = np.clip(self.materials[self.triangle_material[triangle], 0:3].astype(np.float64),
+                         0.0, MAX_ALBEDO)
         if not self.has_textures or len(triangle) == 0:
             return albedo
         layer = self.materials[self.triangle_material[triangle], 8].astype(int)

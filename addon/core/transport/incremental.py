@@ -188,7 +188,8 @@ class IncrementalVPLs:
         if not hits or settings.bounces == 0 or geometry.vertex_count == 0:
             return VPLs.empty()
         first = SurfaceHits(*(np.concatenate([getattr(h, f) for h, _ in hits])
-                              for f in SurfaceHits.__dataclass_fields__ if f != "incoming"))
+                              for f in SurfaceHits.__dataclass_fields__
+                              if f not in ("incoming", "base")))
         directions = scrambled_halton(n, 2 * max(0, settings.bounces - 1), settings.seed)
         vpls = propagate(first, n, directions, settings, tracer, geometry, radius)
         path_of_rank = np.zeros(n, np.int64)

@@ -346,12 +346,14 @@ class SurfaceHits:
     rank: np.ndarray  # (m,) int in [0, n)
     triangle: np.ndarray | None = None  # (m,) int, the triangle hit (where known)
     incoming: np.ndarray | None = None  # (m, 3) direction of travel (where known)
+    base: np.ndarray | None = None  # (m, 3) base colour, WorldGeometry.base_at (where known)
 
 
 def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
            direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float
            ) -> SurfaceHits:
-    """The surfaces the rays hit (misses dropped), normals turned towards the ray."""
+    """The surfaces the rays hit (misses dropped), normals turned towards the ray; the base
+    colour is looked up once per hit (the path albedo and the lobes derive from it)."""
     hits = tracer.intersect(origin, direction, epsilon, np.inf)
     hit = hits.triangle >= 0
     tri = hits.triangle[hit]
@@ -359,8 +361,9 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
     t = geometry.positions.reshape(-1, 3, 3)[tri].astype(np.float64)
     normal = unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
     normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
-    return SurfaceHits(position, normal, geometry.albedo_at(tri, position), flux[hit], rank[hit],
-                       tri, direction[hit])
+    base = geometry.base_at(tri, position)
+    return SurfaceHits(position, normal, geometry.path_albedo(tri, base), flux[hit], rank[hit],
+                       tri, direction[hit], base)
 
 
 def _lobes(hits: SurfaceHits, geometry: WorldGeometry
@@ -368,13 +371,14 @@ def _lobes(hits: SurfaceHits, geometry: WorldGeometry
     """What a VPL at the hits emits diffusely (reflectance (m, 3)), the glossy albedo (m, 3)
     and roughness (m,) of the paths' glossy continuation, and the VPLs' glossy emission
     (VPLs.glossy, (m, 4, 4)) (both None where no material is glossy or the incoming direction
-    is not known: the path albedo is then all diffuse)."""
-    if hits.incoming is None or hits.triangle is None or not geometry.has_specular:
+    or base colour is not known: the path albedo is then all diffuse)."""
+    if hits.incoming is None or hits.triangle is None or hits.base is None \
+            or not geometry.has_specular:
         return hits.albedo, None, np.zeros(len(hits.rank)), None
     mu = np.clip(-(hits.incoming * hits.normal).sum(axis=1), 0.0, 1.0)
-    diffuse, gloss, rough = geometry.reflectance_split(hits.triangle, hits.position, mu)
+    diffuse, gloss, rough = geometry.reflectance_split(hits.triangle, hits.base, mu)
     emission = np.zeros((len(mu), 4, 4))
-    emission[:, :3] = geometry.lobe_texels(hits.triangle, hits.position, mu)
+    emission[:, :3] = geometry.lobe_texels(hits.triangle, hits.base, mu)
     emission[:, :3, :3] *= hits.flux[:, None, :]
     emission[:, 3, :3] = -hits.incoming
     emission[emission[:, 0, 3] <= 0] = 0.0
