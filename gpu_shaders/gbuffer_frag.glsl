@@ -1,5 +1,8 @@
-// Writes the g-buffer. Normals are turned to face the camera (surfaces are two-sided, as in
-// Cycles). With ONE_SIDED (visible light shapes) the back side is not drawn. With TEXTURED the
+// Writes the g-buffer. The geometric normal is turned to face the camera (surfaces are
+// two-sided, as in Cycles), and the shading normal turned with it where the camera sees the
+// surface's back: its own side is not tested, since an interpolated normal seen at a grazing
+// angle can face away from the camera on a front face (turning it then shaded the face from
+// behind: black under a light in front). With ONE_SIDED (visible light shapes) the back side is not drawn. With TEXTURED the
 // albedo (capped to 1, as base colours are) and the emission come from image textures. With
 // GLOSSY (some material has a specular layer) the albedo is the diffuse layer's colour (Cycles'
 // DiffCol) and three more layers hold the pixel's glossy lobe (principled_lib.glsl); the glossy
@@ -43,7 +46,7 @@ void main() {
 #ifdef ONE_SIDED
     if (dot(shading, to_camera) <= 0.0) discard;
 #endif
-    if (dot(shading, to_camera) < 0.0) shading = -shading;
+    if (dot(shading, geometric) < 0.0) shading = -shading;
     float depth = -(u_view * vec4(v_world, 1.0)).z;
     out_position = vec4(v_world, depth);
     out_normal = vec4(shading, 1.0);

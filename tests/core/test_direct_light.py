@@ -6,6 +6,8 @@ irradiance E a physically exact renderer would compute at the pixel centre.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,15 @@ from addon.core.frame import batches
 from addon.core.frame import image as image_stage
 from addon.core.scene.model import AreaShape, Instance, LightKind, Material, World
 from addon.core.settings import Settings
-from tests.core.builders import floor_scene, light, pixel_centres, quad, rotation_x, translation
+from tests.core.builders import (
+    floor_scene,
+    light,
+    pixel_centres,
+    quad,
+    rotation_x,
+    top_down_camera,
+    translation,
+)
 
 SIZE = 64
 
@@ -173,3 +183,29 @@ def test_world_with_imperfect_shadow_maps_matches_triangle_maps(renderer):
     reference, image = maps.passes["DiffDir"], ism.passes["DiffDir"]
     assert abs(image.sum() / reference.sum() - 1) < 0.015
     assert np.sqrt(np.mean((image - reference) ** 2)) / reference.mean() < 0.03
+
+
+def test_a_smooth_normal_seen_at_a_grazing_angle_keeps_its_side(renderer):
+    """A front face whose interpolated normal leans away from the camera (a smooth surface
+    seen at a grazing angle) is shaded with that normal, as in Cycles, which turns the shading
+    normal only where the camera sees the back of the face: a sun overhead lights it with the
+    normal's cosine (turning the normal by its own side made it black)."""
+    leaning = np.array([0.8, 0.0, 0.6], np.float32)
+    floor = quad(5, 5)
+    floor = replace(floor, normals=np.tile(leaning, (len(floor.normals), 1)))
+    forward = np.array([0.9, 0.0, -0.436])
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    to_world = np.eye(4)
+    to_world[:3, :3] = np.stack([right, np.cross(right, forward), -forward], axis=1)
+    to_world[:3, 3] = -4.0 * forward
+    camera = replace(top_down_camera(SIZE, extent=2.0), view_matrix=np.linalg.inv(to_world))
+    sun = light(LightKind.SUN, np.eye(4), power=2.0)
+    scene = floor_scene([sun])
+    scene = replace(scene, instances=[replace(scene.instances[0], mesh=floor)], camera=camera)
+    assert leaning @ -forward < 0  # the normal faces away from the camera, the face does not
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
+    seen = frame.passes["Normal"][..., 2] != 0
+    assert seen.mean() > 0.9
+    np.testing.assert_allclose(irradiance(frame)[seen], 2.0 * 0.6, rtol=1e-3)
