@@ -11,7 +11,7 @@ times (2 cm, or 1° for a sun), move a mesh object, change a material colour. Fo
 prints the export time and meshes read/reused, the latency to the first frame, the time to
 the last refinement level, which expensive stages ran in the first frame (ray-tracing setup,
 VPL generation, imperfect shadow maps and how many were rendered), and the refinement frame
-rate.
+rate, and where each first frame's time went, stage by stage.
 
 Run: ``.venv/bin/python tools/bench_viewport.py [--scenes cornell_box interior] [--size 640]``.
 """
@@ -30,6 +30,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 
+STAGE_SHOWN = 0.005  # seconds: a first frame's stages that took less are not listed
 HEAVY_STAGES = ("ray tracing setup", "vpl generation", "vpl generation (incremental)",
                 "ism splat", "ism pull_push")
 
@@ -66,6 +67,7 @@ def replay(scene_file: Path, size: int) -> None:
     camera = export_camera(depsgraph, bpy.context.scene.camera, size, height, [])
     session = ViewportSession()
     rows = []
+    first_frames: list[tuple[str, dict[str, float]]] = []
 
     def run(label: str, changes: Changes, **kwargs) -> None:
         start = time.perf_counter()
@@ -91,6 +93,7 @@ def replay(scene_file: Path, size: int) -> None:
                      f"{meshes.get('meshes_reused', 0)} reused)",
                      f"{record.latency * 1000:.0f} ms", f"{record.converged * 1000:.0f} ms",
                      f"{rate:.1f}/s", ", ".join(heavy) or "none", str(rendered)))
+        first_frames.append((label, record.ran))
         cache.stats.clear()
 
     def edited(action) -> Changes:
@@ -136,6 +139,11 @@ def replay(scene_file: Path, size: int) -> None:
     print("|---|---|---|---|---|---|---|---|")
     for row in rows:
         print("| " + " | ".join(row) + " |")
+    print("\nWhere each first frame's time went (stages over 5 ms, ms; nested stages, such "
+          "as the ISM splat inside its maps, are in both):")
+    for label, ran in first_frames:
+        spent = sorted(((v, k) for k, v in ran.items() if v >= STAGE_SHOWN), reverse=True)
+        print(f"- {label}: " + ", ".join(f"{k} {v * 1000:.0f}" for v, k in spent))
 
 
 def main() -> None:

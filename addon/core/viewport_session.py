@@ -45,8 +45,10 @@ DISPLAY_MODES = (
 DISPLAY_PASSES = {"direct": frozenset({"DiffDir", "DiffCol", "Emit"}),
                   "indirect": frozenset({"DiffInd", "DiffCol"})}
 """Passes a display mode reads besides Combined."""
-LEVEL_DIVISORS = (4, 2, 1)  # resolution divisors of the refinement levels
-MIN_LEVEL_PIXELS = 96  # a level is skipped when its shorter edge would be smaller
+LEVEL_DIVISORS = (8, 4, 2, 1)  # resolution divisors of the refinement levels
+MIN_LEVEL_PIXELS = 64
+"""A level is skipped when its shorter edge would be smaller (Cycles' viewport starts at
+about 64² pixels: 80×45 of a 640×360 viewport, where the first level here is 160×90)."""
 GENERATION_COLOURS = np.array([[1.0, 0.9, 0.2], [1.0, 0.4, 0.1], [0.9, 0.1, 0.5],
                                [0.4, 0.2, 1.0], [0.1, 0.7, 1.0]], np.float32)
 GEOMETRY_OBJECTS = RENDERED_OBJECT_TYPES | {"CURVES", "POINTCLOUD", "VOLUME"}

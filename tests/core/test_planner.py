@@ -148,7 +148,8 @@ def test_spot_cones_are_tested_against_the_visible_box(spot_degrees, x, reaches)
                                spot_size=np.radians(spot_degrees))])
     geometry = flatten_instances(scene, [])
     samples = build_light_samples(scene, geometry, DIRECT, [])
-    bounds = visible_bounds(scene.camera, geometry.positions)
+    positions = geometry.positions
+    bounds = visible_bounds(scene.camera, (positions.min(axis=0), positions.max(axis=0)))
     assert reaches_bounds(samples, bounds).tolist() == [reaches]
 
 

@@ -59,7 +59,8 @@ def test_depsgraph_updates_are_classified(updates, expected):
 
 
 def test_levels_refine_to_full_resolution():
-    assert refinement_levels(top_down_camera(800)) == [4, 2, 1]
+    assert refinement_levels(top_down_camera(800)) == [8, 4, 2, 1]
+    assert refinement_levels(replace(top_down_camera(640), height=360)) == [4, 2, 1]
     assert refinement_levels(top_down_camera(200)) == [2, 1]
     assert refinement_levels(top_down_camera(50)) == [1]
 

@@ -118,12 +118,13 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
     return plan
 
 
-def visible_bounds(camera: Camera, positions: np.ndarray) -> Bounds | None:
-    """A box holding every surface point the camera can see: the scene's bounding box cut by
-    the box around the camera's view frustum. None when the two do not overlap."""
-    if len(positions) == 0:
+def visible_bounds(camera: Camera, box: Bounds | None) -> Bounds | None:
+    """A box holding every surface point the camera can see: the scene's bounding box ``box``
+    (None without triangles) cut by the box around the camera's view frustum. None when the
+    two do not overlap."""
+    if box is None:
         return None
-    lo, hi = positions.min(axis=0).astype(np.float64), positions.max(axis=0).astype(np.float64)
+    lo, hi = box[0].astype(np.float64), box[1].astype(np.float64)
     clip_to_world = np.linalg.inv(camera.projection_matrix @ camera.view_matrix)
     corners = np.array([[x, y, z, 1.0] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
     world = corners @ clip_to_world.T

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..scene.bounds import robust_bounds
-from ..scene.geometry import flatten_instances, light_shapes
+from ..scene.geometry import bounding_sphere, flatten_instances, light_shapes
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .batches import shadow_map_batches
 from .compose import sanitize
@@ -72,11 +72,19 @@ class FlattenGeometry(Stage):
             frame.geometry = flatten_instances(frame.scene, frame.stats.warnings,
                                                frame.stats.notes)
             frame.shapes = light_shapes(frame.scene)
+            self.kept.versions.note(frame.geometry)
+            positions = frame.geometry.positions
+            key = (self.kept.versions.shape,)
+            bounds = self.kept.get("scene bounds", key)
+            if bounds is None:  # the triangles moved (a camera edit keeps them)
+                box = (positions.min(axis=0), positions.max(axis=0)) if len(positions) else None
+                bounds = (bounding_sphere(positions), box)
+                self.kept.keep("scene bounds", key, bounds)
+            sphere, frame.box = bounds
             frame.centre, frame.radius, outliers = robust_bounds(
-                frame.geometry.positions, frame.camera, frame.scene.instances)
+                positions, frame.camera, frame.scene.instances, sphere)
             if outliers:
                 frame.stats.warnings.append(outliers)
-            self.kept.versions.note(frame.geometry)
 
 
 class PlanFrame(Stage):
@@ -96,7 +104,7 @@ class PlanFrame(Stage):
             stats.skipped.update(plan.skipped)
             if not frame.settings.planner:
                 self.kept.forget(anchors=False)
-            in_view = visible_bounds(frame.camera, frame.geometry.positions) \
+            in_view = visible_bounds(frame.camera, frame.box) \
                 if plan.cull_to_view else None
             if plan.cull_to_view and in_view is None and plan.indirect:
                 plan.indirect = False

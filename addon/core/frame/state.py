@@ -51,6 +51,7 @@ class FrameState:
     shapes: WorldGeometry | None = None  # light outlines seen by the camera
     centre: np.ndarray | None = None  # bounding sphere of the geometry
     radius: float = 0.0
+    box: Bounds | None = None  # bounding box of the geometry (None without triangles)
     plan: FramePlan | None = None
     in_view: Bounds | None = None
     light_samples: LightSamples | None = None
