@@ -260,7 +260,7 @@ class IncrementalVPLs:
                 seed: int) -> _Anchors:
         if len(slots) == 0:
             return anchors
-        coords = farthest_points(domain, anchors.coords, len(slots), self._frame * 0.61803)
+        coords, _ = farthest_points(domain, anchors.coords, len(slots), self._frame * 0.61803)
         rng = np.random.default_rng((seed, self._frame, len(anchors)))
         offsets = rng.uniform(size=(len(slots), 2))
         self.stats.created += len(slots)
@@ -268,35 +268,44 @@ class IncrementalVPLs:
                                           epsilon))
 
     def _delete_worst(self, anchors: _Anchors) -> _Anchors:
-        """Remove the end of the shortest Delaunay edge that lies in the denser place."""
-        edge = shortest_edge(anchors.coords)
-        if edge is None:
-            return anchors.keep(np.arange(len(anchors)) != 0)
-        tree = cKDTree(anchors.coords)
-        second = [tree.query(anchors.coords[i], k=min(3, len(anchors)))[0][-1] for i in edge]
-        worst = edge[int(np.argmin(second))]
-        return anchors.keep(np.arange(len(anchors)) != worst)
+        """The anchors without the worst one (see _worst)."""
+        return anchors.keep(np.arange(len(anchors)) != _worst(anchors.coords)[0])
 
     def _redistribute(self, anchors: _Anchors, domain: LightDomain, tracer: RayCaster,
                       geometry: WorldGeometry, epsilon: float, settings: Settings) -> _Anchors:
-        """Up to ``incremental_budget`` times: move the worst anchor to the best spot while the
-        best spot is farther from its neighbours than the shortest edge is long."""
+        """Up to ``incremental_budget`` anchors move from the most crowded places to the
+        emptiest: the worst anchors are taken out one after another, as many best spots are
+        chosen greedily among the rest (one triangulation, where a move at a time took one
+        each: 8 moves cost 0.13 s on the interior's sun), and the i-th move is made while its
+        spot is farther from its neighbours than the i-th shortest edge was long (the
+        anchors of the moves not made are put back). The moved paths are traced together."""
+        edges: list[float] = []
+        taken: list[_Anchors] = []
+        remaining = anchors
         for _ in range(settings.incremental_budget):
-            if len(anchors) < domain.dimensions + 2:
+            if len(remaining) < domain.dimensions + 2:
                 break
-            a, b = shortest_edge(anchors.coords)
-            edge = np.linalg.norm(anchors.coords[a] - anchors.coords[b])
-            remaining = self._delete_worst(anchors)
-            spot = farthest_points(domain, remaining.coords, 1, self._frame * 0.61803)
-            gap = cKDTree(remaining.coords).query(spot)[0][0]
-            if gap <= edge * 1.05:
-                break
-            slot = np.setdiff1d(anchors.slot, remaining.slot)
-            rng = np.random.default_rng((settings.seed, self._frame, int(slot[0])))
-            anchors = remaining.append(self._trace(domain, spot, rng.uniform(size=(1, 2)),
-                                                   slot, tracer, geometry, epsilon))
-            self.stats.redistributed += 1
-        return anchors
+            worst, edge = _worst(remaining.coords)
+            edges.append(edge)
+            mask = np.arange(len(remaining)) == worst
+            taken.append(remaining.keep(mask))
+            remaining = remaining.keep(~mask)
+        if not edges:
+            return anchors
+        spots, gaps = farthest_points(domain, remaining.coords, len(edges),
+                                      self._frame * 0.61803)
+        moves = next((i for i, (gap, edge) in enumerate(zip(gaps, edges, strict=True))
+                      if gap <= edge * 1.05), len(edges))
+        for kept in taken[moves:]:
+            remaining = remaining.append(kept)
+        if moves == 0:
+            return remaining
+        slots = np.concatenate([t.slot for t in taken[:moves]])
+        offsets = np.array([np.random.default_rng((settings.seed, self._frame, int(slot)))
+                            .uniform(size=2) for slot in slots])
+        self.stats.redistributed += moves
+        return remaining.append(self._trace(domain, spots[:moves], offsets, slots, tracer,
+                                            geometry, epsilon))
 
     def _anchor_hits(self, anchors: _Anchors, domain: LightDomain,
                      permutation: np.ndarray) -> tuple[SurfaceHits, np.ndarray]:
@@ -322,6 +331,18 @@ class IncrementalVPLs:
         return (SurfaceHits(found.position, found.normal, found.albedo, found.flux,
                             permutation[slots[found.rank]], found.triangle),
                 self._environment_ids[found.rank])
+
+
+def _worst(coords: np.ndarray) -> tuple[int, float]:
+    """The worst anchor, the end of the shortest Delaunay edge that lies in the denser place
+    (the one whose second neighbour is nearer), and that edge's length (the first anchor and
+    0 without an edge)."""
+    edge = shortest_edge(coords)
+    if edge is None:
+        return 0, 0.0
+    tree = cKDTree(coords)
+    second = [tree.query(coords[i], k=min(3, len(coords)))[0][-1] for i in edge]
+    return edge[int(np.argmin(second))], float(np.linalg.norm(coords[edge[0]] - coords[edge[1]]))
 
 
 def _allocate(total: int, powers: list[float]) -> list[int]:
