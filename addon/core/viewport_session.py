@@ -45,10 +45,10 @@ DISPLAY_MODES = (
 DISPLAY_PASSES = {"direct": frozenset({"DiffDir", "DiffCol", "Emit"}),
                   "indirect": frozenset({"DiffInd", "DiffCol"})}
 """Passes a display mode reads besides Combined."""
-LEVEL_DIVISORS = (8, 4, 2, 1)  # resolution divisors of the refinement levels
-MIN_LEVEL_PIXELS = 64
-"""A level is skipped when its shorter edge would be smaller (Cycles' viewport starts at
-about 64² pixels: 80×45 of a 640×360 viewport, where the first level here is 160×90)."""
+MAX_LEVEL_DIVISOR = 8  # the coarsest level's resolution divisor, at most
+START_PIXELS = 64 * 64
+"""The first level is the coarsest at most this many pixels, as Cycles' viewport starts (its
+Start Resolution, 64): 80×45 of a 640×360 view; then the resolution doubles per level."""
 GENERATION_COLOURS = np.array([[1.0, 0.9, 0.2], [1.0, 0.4, 0.1], [0.9, 0.1, 0.5],
                                [0.4, 0.2, 1.0], [0.1, 0.7, 1.0]], np.float32)
 GEOMETRY_OBJECTS = RENDERED_OBJECT_TYPES | {"CURVES", "POINTCLOUD", "VOLUME"}
@@ -163,8 +163,11 @@ def scaled_camera(camera: Camera, divisor: int) -> Camera:
 
 def refinement_levels(camera: Camera) -> list[int]:
     """Resolution divisors of the levels of one edit, coarse to fine (always ending at 1)."""
-    shorter = min(camera.width, camera.height)
-    return [d for d in LEVEL_DIVISORS if d == 1 or shorter // d >= MIN_LEVEL_PIXELS]
+    divisor = 1
+    while divisor < MAX_LEVEL_DIVISOR and \
+            (camera.width // divisor) * (camera.height // divisor) > START_PIXELS:
+        divisor *= 2
+    return [divisor >> k for k in range(divisor.bit_length())]
 
 
 def display_image(frame: Frame, mode: str, camera: Camera, vpls=None,

@@ -59,9 +59,12 @@ def test_depsgraph_updates_are_classified(updates, expected):
 
 
 def test_levels_refine_to_full_resolution():
+    """The first level has at most 64² pixels (Cycles' Start Resolution), or 1/8 of each
+    edge, and each next one doubles the resolution."""
     assert refinement_levels(top_down_camera(800)) == [8, 4, 2, 1]
-    assert refinement_levels(replace(top_down_camera(640), height=360)) == [4, 2, 1]
-    assert refinement_levels(top_down_camera(200)) == [2, 1]
+    assert refinement_levels(replace(top_down_camera(640), height=360)) == [8, 4, 2, 1]
+    assert refinement_levels(top_down_camera(200)) == [4, 2, 1]
+    assert refinement_levels(top_down_camera(128)) == [2, 1]
     assert refinement_levels(top_down_camera(50)) == [1]
 
 
@@ -83,7 +86,7 @@ def run(session: ViewportSession, changes: Changes, **kwargs):
 def test_edits_rerun_only_what_they_change(session):
     first, frame = run(session, Changes(settings=True), scene=scene(), camera=scene().camera,
                        settings=SETTINGS)
-    assert frame.level == frame.levels - 1 == 1 and frame.image.shape == (192, 192, 4)
+    assert frame.level == frame.levels - 1 == 2 and frame.image.shape == (192, 192, 4)
     assert "vpl generation (incremental)" in first.ran and "ism splat" in first.ran
     assert np.isfinite(frame.image).all() and frame.image[..., :3].mean() > 0
 
