@@ -61,7 +61,9 @@ def replay(scene_file: Path, size: int) -> None:
     bpy.app.handlers.depsgraph_update_post.append(catch)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     # latency and refinement levels: no idle passes, whose CPU time would follow each edit
-    settings = replace(bpy.context.scene.vpl_gi.to_settings(), viewport_passes=1)
+    settings = bpy.context.scene.vpl_gi.to_settings()
+    if hasattr(settings, "viewport_passes"):  # older checkouts (--repo) had no idle passes
+        settings = replace(settings, viewport_passes=1)
     cache = ExportCache()
     height = max(1, size * 9 // 16)
     camera = export_camera(depsgraph, bpy.context.scene.camera, size, height, [])
