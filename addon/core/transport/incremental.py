@@ -12,8 +12,9 @@ point their path first hit. Every frame, per light:
    at the point farthest from all others: the largest empty circle, whose centre is a vertex of
    the Voronoi diagram (a circumcentre of the Delaunay triangulation; on the sphere, of the
    convex hull of the unit vectors), or a point of a dense uniform candidate set (which covers
-   the domain's border). Then, up to ``incremental_budget`` times, the worst anchor (an end of
-   the shortest Delaunay edge) moves to the best spot while that widens the closest spacing.
+   the domain's border). Then up to ``incremental_budget`` anchors move: the worst ones (an
+   end of the shortest Delaunay edge) to the best spots, while that widens the closest spacing
+   (all moves chosen and traced in one batch).
 4. Each anchor's path carries the light's flux through its Voronoi cell (the integral of the
    light's flux density over the cell, by a deterministic uniform quadrature of the domain), so
    an uneven set still integrates the light exactly.
