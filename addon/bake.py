@@ -514,16 +514,25 @@ class VPLGI_OT_bake_materials(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def bake_soon(on_baked: Callable[[], None]) -> None:
-    """Bake the context's scene on a timer (the main thread, outside drawing: the viewport),
-    then call ``on_baked`` if anything was baked."""
-    def run() -> None:
+BAKE_POLL = 0.1  # seconds between a waiting bake timer's checks
+
+
+def bake_soon(on_baked: Callable[[], None], ready: Callable[[], bool] = lambda: True) -> None:
+    """Bake the context's scene on a timer (the main thread, outside drawing: the viewport)
+    once ``ready()`` (checked every BAKE_POLL seconds), then call ``on_baked`` if anything
+    was baked. The viewport waits for its worker to finish the frames in flight: Cycles'
+    bake and the worker's OpenGL work never run side by side (the suite crashed once when
+    they did)."""
+    def run() -> float | None:
+        if not ready():
+            return BAKE_POLL
         with _bake_turn() as free:
             if not free:
-                return
+                return None
             cache = bake_scene(bpy.context.evaluated_depsgraph_get())
         if cache.baked:
             on_baked()
+        return None
     bpy.app.timers.register(run, first_interval=0.0)
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import weakref
+from dataclasses import replace
 
 import bpy
 import numpy as np
@@ -100,8 +101,10 @@ class ViewportState:
         scene = export_scene(depsgraph, self.cache) if changes.needs_export or not \
             self.exported else None
         self.exported = True
-        if scene is not None and self.cache.unbaked:
-            bake.bake_soon(self._baked)
+        if scene is not None and self.cache.unbaked:  # its frames are shown until the bake's
+            settings = replace(settings, viewport_passes=1)  # export: no idle passes first
+            session = self.session
+            bake.bake_soon(self._baked, ready=lambda: session.idle or not session.alive)
         self.session.edit(changes, scene=scene, camera=region_camera(context), settings=settings,
                           display=self.display)
 

@@ -305,7 +305,9 @@ def test_viewport_bakes_on_a_timer_then_exports_again(blender, monkeypatch):
         state.update(context, depsgraph)
         assert len(timers) == 2  # the redraw poll (registered first) and the bake
         assert state.session._scene.instances[0].materials[0].base_color_texture is None
-        timers[1]()
+        assert timers[1]() == bake.BAKE_POLL or state.session.idle  # waits for the frames
+        assert state.session.wait_idle(300)  # in flight: no bake beside the worker's GL work
+        assert timers[1]() is None
         assert "update" in calls and len(bake.CACHE.entries) == 1
         state.update(context, bpy.context.evaluated_depsgraph_get())
         material = state.session._scene.instances[0].materials[0]
