@@ -37,6 +37,7 @@ from .blender_read import (
     positions,
     read_array,
     surface_node,
+    triangle_faces,
 )
 from .core.frame.result import Stats
 from .core.scene.model import Material, Mesh, Texture
@@ -125,8 +126,7 @@ def mesh_hash(mesh: bpy.types.Mesh) -> str:
     digest.update(corner_verts(mesh).tobytes())
     # the face of each loop triangle: the faces' sizes (n - 2 triangles each), read as one
     # array where the polygons' loop_total is read face by face
-    digest.update(read_array(mesh.loop_triangle_polygons, "value",
-                             len(mesh.loop_triangle_polygons), np.int32).tobytes())
+    digest.update(triangle_faces(mesh).tobytes())
     material_index = int_attribute(mesh, "material_index", len(mesh.polygons))
     digest.update(b"no material index" if material_index is None else material_index.tobytes())
     uvs = active_uvs(mesh)

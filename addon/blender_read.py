@@ -41,6 +41,13 @@ def corner_verts(mesh: bpy.types.Mesh) -> np.ndarray:
         if found is None else found
 
 
+def triangle_faces(mesh: bpy.types.Mesh) -> np.ndarray:
+    """The face of each of Blender's loop triangles, (T,) int32 (one array read; the mesh is
+    not triangulated)."""
+    return read_array(mesh.loop_triangle_polygons, "value", len(mesh.loop_triangle_polygons),
+                      np.int32)
+
+
 def active_uvs(mesh: bpy.types.Mesh) -> np.ndarray | None:
     """The active render UV map's coordinates per corner, (L, 2) float32, or None without
     one."""

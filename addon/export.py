@@ -15,7 +15,15 @@ import numpy as np
 
 from . import bake
 from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, uses_nodes
-from .blender_read import active_uvs, corner_verts, int_attribute, positions, surface_node
+from .blender_read import (
+    active_uvs,
+    corner_verts,
+    int_attribute,
+    positions,
+    read_array,
+    surface_node,
+    triangle_faces,
+)
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
@@ -84,9 +92,7 @@ def _rgb(value) -> tuple[float, float, float]:
 
 def _vectors(collection: bpy.types.bpy_prop_collection, size: int) -> np.ndarray:
     """The 'vector' of each of ``size`` items (normals), (size, 3) float32."""
-    values = np.empty(size * 3, dtype=np.float32)
-    collection.foreach_get("vector", values)
-    return values.reshape(-1, 3)
+    return read_array(collection, "vector", size * 3, np.float32).reshape(-1, 3)
 
 
 def _cross(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
@@ -160,8 +166,7 @@ def _triangles(mesh: bpy.types.Mesh, xyz: np.ndarray, corner_vert: np.ndarray
     Triangles and quads are split in numpy with Blender's own rule (about 20× faster than
     reading loop_triangles through RNA); n-gons take Blender's triangulation. Zero area:
     (v1 - v0) × (v2 - v0) of the positions (``xyz``, (3, P)) is exactly zero."""
-    face = np.empty(len(mesh.loop_triangle_polygons), dtype=np.int32)  # no triangulation
-    mesh.loop_triangle_polygons.foreach_get("value", face)
+    face = triangle_faces(mesh)
     # faces' sizes from their triangle counts: reading loop_start is much slower
     size = np.bincount(face, minlength=len(mesh.polygons)).astype(np.int32) + 2
     is_quad = size == 4
