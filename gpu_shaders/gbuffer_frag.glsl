@@ -2,12 +2,12 @@
 // two-sided, as in Cycles), and the shading normal turned with it where the camera sees the
 // surface's back: its own side is not tested, since an interpolated normal seen at a grazing
 // angle can face away from the camera on a front face (turning it then shaded the face from
-// behind: black under a light in front). With ONE_SIDED (visible light shapes) the back side is not drawn. With TEXTURED the
-// albedo (capped to 1, as base colours are) and the emission come from image textures. With
-// GLOSSY (some material has a specular layer) the albedo is the diffuse layer's colour (Cycles'
-// DiffCol) and three more layers hold the pixel's glossy lobe (principled_lib.glsl); the glossy
-// colour (Cycles' GlossCol) is (lobe_c.w, albedo.w, emission.w), as OpenGL guarantees only
-// eight colour attachments.
+// behind: black under a light in front). With ONE_SIDED (visible light shapes) the back side
+// is not drawn. With TEXTURED the albedo (capped to 1, as base colours are) and the emission
+// come from image textures. With GLOSSY (some material has a specular layer) the albedo is the
+// diffuse layer's colour (Cycles' DiffCol) and three more layers hold the pixel's glossy lobe
+// (principled_lib.glsl); the glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w,
+// emission.w), as OpenGL guarantees only eight colour attachments.
 #include "materials_lib.glsl"
 #ifdef GLOSSY
 #include "principled_lib.glsl"

@@ -78,7 +78,7 @@ class FlattenGeometry(Stage):
             bounds = self.kept.get("scene bounds", key)
             if bounds is None:  # the triangles moved (a camera edit keeps them)
                 box = (positions.min(axis=0), positions.max(axis=0)) if len(positions) else None
-                bounds = (bounding_sphere(positions), box)
+                bounds = (bounding_sphere(positions, box), box)
                 self.kept.keep("scene bounds", key, bounds)
             sphere, frame.box = bounds
             frame.centre, frame.radius, outliers = robust_bounds(

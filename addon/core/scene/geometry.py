@@ -417,11 +417,14 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
                          uv if textures else None, textures)
 
 
-def bounding_sphere(positions: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre and radius of a sphere around all points (box-centred; radius > 0)."""
+def bounding_sphere(positions: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None
+                    ) -> tuple[np.ndarray, float]:
+    """Centre and radius of a sphere around all points (box-centred; radius > 0); ``box``:
+    the points' (min, max) where the caller has it."""
     if len(positions) == 0:
         return np.zeros(3), 1.0
-    low, high = positions.min(axis=0).astype(np.float64), positions.max(axis=0).astype(np.float64)
+    low, high = box if box is not None else (positions.min(axis=0), positions.max(axis=0))
+    low, high = low.astype(np.float64), high.astype(np.float64)
     centre = 0.5 * (low + high)
     radius = float(np.sqrt(((positions - centre) ** 2).sum(axis=1).max()))
     return centre, max(radius, 1e-6 * max(1.0, float(np.abs(centre).max())), 1e-30)
