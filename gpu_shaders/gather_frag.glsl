@@ -4,6 +4,8 @@
 // 2004): short cosine-distributed rays from the pixel find surfaces y closer than the clamp
 // distance, whose outgoing radiance (this batch's light, gathered at y) arrives with weight
 // 1 - d²/clamp².
+// With SHADOW_HINTS (ray-traced samples) each sample's visibility comes from the pixels' hints
+// where they agree (lights_lib.glsl), and from a ray elsewhere.
 // With GLOSSY a second target gets the glossy radiance towards the camera, summed over the
 // same samples with the pixel's lobe from the g-buffer (bias compensation adds no glossy
 // light). With VPL_GLOSSY, VPLs at glossy surfaces also emit through their lobe (lights_lib).
@@ -49,6 +51,9 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
     for (int i = interleave_first(u_first, px); i < u_first + u_count;
          i += interleave_stride()) {
         LightSample s = light_sample(i);
+#ifdef SHADOW_HINTS
+        g_hint_bit = interleave_size() > 1 ? 0 : i;
+#endif
         if (s.generation <= max_generation) {
             vec3 e = sample_irradiance(s, world, normal, geometric);
             irradiance += e;
@@ -69,25 +74,13 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
 #include "raytrace_lib.glsl"
 #include "materials_lib.glsl"
 #include "compensation_lib.glsl"
-// The scene's position stream (x, y, z of 3 vertices per triangle, in the order whose
-// triangle indices the ray tracer returns), read as floats: std430 pads vec3 arrays.
-layout(std430, binding = SURFACE_VERTICES_BINDING) readonly buffer TriangleVertices {
-    float triangle_positions[];
-};
-
-vec3 triangle_vertex(int triangle, int corner) {
-    int i = 9 * triangle + 3 * corner;
-    return vec3(triangle_positions[i], triangle_positions[i + 1], triangle_positions[i + 2]);
-}
+#include "surface_lib.glsl"
 uniform int u_bias_samples;
 uniform int u_max_generation;  // light that may bounce once more at y
 
 // The hit's radiance: this batch's light gathered there, reflected by its albedo.
 bool hit_radiance(vec3 origin, vec3 dir, float t, int triangle, out vec3 radiance) {
-    vec3 a = triangle_vertex(triangle, 0);
-    vec3 n_y = normalize(cross(triangle_vertex(triangle, 1) - a,
-                               triangle_vertex(triangle, 2) - a));
-    if (dot(n_y, dir) > 0.0) n_y = -n_y;
+    vec3 n_y = facing_normal(triangle, dir);
     vec3 unused;
     radiance = material_of(triangle).albedo.rgb / PI
                * gather(origin + dir * t, n_y, n_y, u_max_generation,
@@ -117,6 +110,9 @@ void main() {
 #ifdef BIAS_COMPENSATION
     out_light = vec4(compensation(world, normal.xyz, geometric), 0.0);
 #else
+#ifdef SHADOW_HINTS
+    read_shadow_hints(px);
+#endif
     vec3 glossy;
     out_light = vec4(gather(world, normal.xyz, geometric, 1 << 30, lobe, glossy) / PI, 0.0);
 #ifdef GLOSSY

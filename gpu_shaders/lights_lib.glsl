@@ -121,9 +121,41 @@ uniform float u_ray_offset;  // ray-origin offset along the normal, scene-relati
 #ifdef EXACT_VISIBILITY
 #include "raytrace_lib.glsl"
 
+#ifdef SHADOW_HINTS
+// Shadow hints (shadow_hints_frag.glsl): each pixel's visibility of the batch's samples. A
+// supersample whose 3×3 pixels all know a sample's visibility and agree on it takes that
+// instead of tracing its ray; the others (shadow edges, penumbrae, silhouettes) trace.
+uniform usampler2D u_shadow_hints;
+uniform int u_hint_factor;  // supersamples per pixel edge
+const uint HINT_KNOWN = 1u << 31;
+uint g_hints_agreed = 0u;   // bits of samples the 3×3 pixels agree on
+uint g_hints_lit = 0u;      // their visibility
+int g_hint_bit = -1;        // the sample being gathered: its bit, or -1 (no hint)
+
+void read_shadow_hints(ivec2 supersample) {
+    ivec2 pixel = supersample / u_hint_factor;
+    ivec2 last = textureSize(u_shadow_hints, 0) - 1;
+    uint all_set = ~0u, any_set = 0u;
+    for (int j = 0; j < 9; ++j) {
+        uint h = texelFetch(u_shadow_hints, clamp(pixel + ivec2(j % 3, j / 3) - 1, ivec2(0),
+                                                  last), 0).r;
+        all_set &= h;
+        any_set |= h;
+    }
+    g_hints_agreed = (all_set & HINT_KNOWN) != 0u ? ~(all_set ^ any_set) : 0u;
+    g_hints_lit = all_set;
+}
+#endif
+
+
 // Ray-traced visibility: 1 if nothing blocks the segment to the sample (or its direction).
 float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     if (s.tile < 0) return 1.0;  // the light casts no shadow
+#ifdef SHADOW_HINTS
+    if (g_hint_bit >= 0 && ((g_hints_agreed >> g_hint_bit) & 1u) != 0u) {
+        return float((g_hints_lit >> g_hint_bit) & 1u);
+    }
+#endif
     vec3 origin = world + geometric_normal * u_ray_offset;
     if (s.kind == KIND_DIRECTIONAL) {
         return rt_occluded(origin, -s.axis, 0.0, 3.0e38) ? 0.0 : 1.0;

@@ -183,6 +183,13 @@ class Settings:
                  Choice("shadow_maps", "Shadow Maps",
                         "a shadow map per light sample (faster for many samples on slow "
                         "ray tracing; edges as sharp as the map's texels)")))
+    adaptive_shadows: bool = setting(
+        True, "Adaptive Shadow Rays", "shadows",
+        "Trace the shadow rays of ray-traced direct light once per pixel first, then at every "
+        "supersample only where the pixels around it disagree (shadow edges, penumbrae, "
+        "silhouettes); off, or with antialiasing 1: at every supersample. Shadows thinner "
+        "than a pixel that fall between pixel centres can be missed",
+        applies=when("direct_shadows", "hybrid", "ray_traced"))
     shadow_resolution: int = setting(
         1024, "Shadow Resolution", "shadows",
         "Texels per edge of each cube face / directional shadow map of point, spot and sun "
@@ -292,7 +299,7 @@ class Settings:
                  Choice("image", "From the Image",
                         "each ray's hit takes its light from the image already gathered (one "
                         "ray per supersample costs about one hard light's shadows); hits the "
-                        "camera cannot see add nothing")),
+                        "camera cannot see gather their direct light")),
         applies=unless("clamp_distance", 0.0))
     bias_samples: int = setting(
         1, "Compensation Rays", "clamping",
@@ -312,6 +319,15 @@ class Settings:
         "interleaving pattern without crossing depth or normal edges; rounded up to a multiple "
         "of K/2 so the pattern cancels exactly on flat surfaces",
         low=1, high=32, applies=unless("interleave", 1))
+    indirect_resolution: str = setting(
+        "supersample", "Indirect Resolution", "interleaving",
+        "Where the light of VPLs and its bias compensation are gathered",
+        choices=(Choice("pixel", "Pixel", "once per pixel, then brought to every supersample "
+                        "along the g-buffer's geometry: indirect light varies slowly, so direct "
+                        "light, colours and edges keep the supersampling"),
+                 Choice("supersample", "Supersample", "at every supersample (antialiasing² "
+                        "times the work)")),
+        applies=unless("antialiasing", 1))
     denoiser: str = setting(
         "blur", "Denoiser", "sampling",
         "What removes the noise of the light gathered from VPLs (Intel Open Image Denoise: "

@@ -73,11 +73,14 @@ def test_clamp_removes_the_predicted_share_and_compensation_restores_it(renderer
     assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
 
 
-@pytest.mark.parametrize("bounces", [1, 3])
-def test_compensation_from_the_image_restores_what_the_camera_sees(renderer, bounces):
+@pytest.mark.parametrize(("bounces", "antialiasing", "resolution"),
+                         [(1, 1, "supersample"), (3, 1, "supersample"), (3, 2, "pixel")])
+def test_compensation_from_the_image_restores_what_the_camera_sees(renderer, bounces,
+                                                                   antialiasing, resolution):
     """Image-based compensation reads the near surfaces' light from the image: at the centre of
     a 90° view every surface within the clamp distance (a 35° cone here) is on screen, so the
-    clamped share comes back there; without it the clamp's share is missing."""
+    clamped share comes back there; without it the clamp's share is missing. Also with the
+    indirect light per pixel: rays from the pixels, hits looked up among the supersamples."""
     rho, clamp, size = 0.5, 0.6, 64
     scene = sphere_scene(rho)
     scene.camera = inside_sphere_camera(size)
@@ -85,14 +88,38 @@ def test_compensation_from_the_image_restores_what_the_camera_sees(renderer, bou
 
     def indirect(**settings) -> float:
         frame, _ = renderer.render(scene, Settings(
-            antialiasing=1, bounces=bounces, vpl_count=256, visibility="exact",
-            interleave=1, **settings))
+            antialiasing=antialiasing, bounces=bounces, vpl_count=256, visibility="exact",
+            interleave=1, indirect_resolution=resolution, **settings))
         return float(frame.passes["DiffInd"][centre, centre, 0].mean())
 
     unclamped = indirect(clamp_distance=0.0)
     clamped = indirect(clamp_distance=clamp, bias_compensation="off")
     compensated = indirect(clamp_distance=clamp, bias_compensation="image", bias_samples=256)
     assert clamped / unclamped == pytest.approx(1 - clamp**2 / 8, abs=0.01)  # every bounce's
+    assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
+
+
+def test_compensation_gathers_light_where_the_camera_does_not_see(renderer):
+    """A 20° view of the sphere's wall: most surfaces within the clamp distance of its centre
+    (a 35° cone) are off screen. Their hits take the direct light gathered there instead of the
+    image's, so the clamped share still comes back (one bounce: the hits' direct light is all
+    of it)."""
+    rho, clamp, size = 0.5, 0.6, 32
+    scene = sphere_scene(rho)
+    camera = inside_sphere_camera(size)
+    focal = 1.0 / np.tan(np.radians(10.0))
+    camera.projection_matrix[0, 0] = camera.projection_matrix[1, 1] = focal
+    scene.camera = camera
+    centre = slice(size // 2 - 2, size // 2 + 2)
+
+    def indirect(**settings) -> float:
+        frame, _ = renderer.render(scene, Settings(
+            antialiasing=1, bounces=1, vpl_count=256, visibility="exact", interleave=1,
+            **settings))
+        return float(frame.passes["DiffInd"][centre, centre, 0].mean())
+
+    unclamped = indirect(clamp_distance=0.0)
+    compensated = indirect(clamp_distance=clamp, bias_compensation="image", bias_samples=256)
     assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
 
 

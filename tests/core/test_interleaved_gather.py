@@ -36,3 +36,23 @@ def test_interleaved_gather_matches_the_full_gather(renderer, interleave):
     band = 3  # output pixels: blur radius 4 at antialiasing 2, rounded up
     inner = (slice(band, -band), slice(band, -band))
     assert metrics.relative_rmse(image[inner], reference[inner]) < 0.025
+
+
+
+def test_indirect_light_per_pixel_matches_per_supersample(renderer):
+    """indirect_resolution=pixel gathers the VPLs once per pixel (antialiasing 3: a ninth of
+    the work) and upsamples along the g-buffer: on the smooth scene the same light as the full
+    gather (measured: 1.7 % RMSE; the gather at every supersample: 0.2 %) away from the
+    border, where the blur's window, now wider in the image, is cut; direct light untouched."""
+    common = {"antialiasing": 3, "vpl_count": 256, "bounces": 1, "clamp_distance": 0.1,
+              "bias_compensation": "off"}
+    full, _ = renderer.render(smooth_scene(), Settings(interleave=1, **common))
+    pixel, stats = renderer.render(smooth_scene(), Settings(
+        interleave=4, indirect_resolution="pixel", **common))
+    assert "upsample" in stats.timings
+    reference, image = full.passes["DiffInd"], pixel.passes["DiffInd"]
+    assert abs(metrics.mean_relative_energy(image, reference)) < 0.01
+    band = 9  # output pixels: two blur radii at pixel resolution, and the upsampling's pixel
+    inner = (slice(band, -band), slice(band, -band))
+    assert metrics.relative_rmse(image[inner], reference[inner]) < 0.025
+    np.testing.assert_array_equal(pixel.passes["DiffDir"], full.passes["DiffDir"])

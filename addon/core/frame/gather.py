@@ -22,6 +22,7 @@ if TYPE_CHECKING:
 
 SURFACE_VERTICES_BINDING = 4  # the position stream as gather_frag.glsl's storage buffer
 LOBE_UNITS = 9, 10, 11  # the g-buffer's glossy lobe layers (units 6-8: the scene's tables)
+HINTS_UNIT = 12  # the shadow hints
 RAY_OFFSET = 1e-4  # rays from a pixel start this fraction of the scene's radius off its surface
 
 
@@ -49,6 +50,16 @@ class Compensation:
     samples: int
     seed: int
     max_generation: int
+
+
+def light_table_texture(ctx: moderngl.Context, batch: Batch, centre: np.ndarray,
+                        radius: float) -> moderngl.Texture:
+    """The batch's light samples as the float texture lights_lib.glsl reads (the caller
+    releases it)."""
+    s = batch.samples
+    near, far = near_far(s, centre, radius)
+    table = s.table(batch.first_tile, near, far)
+    return ctx.texture((table.shape[1], len(s)), 4, table.tobytes(), dtype="f4")
 
 
 def samples_per_draw(rays_per_sample: int, compensation: Compensation | None) -> int:
@@ -82,16 +93,15 @@ def read_accumulator(accumulator: moderngl.Framebuffer) -> np.ndarray:
 def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
            atlas: moderngl.Texture, gbuffer: GBuffer, accumulator: moderngl.Framebuffer,
            scene: SceneBuffers | None, centre: np.ndarray, radius: float, bias: float,
-           compensation: Compensation | None = None) -> None:
+           compensation: Compensation | None = None,
+           hints: tuple[moderngl.Texture, int] | None = None) -> None:
     """Add one batch's light to the accumulator (additive blending); with
-    ``compensation``, add the light its distance clamp removed instead."""
+    ``compensation``, add the light its distance clamp removed instead. ``hints``: the batch's
+    shadow hints (shadow_hints.py) and the supersamples per pixel edge."""
     batch = light_pass.batch
     s = batch.samples
-    near, far = near_far(s, centre, radius)
-    table = s.table(batch.first_tile, near, far)
     with GpuScope() as scope:
-        light_table = scope.own(ctx.texture((table.shape[1], len(s)), 4, table.tobytes(),
-                                            dtype="f4"))
+        light_table = scope.own(light_table_texture(ctx, batch, centre, radius))
         for unit, name in enumerate(("position", "normal", "geometric")):
             gbuffer.textures[name].use(unit)
         light_table.use(3)
@@ -99,8 +109,12 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         visibility = light_pass.visibility
         defines: dict[str, object] = dict(visibility.defines)
         uniforms: dict[str, object] = {}
-        if table.shape[1] > 5:  # some VPLs reflect glossily (LightSamples.table)
+        if light_table.width > 5:  # some VPLs reflect glossily (LightSamples.table)
             defines.update(VPL_GLOSSY=1)
+        if hints is not None:
+            defines.update(SHADOW_HINTS=1)
+            hints[0].use(HINTS_UNIT)
+            uniforms.update(u_shadow_hints=HINTS_UNIT, u_hint_factor=hints[1])
         if gbuffer.glossy:
             defines.update(GLOSSY=1)
             for unit, name in zip(LOBE_UNITS, GLOSSY_LAYERS, strict=True):

@@ -4,27 +4,31 @@ light and the composition of Blender's passes."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from contextlib import nullcontext
+from dataclasses import dataclass, replace
+from functools import partial
 
 import moderngl
 import numpy as np
 
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.texture_array import upload as upload_textures
+from ..gpu.upsample import upsample
 from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
 from .compose import compose
 from .denoise import DenoisingData
-from .gather import RAY_OFFSET, gather, new_accumulator, read_accumulator
+from .gather import RAY_OFFSET, LightPass, gather, new_accumulator, read_accumulator
 from .gbuffer import GBuffer, Tile, render_gbuffer
 from .gpu_scope import GpuScope
 from .gpu_session import GpuSession
 from .near_field import compensate_from_image
 from .result import PASS_CHANNELS
 from .reuse import KeptProducts
+from .shadow_hints import render_hints, takes_hints
 from .shadow_maps import KeptAtlases, ShadowAtlases
 from .state import FrameState, RenderError, Stage
-from .visibility import FrameMaps
+from .visibility import FrameMaps, RayTracedVisibility
 
 MAX_TILE = 2048  # supersampled pixels per image tile edge (each tile renders its own maps)
 
@@ -46,6 +50,8 @@ class TileWork:
     tile: Tile
     scope: GpuScope  # the tile's GPU objects
     gbuffer: GBuffer | None = None
+    pixels: GBuffer | None = None  # one sample per pixel (with antialiasing, where needed)
+    indirect_gbuffer: GBuffer | None = None  # the indirect light's samples: gbuffer or pixels
     direct: moderngl.Framebuffer | None = None
     soft: moderngl.Framebuffer | None = None  # interleaved soft direct light, to be blurred
     indirect: moderngl.Framebuffer | None = None
@@ -60,6 +66,12 @@ def tiles_of(width: int, height: int, aa: int) -> list[Tile]:
     edge = max(aa, MAX_TILE - MAX_TILE % aa)
     return [Tile(x, min(x + edge, width), y, min(y + edge, height), width, height)
             for y in range(0, height, edge) for x in range(0, width, edge)]
+
+
+def pixel_tile(tile: Tile, aa: int) -> Tile:
+    """The pixels of a tile of supersamples (whose edges fall on pixel edges)."""
+    return Tile(tile.x0 // aa, tile.x1 // aa, tile.y0 // aa, tile.y1 // aa, tile.width // aa,
+                tile.height // aa)
 
 
 def _buffers(ctx: moderngl.Context, geometry: WorldGeometry, scope: GpuScope
@@ -88,15 +100,25 @@ class GBufferStage(TileStage):
     name = "g-buffer"
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
+        aa, settings = frame.settings.antialiasing, frame.settings
+        per_pixel = settings.indirect_resolution == "pixel" \
+            and any(p.indirect for p in frame.light_passes)
+        hinted = settings.adaptive_shadows and any(map(takes_hints, frame.light_passes))
         with frame.stats.timed(self.name):
-            work.gbuffer = render_gbuffer(self.gpu.ctx, self.gpu.programs, data.scene,
-                                          data.shapes, data.textures, frame.camera, work.tile,
-                                          work.scope)
+            work.gbuffer = self._render(data, frame, work, work.tile)
+            if aa > 1 and (per_pixel or hinted):
+                work.pixels = self._render(data, frame, work, pixel_tile(work.tile, aa))
+        work.indirect_gbuffer = work.pixels if per_pixel and work.pixels else work.gbuffer
         glossy = work.gbuffer.glossy
         work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
-        work.indirect = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
+        work.indirect = new_accumulator(self.gpu.ctx, work.indirect_gbuffer.textures[
+            "position"].size, work.scope, glossy)
         if any(p.blurred for p in frame.light_passes):
             work.soft = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
+
+    def _render(self, data: FrameGpu, frame: FrameState, work: TileWork, tile: Tile) -> GBuffer:
+        return render_gbuffer(self.gpu.ctx, self.gpu.programs, data.scene, data.shapes,
+                              data.textures, frame.camera, tile, work.scope)
 
 
 class GatherStage(TileStage):
@@ -113,20 +135,35 @@ class GatherStage(TileStage):
             with stats.timed(f"{light_pass.name} maps"):
                 atlas = light_pass.visibility.maps(light_pass.batch, data.maps)
                 ctx.finish()
+            hints = self._hints(frame, work, light_pass)
             with stats.timed(light_pass.name):
                 target = work.indirect if light_pass.indirect else \
                     work.soft if light_pass.blurred else work.direct
-                gather(ctx, self.gpu.programs, light_pass, atlas, work.gbuffer, target,
-                       data.scene, centre, radius, bias)
+                gbuffer = work.indirect_gbuffer if light_pass.indirect else work.gbuffer
+                gather(ctx, self.gpu.programs, light_pass, atlas, gbuffer, target,
+                       data.scene, centre, radius, bias, hints=hints)
                 ctx.finish()
             if frame.compensation is not None:
                 with stats.timed("bias compensation"):
-                    gather(ctx, self.gpu.programs, light_pass, atlas, work.gbuffer,
+                    gather(ctx, self.gpu.programs, light_pass, atlas, work.indirect_gbuffer,
                            work.indirect, data.scene, centre, radius, bias, frame.compensation)
                     ctx.finish()
             frame.steps_done += 1
             frame.report(frame.steps_done / frame.steps,
                          f"{light_pass.name} {frame.steps_done}/{frame.steps}")
+
+    def _hints(self, frame: FrameState, work: TileWork, light_pass: LightPass
+               ) -> tuple[moderngl.Texture, int] | None:
+        """The pass's shadow hints where it takes them (adaptive shadow rays)."""
+        if work.pixels is None or not frame.settings.adaptive_shadows \
+                or not takes_hints(light_pass):
+            return None
+        aa = frame.settings.antialiasing
+        with frame.stats.timed("shadow hints"):
+            hints = render_hints(self.gpu.ctx, self.gpu.programs, light_pass, work.pixels, aa,
+                                 frame.centre, frame.radius, work.scope)
+            self.gpu.ctx.finish()
+        return hints, aa
 
 
 class NearFieldStage(TileStage):
@@ -143,40 +180,70 @@ class NearFieldStage(TileStage):
         with frame.stats.timed(self.name):
             self.gpu.tracer.bind()
             compensate_from_image(self.gpu.ctx, self.gpu.programs, frame.near_field,
-                                  work.gbuffer, (work.direct, work.soft), work.indirect,
-                                  RAY_OFFSET * frame.radius)
+                                  work.gbuffer, work.indirect_gbuffer, (work.direct, work.soft),
+                                  work.indirect, RAY_OFFSET * frame.radius, data.scene,
+                                  partial(self._direct_light_at, frame, data))
             self.gpu.ctx.finish()
+
+    def _direct_light_at(self, frame: FrameState, data: FrameGpu, samples: GBuffer,
+                         target: moderngl.Framebuffer) -> None:
+        """Every direct light pass's light at the surface samples, shadowed by rays."""
+        traced = RayTracedVisibility()
+        for light_pass in frame.light_passes:
+            if not light_pass.indirect:
+                gather(self.gpu.ctx, self.gpu.programs, replace(light_pass, visibility=traced),
+                       data.maps.shadow_atlases.placeholder(), samples, target, data.scene,
+                       frame.centre, frame.radius, frame.settings.shadow_bias)
 
 
 class BlurStage(TileStage):
     """The geometry-aware blur that removes the interleaving pattern of indirect light and of
-    soft direct light."""
+    soft direct light; indirect light gathered per pixel is then brought to every
+    supersample."""
 
     name = "blur"
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
-        accumulators = [work.indirect] + ([work.soft] if work.soft is not None else [])
-        lights = self._blurred(frame, work, accumulators)
-        work.indirect_light = lights[0]
-        if work.soft is not None:
-            work.soft_light = lights[1]
+        per_pixel = work.indirect_gbuffer is not work.gbuffer
+        soft = [work.soft] if work.soft is not None else []
+        if per_pixel:
+            lights = self._blurred(frame, work, work.indirect_gbuffer, [work.indirect])
+            lights += self._blurred(frame, work, work.gbuffer, soft) if soft else []
+            with frame.stats.timed("upsample"):
+                textures = work.indirect_gbuffer.textures, work.gbuffer.textures
+                lights[0] = [work.scope.own(t) for t in upsample(
+                    self.gpu.ctx, self.gpu.programs, lights[0],
+                    (textures[0]["position"], textures[0]["normal"]),
+                    (textures[1]["position"], textures[1]["normal"]),
+                    frame.settings.antialiasing)]
+                self.gpu.ctx.finish()
+        else:
+            lights = self._blurred(frame, work, work.gbuffer, [work.indirect, *soft])
+        with frame.stats.timed(self.name) if frame.blur_radius else nullcontext():
+            work.indirect_light = _read(lights[0])
+            if soft:
+                work.soft_light = _read(lights[1])
 
-    def _blurred(self, frame: FrameState, work: TileWork,
-                 accumulators: list[moderngl.Framebuffer]) -> list[np.ndarray]:
-        """Each accumulator's light (diffuse, then glossy, side by side), blurred in one
-        draw per axis."""
+    def _blurred(self, frame: FrameState, work: TileWork, gbuffer: GBuffer,
+                 accumulators: list[moderngl.Framebuffer]) -> list[list[moderngl.Texture]]:
+        """Each accumulator's light textures (diffuse, then glossy), blurred in one draw per
+        axis."""
         if not frame.blur_radius:
-            return [read_accumulator(a) for a in accumulators]
+            return [list(a.color_attachments) for a in accumulators]
         with frame.stats.timed(self.name):
-            textures = work.gbuffer.textures
+            textures = gbuffer.textures
             targets = [t for a in accumulators for t in a.color_attachments]
-            results = [work.scope.own(t) for t in self.gpu.blur.apply(
-                targets, textures["position"], textures["normal"], frame.blur_radius)]
-            w, h = results[0].size
-            images = iter(np.frombuffer(r.read(), dtype=np.float32).reshape(h, w, 4)
-                          for r in results)
-            return [np.concatenate([next(images) for _ in a.color_attachments], axis=-1)
-                    for a in accumulators]
+            results = iter([work.scope.own(t) for t in self.gpu.blur.apply(
+                targets, textures["position"], textures["normal"], frame.blur_radius)])
+            self.gpu.ctx.finish()
+            return [[next(results) for _ in a.color_attachments] for a in accumulators]
+
+
+def _read(textures: list[moderngl.Texture]) -> np.ndarray:
+    """RGBA32F textures side by side as one (h, w, 4 × len(textures)) float32 array."""
+    w, h = textures[0].size
+    return np.concatenate([np.frombuffer(t.read(), dtype=np.float32).reshape(h, w, 4)
+                           for t in textures], axis=-1)
 
 
 class ComposeStage(TileStage):

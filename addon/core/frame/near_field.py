@@ -1,20 +1,29 @@
 """Bias compensation from the frame's own image (gpu_shaders/near_field_frag.glsl): the light
 the VPL clamp removes, brought back by short rays whose hits take their radiance from the
 direct and indirect light already gathered. One ray per supersample and pass costs about what
-one hard light's shadow rays do; the blur that follows averages the rays of neighbours."""
+one hard light's shadow rays do; the blur that follows averages the rays of neighbours. Hits
+the camera does not see (off screen, hidden, seen from behind: a window's sill beside the
+image's edge) become surface samples whose direct light is gathered there instead."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import moderngl
 
 from ..gpu.gl import ProgramCache, set_uniforms
+from ..gpu.scene_buffers import GGX_TABLES_UNIT, MATERIAL_UNITS, SceneBuffers
 from .gbuffer import GBuffer
 from .gpu_scope import GpuScope
 
 MATCH_FRACTION = 0.1  # a hit matches the surface seen at its pixel within this × the clamp
 RAYS_PER_DRAW = 16  # llvmpipe ends a shader invocation's loops after 65535 iterations
+SURFACE_VERTICES_BINDING = 4  # the position stream as surface_lib.glsl's storage buffer
+TEXTURE_UNITS = [u for u in range(16) if u not in (*MATERIAL_UNITS, GGX_TABLES_UNIT)]
+
+GatherAt = Callable[[GBuffer, moderngl.Framebuffer], None]
+"""Adds the direct light at a g-buffer's surface samples to an accumulator."""
 
 
 @dataclass(frozen=True)
@@ -28,40 +37,89 @@ class NearField:
 
 
 def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: NearField,
-                          gbuffer: GBuffer,
+                          gbuffer: GBuffer, indirect_gbuffer: GBuffer,
                           direct: tuple[moderngl.Framebuffer, moderngl.Framebuffer | None],
-                          indirect: moderngl.Framebuffer, ray_offset: float) -> None:
-    """Add the near-field light to ``indirect`` (additive blending). ``direct``: the direct
-    light's accumulators, hard and (when soft lights are interleaved) soft. The ray tracer's
+                          indirect: moderngl.Framebuffer, ray_offset: float,
+                          scene: SceneBuffers | None = None,
+                          gather_at: GatherAt | None = None) -> None:
+    """Add the near-field light to ``indirect`` (additive blending), with rays from the
+    samples of ``indirect_gbuffer`` (the indirect light's: per pixel or, like ``gbuffer``, per
+    supersample). ``direct``: the direct light's accumulators (``gbuffer``'s size), hard and
+    (when soft lights are interleaved) soft. With ``scene`` and ``gather_at``, hits the camera
+    does not see get their direct light from ``gather_at``, one ray per draw. The ray tracer's
     scene must be bound."""
+    offscreen = scene is not None and gather_at is not None
     with GpuScope() as scope:
         size = indirect.size
         clamped = scope.own(ctx.texture(size, 4, dtype="f4"))  # the indirect light read back
         ctx.copy_framebuffer(clamped, indirect)
-        textures = gbuffer.textures
-        units = {"u_position": textures["position"], "u_normal": textures["normal"],
+        textures, origins = gbuffer.textures, indirect_gbuffer.textures
+        units = {"u_origin_position": origins["position"], "u_origin_normal": origins["normal"],
+                 "u_origin_geometric": origins["geometric"],
+                 "u_position": textures["position"], "u_normal": textures["normal"],
                  "u_geometric": textures["geometric"], "u_albedo": textures["albedo"],
                  "u_direct": direct[0].color_attachments[0], "u_indirect": clamped}
-        defines = {"GLOSSY": 1} if len(indirect.color_attachments) > 1 else {}
+        defines: dict[str, object] = {"GLOSSY": 1} if len(indirect.color_attachments) > 1 \
+            else {}
         if near.indirect_at_hits:
             defines["INDIRECT_AT_HITS"] = 1
         if direct[1] is not None:
             units["u_soft_direct"] = direct[1].color_attachments[0]
             defines["SOFT_DIRECT"] = 1
-        for unit, texture in enumerate(units.values()):
-            texture.use(unit)
+        hits: list[moderngl.Texture] = []
+        target = indirect
+        if offscreen:
+            first_hit = len(indirect.color_attachments)
+            defines.update(OFFSCREEN_HITS=1, HIT_POSITION_LOCATION=first_hit,
+                           HIT_NORMAL_LOCATION=first_hit + 1, HIT_FACTOR_LOCATION=first_hit + 2,
+                           SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
+            hits = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in range(3)]
+            target = scope.own(ctx.framebuffer([*indirect.color_attachments, *hits]))
+            hit_targets = scope.own(ctx.framebuffer(hits))
         program = programs.get("fullscreen_vert.glsl", "near_field_frag.glsl", defines,
                                version=430)
-        set_uniforms(program, **{name: unit for unit, name in enumerate(units)},
-                     u_view_projection=gbuffer.view_projection,
-                     u_clamp_distance=near.clamp_distance, u_ray_offset=ray_offset,
-                     u_match_distance=MATCH_FRACTION * near.clamp_distance,
-                     u_samples=near.samples, u_seed=near.seed)
-        indirect.use()
+        vao = scope.own(ctx.vertex_array(program, []))
+        step = 1 if offscreen else RAYS_PER_DRAW
+        for first in range(0, near.samples, step):
+            for unit, texture in zip(TEXTURE_UNITS, units.values(), strict=False):
+                texture.use(unit)
+            set_uniforms(program, **dict(zip(units, TEXTURE_UNITS, strict=False)),
+                         u_view_projection=gbuffer.view_projection,
+                         u_clamp_distance=near.clamp_distance, u_ray_offset=ray_offset,
+                         u_match_distance=MATCH_FRACTION * near.clamp_distance,
+                         u_samples=near.samples, u_seed=near.seed, u_first=first,
+                         u_count=min(step, near.samples - first))
+            if offscreen:
+                scene.bind_materials(program)
+                scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
+                hit_targets.clear(0.0, 0.0, 0.0, 0.0)
+            target.use()
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = moderngl.ONE, moderngl.ONE
+            vao.render(moderngl.TRIANGLES, vertices=3)
+            ctx.disable(moderngl.BLEND)
+            if offscreen:
+                _add_offscreen(ctx, programs, hits, indirect, gather_at, indirect_gbuffer)
+
+
+def _add_offscreen(ctx: moderngl.Context, programs: ProgramCache, hits: list[moderngl.Texture],
+                   indirect: moderngl.Framebuffer, gather_at: GatherAt, like: GBuffer) -> None:
+    """Gather the direct light at the unseen hits (position, normal, factor) and add it,
+    times each hit's factor, to the indirect light's diffuse target."""
+    with GpuScope() as scope:
+        position, normal, factor = hits
+        samples = GBuffer({"position": position, "normal": normal, "geometric": normal}, {},
+                          like.view_projection)
+        light = scope.own(ctx.framebuffer([scope.own(ctx.texture(position.size, 4,
+                                                                 dtype="f4"))]))
+        light.clear(0.0, 0.0, 0.0, 0.0)
+        gather_at(samples, light)
+        light.color_attachments[0].use(0)
+        factor.use(1)
+        program = programs.get("fullscreen_vert.glsl", "modulate_frag.glsl")
+        set_uniforms(program, u_light=0, u_factor=1)
+        scope.own(ctx.framebuffer([indirect.color_attachments[0]])).use()
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.ONE, moderngl.ONE
-        vao = scope.own(ctx.vertex_array(program, []))
-        for first in range(0, near.samples, RAYS_PER_DRAW):
-            set_uniforms(program, u_first=first, u_count=min(RAYS_PER_DRAW, near.samples - first))
-            vao.render(moderngl.TRIANGLES, vertices=3)
+        scope.own(ctx.vertex_array(program, [])).render(moderngl.TRIANGLES, vertices=3)
         ctx.disable(moderngl.BLEND)

@@ -1,0 +1,50 @@
+"""Shadow hints (gpu_shaders/shadow_hints_frag.glsl): the shadow rays of a ray-traced light
+pass traced once per pixel first, so that the gather at every supersample traces its own rays
+only where the 3×3 pixels around it disagree: shadow edges, penumbrae and silhouettes keep
+every supersample's ray, lit and shadowed areas take the pixels' answer."""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from ..gpu.gl import ProgramCache, set_uniforms
+from .gather import RAY_OFFSET, LightPass, light_table_texture
+from .gbuffer import GBuffer
+from .gpu_scope import GpuScope
+
+MAX_HINTED_SAMPLES = 31  # bits of the hint texture (bit 31 marks pixels with hints)
+
+
+def takes_hints(light_pass: LightPass) -> bool:
+    """Whether a pass's gather can use shadow hints: direct light with ray-traced shadows, one
+    sample per supersample (interleaved) or at most MAX_HINTED_SAMPLES in all."""
+    return (not light_pass.indirect and light_pass.visibility.rays_per_sample > 0
+            and (light_pass.interleave > 1
+                 or len(light_pass.batch.samples) <= MAX_HINTED_SAMPLES))
+
+
+def render_hints(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
+                 pixels: GBuffer, factor: int, centre: np.ndarray, radius: float,
+                 scope: GpuScope) -> moderngl.Texture:
+    """The pass's shadow hints over the pixels' g-buffer (``factor`` supersamples per pixel
+    edge), as a one-channel uint texture that ``scope`` owns. The ray tracer's scene must be
+    bound."""
+    size = pixels.textures["position"].size
+    hints = scope.own(ctx.texture(size, 1, dtype="u4"))
+    with GpuScope() as local:
+        table = local.own(light_table_texture(ctx, light_pass.batch, centre, radius))
+        for unit, name in enumerate(("position", "normal", "geometric")):
+            pixels.textures[name].use(unit)
+        table.use(3)
+        program = programs.get("fullscreen_vert.glsl", "shadow_hints_frag.glsl",
+                               {**light_pass.visibility.defines, "SHADOW_HINTS": 1},
+                               version=430)
+        set_uniforms(program, u_position=0, u_normal=1, u_geometric=2, u_light_table=3,
+                     u_count=len(light_pass.batch.samples), u_hint_factor=factor,
+                     u_interleave=light_pass.interleave, u_ray_offset=RAY_OFFSET * radius)
+        fbo = local.own(ctx.framebuffer([hints]))
+        fbo.use()
+        ctx.disable(moderngl.BLEND)
+        local.own(ctx.vertex_array(program, [])).render(moderngl.TRIANGLES, vertices=3)
+    return hints

@@ -1,0 +1,49 @@
+"""Light gathered once per pixel, brought to every supersample along the g-buffer's geometry
+(gpu_shaders/upsample_frag.glsl)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import moderngl
+
+from .blur import MAX_SOURCES
+from .gl import ProgramCache, set_uniforms
+
+
+def upsample(ctx: moderngl.Context, programs: ProgramCache, sources: Sequence[moderngl.Texture],
+             pixels: tuple[moderngl.Texture, moderngl.Texture],
+             supersamples: tuple[moderngl.Texture, moderngl.Texture], factor: int,
+             normal_power: float = 32.0, plane_tolerance: float = 0.01
+             ) -> list[moderngl.Texture]:
+    """New RGBA32F textures (the caller releases them) of the supersamples' size, one per
+    source. ``pixels`` and ``supersamples``: the (position, normal) g-buffer layers of the
+    sources' samples and of the supersamples, ``factor`` supersamples per pixel edge; the
+    weights are the blur's (GeometryAwareBlur.apply). Leaves texture units 0.. bound."""
+    if not 1 <= len(sources) <= MAX_SOURCES:
+        raise ValueError(f"upsampling takes 1 to {MAX_SOURCES} light textures, "
+                         f"not {len(sources)}")
+    if any(t.size != pixels[0].size for t in sources):
+        raise ValueError("light and pixel g-buffer textures differ in size")
+    size = supersamples[0].size
+    if (pixels[0].size[0] * factor, pixels[0].size[1] * factor) != size:
+        raise ValueError(f"{size} supersamples are not {factor}× the pixels {pixels[0].size}")
+    program = programs.get("fullscreen_vert.glsl", "upsample_frag.glsl",
+                           {"SOURCES": len(sources)})
+    for unit, texture in enumerate((*pixels, *supersamples, *sources)):
+        texture.use(unit)
+    set_uniforms(program, u_pixel_position=0, u_pixel_normal=1, u_position=2, u_normal=3,
+                 u_factor=factor, u_normal_power=normal_power,
+                 u_plane_tolerance=plane_tolerance)
+    program["u_source"].value = [4 + i for i in range(len(sources))] if len(sources) > 1 else 4
+    targets = [ctx.texture(size, 4, dtype="f4") for _ in sources]
+    fbo = ctx.framebuffer(targets)
+    vao = ctx.vertex_array(program, [])
+    try:
+        fbo.use()
+        ctx.disable(moderngl.BLEND)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+    finally:
+        vao.release()
+        fbo.release()
+    return targets
