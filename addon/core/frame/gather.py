@@ -3,6 +3,7 @@ VPLs (indirect light), with the batch's visibility, into an accumulator."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -83,11 +84,14 @@ def new_accumulator(ctx: moderngl.Context, size: tuple[int, int], scope: GpuScop
 
 def read_accumulator(accumulator: moderngl.Framebuffer) -> np.ndarray:
     """The accumulator as (h, w, 4) float32, or (h, w, 8) with its glossy target after."""
-    w, h = accumulator.size
-    return np.concatenate([np.frombuffer(accumulator.read(components=4, dtype="f4",
-                                                          attachment=k),
-                                         dtype=np.float32).reshape(h, w, 4)
-                           for k in range(len(accumulator.color_attachments))], axis=-1)
+    return read_textures(accumulator.color_attachments)
+
+
+def read_textures(textures: Sequence[moderngl.Texture]) -> np.ndarray:
+    """RGBA32F textures side by side as one (h, w, 4 × len(textures)) float32 array."""
+    w, h = textures[0].size
+    return np.concatenate([np.frombuffer(t.read(), dtype=np.float32).reshape(h, w, 4)
+                           for t in textures], axis=-1)
 
 
 def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,

@@ -63,9 +63,11 @@ def tile_projection(projection: np.ndarray, tile: Tile) -> np.ndarray:
 def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffers | None,
                    shapes: SceneBuffers | None,
                    textures: tuple[moderngl.TextureArray, moderngl.Texture] | None,
-                   camera: Camera, tile: Tile, scope: GpuScope) -> GBuffer:
+                   camera: Camera, tile: Tile, scope: GpuScope,
+                   read_images: bool = True) -> GBuffer:
     """Rasterise the scene's triangles and the lights' outlines into the tile's g-buffer,
-    whose textures ``scope`` owns."""
+    whose textures ``scope`` owns; without ``read_images`` its ``images`` stay empty (a
+    g-buffer only the GPU reads)."""
     size = tile.size
     glossy = scene is not None and scene.has_specular
     names = LAYERS + GLOSSY_LAYERS if glossy else LAYERS
@@ -109,7 +111,7 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
     ctx.disable(moderngl.DEPTH_TEST)
     by_name = dict(zip(names, layers, strict=True))
     images = {name: np.frombuffer(tex.read(), dtype=np.float32).reshape(size[1], size[0], 4)
-              for name, tex in by_name.items()}
+              for name, tex in by_name.items()} if read_images else {}
     view = {name: uniforms[name] for name in ("u_camera_position", "u_camera_forward",
                                               "u_orthographic")} if glossy else {}
     return GBuffer(by_name, images, uniforms["u_view_projection"], view)

@@ -18,7 +18,14 @@ from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
 from .compose import compose
 from .denoise import DenoisingData
-from .gather import RAY_OFFSET, LightPass, gather, new_accumulator, read_accumulator
+from .gather import (
+    RAY_OFFSET,
+    LightPass,
+    gather,
+    new_accumulator,
+    read_accumulator,
+    read_textures,
+)
 from .gbuffer import GBuffer, Tile, render_gbuffer
 from .gpu_scope import GpuScope
 from .gpu_session import GpuSession
@@ -107,7 +114,8 @@ class GBufferStage(TileStage):
         with frame.stats.timed(self.name):
             work.gbuffer = self._render(data, frame, work, work.tile)
             if aa > 1 and (per_pixel or hinted):
-                work.pixels = self._render(data, frame, work, pixel_tile(work.tile, aa))
+                work.pixels = self._render(data, frame, work, pixel_tile(work.tile, aa),
+                                           read_images=False)
         work.indirect_gbuffer = work.pixels if per_pixel and work.pixels else work.gbuffer
         glossy = work.gbuffer.glossy
         work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
@@ -116,9 +124,10 @@ class GBufferStage(TileStage):
         if any(p.blurred for p in frame.light_passes):
             work.soft = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
 
-    def _render(self, data: FrameGpu, frame: FrameState, work: TileWork, tile: Tile) -> GBuffer:
+    def _render(self, data: FrameGpu, frame: FrameState, work: TileWork, tile: Tile,
+                read_images: bool = True) -> GBuffer:
         return render_gbuffer(self.gpu.ctx, self.gpu.programs, data.scene, data.shapes,
-                              data.textures, frame.camera, tile, work.scope)
+                              data.textures, frame.camera, tile, work.scope, read_images)
 
 
 class GatherStage(TileStage):
@@ -209,20 +218,26 @@ class BlurStage(TileStage):
         if per_pixel:
             lights = self._blurred(frame, work, work.indirect_gbuffer, [work.indirect])
             lights += self._blurred(frame, work, work.gbuffer, soft) if soft else []
-            with frame.stats.timed("upsample"):
-                textures = work.indirect_gbuffer.textures, work.gbuffer.textures
-                lights[0] = [work.scope.own(t) for t in upsample(
-                    self.gpu.ctx, self.gpu.programs, lights[0],
-                    (textures[0]["position"], textures[0]["normal"]),
-                    (textures[1]["position"], textures[1]["normal"]),
-                    frame.settings.antialiasing)]
-                self.gpu.ctx.finish()
+            lights[0] = self._upsampled(frame, work, lights[0])
         else:
             lights = self._blurred(frame, work, work.gbuffer, [work.indirect, *soft])
         with frame.stats.timed(self.name) if frame.blur_radius else nullcontext():
-            work.indirect_light = _read(lights[0])
+            work.indirect_light = read_textures(lights[0])
             if soft:
-                work.soft_light = _read(lights[1])
+                work.soft_light = read_textures(lights[1])
+
+    def _upsampled(self, frame: FrameState, work: TileWork,
+                   textures: list[moderngl.Texture]) -> list[moderngl.Texture]:
+        """Light textures of the pixels' g-buffer brought to every supersample."""
+        with frame.stats.timed("upsample"):
+            pixels, supersamples = work.pixels.textures, work.gbuffer.textures
+            result = [work.scope.own(t) for t in upsample(
+                self.gpu.ctx, self.gpu.programs, textures,
+                (pixels["position"], pixels["normal"]),
+                (supersamples["position"], supersamples["normal"]),
+                frame.settings.antialiasing)]
+            self.gpu.ctx.finish()
+        return result
 
     def _blurred(self, frame: FrameState, work: TileWork, gbuffer: GBuffer,
                  accumulators: list[moderngl.Framebuffer]) -> list[list[moderngl.Texture]]:
@@ -238,12 +253,6 @@ class BlurStage(TileStage):
             self.gpu.ctx.finish()
             return [[next(results) for _ in a.color_attachments] for a in accumulators]
 
-
-def _read(textures: list[moderngl.Texture]) -> np.ndarray:
-    """RGBA32F textures side by side as one (h, w, 4 × len(textures)) float32 array."""
-    w, h = textures[0].size
-    return np.concatenate([np.frombuffer(t.read(), dtype=np.float32).reshape(h, w, 4)
-                           for t in textures], axis=-1)
 
 
 class ComposeStage(TileStage):
