@@ -21,7 +21,7 @@ from .gpu_scope import GpuScope
 if TYPE_CHECKING:
     from .visibility import Visibility
 
-SURFACE_VERTICES_BINDING = 4  # the position stream as gather_frag.glsl's storage buffer
+SURFACE_VERTICES_BINDING = 4  # the position stream as surface_lib.glsl's storage buffer
 LOBE_UNITS = 9, 10, 11  # the g-buffer's glossy lobe layers (units 6-8: the scene's tables)
 HINTS_UNIT = 12  # the shadow hints
 RAY_OFFSET = 1e-4  # rays from a pixel start this fraction of the scene's radius off its surface

@@ -14,12 +14,12 @@ import moderngl
 
 from ..gpu.gl import ProgramCache, set_uniforms
 from ..gpu.scene_buffers import GGX_TABLES_UNIT, MATERIAL_UNITS, SceneBuffers
+from .gather import SURFACE_VERTICES_BINDING
 from .gbuffer import GBuffer
 from .gpu_scope import GpuScope
 
 MATCH_FRACTION = 0.1  # a hit matches the surface seen at its pixel within this × the clamp
 RAYS_PER_DRAW = 16  # llvmpipe ends a shader invocation's loops after 65535 iterations
-SURFACE_VERTICES_BINDING = 4  # the position stream as surface_lib.glsl's storage buffer
 TEXTURE_UNITS = [u for u in range(16) if u not in (*MATERIAL_UNITS, GGX_TABLES_UNIT)]
 
 GatherAt = Callable[[GBuffer, moderngl.Framebuffer], None]
