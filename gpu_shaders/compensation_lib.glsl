@@ -1,8 +1,9 @@
 // Bias compensation's rays (Kollig & Keller 2004), shared by gather_frag.glsl (full: each hit
-// gathers the light samples again) and near_field_frag.glsl (radiance read from the image):
-// short cosine-distributed rays from a pixel find the surfaces closer than the clamp distance,
-// and each hit's outgoing radiance, from the including shader's hit_radiance(), arrives with
-// weight 1 - d²/clamp². Include after raytrace_lib.glsl.
+// gathers the light samples again) and near_field_frag.glsl (radiance read from the image, one
+// ray per draw, with cosine_direction and random2): short cosine-distributed rays from a pixel
+// find the surfaces closer than the clamp distance, and each hit's outgoing radiance, from the
+// including shader's hit_radiance(), arrives with weight 1 - d²/clamp². Include after
+// raytrace_lib.glsl.
 #ifndef COMPENSATION_LIB_GLSL
 #define COMPENSATION_LIB_GLSL
 #include "common_lib.glsl"

@@ -6,10 +6,9 @@
 // from x's side), y's diffuse radiance albedo·(direct + indirect) in pass units arrives with
 // weight 1 - d²/clamp² (with one bounce only, y's direct light: its indirect light would
 // bounce twice; with more, y's indirect light is all of its VPLs', one bounce too many for the
-// last generation, a share of the clamp's share). Surfaces the camera does not see contribute
-// nothing (the bias stays there) unless OFFSCREEN_HITS: then each draw traces one ray, and a
-// hit the camera does not see is written out as a surface sample (position, normal facing x,
-// and albedo(y) · weight / rays) whose direct light the renderer gathers and adds afterwards
+// last generation, a share of the clamp's share). Each draw traces one ray per pixel; a hit
+// the camera does not see is written out as a surface sample (position, normal facing x, and
+// albedo(y) · weight / rays) whose direct light the renderer gathers and adds afterwards
 // (near_field.py). Output in pass units (irradiance / pi), added to the indirect light before
 // its blur. The rays start from the indirect light's samples (u_origin_*:
 // one per pixel or per supersample); hits are looked up in the supersamples' g-buffer and
@@ -36,20 +35,17 @@ uniform mat4 u_view_projection; // world to the tile's clip space
 uniform float u_ray_offset;
 uniform float u_match_distance; // how far y may lie from the surface seen at its pixel
 uniform int u_samples;      // rays per pixel in all
-uniform int u_first;        // this draw's rays: u_first .. u_first + u_count - 1
-uniform int u_count;
+uniform int u_ray;          // this draw's ray
 
 layout(location = 0) out vec4 out_light;
 #ifdef GLOSSY
 layout(location = 1) out vec4 out_glossy;
 #endif
-#ifdef OFFSCREEN_HITS
 #include "materials_lib.glsl"
 #include "surface_lib.glsl"
 layout(location = HIT_POSITION_LOCATION) out vec4 out_hit_position;  // y, w = 1
 layout(location = HIT_NORMAL_LOCATION) out vec4 out_hit_normal;  // facing x, w = 1 at a hit
 layout(location = HIT_FACTOR_LOCATION) out vec4 out_hit_factor;  // albedo(y) · weight / rays
-#endif
 
 // y's diffuse radiance from the image, or false where the camera does not see y from x's side.
 bool hit_radiance(vec3 origin, vec3 dir, float t, int triangle, out vec3 radiance) {
@@ -80,15 +76,12 @@ void main() {
     out_glossy = vec4(0.0);
 #endif
     out_light = vec4(0.0);
-#ifdef OFFSCREEN_HITS
     out_hit_position = out_hit_normal = out_hit_factor = vec4(0.0);
-#endif
     vec4 normal = texelFetch(u_origin_normal, px, 0);
     if (normal.w == 0.0) return;
     vec3 origin = texelFetch(u_origin_position, px, 0).xyz
                   + texelFetch(u_origin_geometric, px, 0).xyz * u_ray_offset;
-#ifdef OFFSCREEN_HITS
-    vec3 dir = cosine_direction(normal.xyz, random2(uvec2(px), uint(u_first)));
+    vec3 dir = cosine_direction(normal.xyz, random2(uvec2(px), uint(u_ray)));
     float t;
     int triangle;
     vec2 uv;
@@ -102,8 +95,4 @@ void main() {
     out_hit_position = vec4(origin + dir * t, 1.0);
     out_hit_normal = vec4(facing_normal(triangle, dir), 1.0);
     out_hit_factor = vec4(material_of(triangle).albedo.rgb * weight, 0.0);
-#else
-    out_light = vec4(compensation_sum(px, origin, normal.xyz, u_first, u_count)
-                     / float(u_samples), 0.0);
-#endif
 }

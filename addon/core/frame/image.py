@@ -183,7 +183,7 @@ class NearFieldStage(TileStage):
     name = "bias compensation"
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
-        if frame.near_field is None:
+        if frame.near_field is None or data.scene is None:
             return
         frame.check_cancelled()
         with frame.stats.timed(self.name):

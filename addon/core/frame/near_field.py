@@ -19,7 +19,6 @@ from .gbuffer import GBuffer
 from .gpu_scope import GpuScope
 
 MATCH_FRACTION = 0.1  # a hit matches the surface seen at its pixel within this × the clamp
-RAYS_PER_DRAW = 16  # llvmpipe ends a shader invocation's loops after 65535 iterations
 TEXTURE_UNITS = [u for u in range(16) if u not in (*MATERIAL_UNITS, GGX_TABLES_UNIT)]
 
 GatherAt = Callable[[GBuffer, moderngl.Framebuffer], None]
@@ -40,15 +39,13 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
                           gbuffer: GBuffer, indirect_gbuffer: GBuffer,
                           direct: tuple[moderngl.Framebuffer, moderngl.Framebuffer | None],
                           indirect: moderngl.Framebuffer, ray_offset: float,
-                          scene: SceneBuffers | None = None,
-                          gather_at: GatherAt | None = None) -> None:
+                          scene: SceneBuffers, gather_at: GatherAt) -> None:
     """Add the near-field light to ``indirect`` (additive blending), with rays from the
     samples of ``indirect_gbuffer`` (the indirect light's: per pixel or, like ``gbuffer``, per
-    supersample). ``direct``: the direct light's accumulators (``gbuffer``'s size), hard and
-    (when soft lights are interleaved) soft. With ``scene`` and ``gather_at``, hits the camera
-    does not see get their direct light from ``gather_at``, one ray per draw. The ray tracer's
-    scene must be bound."""
-    offscreen = scene is not None and gather_at is not None
+    supersample), one ray per draw. ``direct``: the direct light's accumulators (``gbuffer``'s
+    size), hard and (when soft lights are interleaved) soft. Hits the camera does not see get
+    their direct light from ``gather_at``. The ray tracer's scene (``scene``'s triangles) must
+    be bound."""
     with GpuScope() as scope:
         size = indirect.size
         clamped = scope.own(ctx.texture(size, 4, dtype="f4"))  # the indirect light read back
@@ -66,40 +63,33 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
         if direct[1] is not None:
             units["u_soft_direct"] = direct[1].color_attachments[0]
             defines["SOFT_DIRECT"] = 1
-        hits: list[moderngl.Texture] = []
-        target = indirect
-        if offscreen:
-            first_hit = len(indirect.color_attachments)
-            defines.update(OFFSCREEN_HITS=1, HIT_POSITION_LOCATION=first_hit,
-                           HIT_NORMAL_LOCATION=first_hit + 1, HIT_FACTOR_LOCATION=first_hit + 2,
-                           SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
-            hits = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in range(3)]
-            target = scope.own(ctx.framebuffer([*indirect.color_attachments, *hits]))
-            hit_targets = scope.own(ctx.framebuffer(hits))
+        first_hit = len(indirect.color_attachments)
+        defines.update(HIT_POSITION_LOCATION=first_hit, HIT_NORMAL_LOCATION=first_hit + 1,
+                       HIT_FACTOR_LOCATION=first_hit + 2,
+                       SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
+        hits = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in range(3)]
+        target = scope.own(ctx.framebuffer([*indirect.color_attachments, *hits]))
+        hit_targets = scope.own(ctx.framebuffer(hits))
         program = programs.get("fullscreen_vert.glsl", "near_field_frag.glsl", defines,
                                version=430)
         vao = scope.own(ctx.vertex_array(program, []))
-        step = 1 if offscreen else RAYS_PER_DRAW
-        for first in range(0, near.samples, step):
+        for ray in range(near.samples):
             for unit, texture in zip(TEXTURE_UNITS, units.values(), strict=False):
                 texture.use(unit)
             set_uniforms(program, **dict(zip(units, TEXTURE_UNITS, strict=False)),
                          u_view_projection=gbuffer.view_projection,
                          u_clamp_distance=near.clamp_distance, u_ray_offset=ray_offset,
                          u_match_distance=MATCH_FRACTION * near.clamp_distance,
-                         u_samples=near.samples, u_seed=near.seed, u_first=first,
-                         u_count=min(step, near.samples - first))
-            if offscreen:
-                scene.bind_materials(program)
-                scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
-                hit_targets.clear(0.0, 0.0, 0.0, 0.0)
+                         u_samples=near.samples, u_seed=near.seed, u_ray=ray)
+            scene.bind_materials(program)
+            scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
+            hit_targets.clear(0.0, 0.0, 0.0, 0.0)
             target.use()
             ctx.enable(moderngl.BLEND)
             ctx.blend_func = moderngl.ONE, moderngl.ONE
             vao.render(moderngl.TRIANGLES, vertices=3)
             ctx.disable(moderngl.BLEND)
-            if offscreen:
-                _add_offscreen(ctx, programs, hits, indirect, gather_at, indirect_gbuffer)
+            _add_offscreen(ctx, programs, hits, indirect, gather_at, indirect_gbuffer)
 
 
 def _add_offscreen(ctx: moderngl.Context, programs: ProgramCache, hits: list[moderngl.Texture],
