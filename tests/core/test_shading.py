@@ -3,12 +3,11 @@ removes its pattern, on g-buffers built directly from numpy."""
 
 from __future__ import annotations
 
-import moderngl
 import numpy as np
 import pytest
 
 from addon.core.gpu.blur import GeometryAwareBlur
-from addon.core.gpu.gl import ProgramCache
+from addon.core.gpu.gl import ProgramCache, draw_into_new_textures
 
 SIZE = 128
 SPACING = 0.05  # world units between pixel centres
@@ -188,17 +187,13 @@ def interleave(programs: ProgramCache, k: int, count: int, first: int, origin: t
     program["u_count"].value = count
     program["u_first"].value = first
     program["u_origin"].value = origin
-    targets = [ctx.texture((size, size), 4, dtype="f4") for _ in range(2)]
-    fbo = ctx.framebuffer(targets)
     vao = ctx.vertex_array(program, [])
+    targets = draw_into_new_textures(ctx, vao, (size, size), 2)
     try:
-        fbo.use()
-        ctx.disable(moderngl.BLEND)
-        vao.render(moderngl.TRIANGLES, vertices=3)
         return tuple(np.frombuffer(t.read(), np.float32).reshape(size, size, 4)
                      for t in targets)
     finally:
-        for obj in (vao, fbo, *targets):
+        for obj in (vao, *targets):
             obj.release()
 
 

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 import moderngl
 
-from .gl import ProgramCache, set_uniforms
+from .gl import ProgramCache, draw_into_new_textures, set_uniforms
 
 AXES = ((1, 0), (0, 1))
 MAX_SOURCES = 4  # light textures per draw (every OpenGL 3.3 context has 8 draw buffers)
@@ -59,17 +59,10 @@ class GeometryAwareBlur:
               sources: Sequence[moderngl.Texture], axis: tuple[int, int]
               ) -> list[moderngl.Texture]:
         """Blur ``sources`` along one axis into new textures."""
-        targets = [self.ctx.texture(t.size, 4, dtype="f4") for t in sources]
-        fbo = self.ctx.framebuffer(targets)
-        try:
-            fbo.use()
-            for unit, texture in enumerate(sources, start=2):
-                texture.use(unit)
-            program["u_axis"].value = axis
-            vao.render(moderngl.TRIANGLES, vertices=3)
-        finally:
-            fbo.release()
-        return targets
+        for unit, texture in enumerate(sources, start=2):
+            texture.use(unit)
+        program["u_axis"].value = axis
+        return draw_into_new_textures(self.ctx, vao, sources[0].size, len(sources))
 
     def release(self) -> None:
         """Free the vertex arrays (the programs belong to the ProgramCache)."""

@@ -180,3 +180,19 @@ def set_uniforms(program: moderngl.Program, **values: object) -> None:
     for name, value in values.items():
         if name in program:
             program[name].value = value
+
+
+def draw_into_new_textures(ctx: moderngl.Context, vao: moderngl.VertexArray,
+                           size: tuple[int, int], count: int) -> list[moderngl.Texture]:
+    """Draw ``vao``'s full-screen triangle (fullscreen_vert.glsl), without blending, into
+    ``count`` new RGBA32F textures of ``size``, which the caller releases."""
+    targets = [ctx.texture(size, 4, dtype="f4") for _ in range(count)]
+    fbo = ctx.framebuffer(targets)
+    try:
+        fbo.use()
+        ctx.disable(moderngl.BLEND)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+    finally:
+        fbo.release()
+    return targets
+

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import moderngl
 
 from .blur import MAX_SOURCES
-from .gl import ProgramCache, set_uniforms
+from .gl import ProgramCache, draw_into_new_textures, set_uniforms
 
 
 def upsample(ctx: moderngl.Context, programs: ProgramCache, sources: Sequence[moderngl.Texture],
@@ -36,14 +36,8 @@ def upsample(ctx: moderngl.Context, programs: ProgramCache, sources: Sequence[mo
                  u_factor=factor, u_normal_power=normal_power,
                  u_plane_tolerance=plane_tolerance)
     program["u_source"].value = [4 + i for i in range(len(sources))] if len(sources) > 1 else 4
-    targets = [ctx.texture(size, 4, dtype="f4") for _ in sources]
-    fbo = ctx.framebuffer(targets)
     vao = ctx.vertex_array(program, [])
     try:
-        fbo.use()
-        ctx.disable(moderngl.BLEND)
-        vao.render(moderngl.TRIANGLES, vertices=3)
+        return draw_into_new_textures(ctx, vao, size, len(sources))
     finally:
         vao.release()
-        fbo.release()
-    return targets
