@@ -1,4 +1,4 @@
-"""Size limits of the renderer: 4096 VPLs, 4K frames, millions of triangles.
+"""Size limits of the renderer: 4096 VPLs, 4K frames, millions of triangles and instances.
 
 Each case runs in a fresh Python process so its peak resident memory (``wait4``'s ru_maxrss,
 which includes what Mesa llvmpipe allocates for "GPU" buffers) is its own. A case either renders
@@ -34,6 +34,7 @@ class Case:
     width: int = 256
     height: int = 256
     triangles: int = 0  # extra triangles: a finely tessellated floor (0 = two)
+    instances: int = 0  # balls of 80 triangles scattered on the floor, one mesh instanced
     settings: dict = field(default_factory=dict)
     note: str = ""
 
@@ -61,19 +62,35 @@ CASES: dict[str, Case] = {
     "tris-1M": Case(triangles=1_000_000, settings={"bounces": 2}),
     "tris-2M": Case(triangles=2_000_000, settings={"bounces": 2}),
     "tris-4M": Case(triangles=4_000_000, settings={"bounces": 2}),
-    "tris-4M-direct": Case(triangles=4_000_000, settings={"bounces": 0},
-                           note="direct light only: no ray-tracing BVH"),
+    "tris-4M-direct": Case(triangles=4_000_000, settings={"bounces": 0,
+                                                          "direct_shadows": "shadow_maps"},
+                           note="direct light with shadow maps only: no ray-tracing BVH"),
+    "inst-10k": Case(instances=10_000, settings={"bounces": 2},
+                     note="10k instances of an 80-triangle ball"),
+    "inst-100k": Case(instances=100_000, settings={"bounces": 2},
+                      note="100k instances of an 80-triangle ball"),
+    "inst-1M": Case(instances=1_000_000, settings={"bounces": 2},
+                    note="1M instances of an 80-triangle ball (a geometry-nodes scatter)"),
+    "inst-1M-direct": Case(instances=1_000_000, settings={"bounces": 0},
+                           note="1M instances, direct light only"),
+    "inst-100k-maps": Case(instances=100_000, settings={"bounces": 0,
+                                                        "direct_shadows": "shadow_maps"},
+                           note="100k instances, direct light with shadow maps: no ray tracer"),
+    "inst-1M-maps": Case(instances=1_000_000, settings={"bounces": 0,
+                                                        "direct_shadows": "shadow_maps"},
+                         note="1M instances, direct light with shadow maps: no ray tracer"),
 }
 
 
 def build_scene(case: Case):
     """A closed 10 × 10 × 5 m room (every light path hits something, so N paths leave N VPLs
-    at the first bounce) whose floor is tessellated into ``case.triangles`` triangles, with a
-    red wall and a point light, seen from under the ceiling by an orthographic camera."""
+    at the first bounce) whose floor is tessellated into ``case.triangles`` triangles and
+    carries ``case.instances`` balls (one mesh, seeded random places), with a red wall and a
+    point light, seen from under the ceiling by an orthographic camera."""
     import numpy as np
 
     from addon.core.scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene
-    from tests.core.builders import grid
+    from tests.core.builders import grid, icosphere
 
     def placed(mesh: Mesh, x: list[float], y: list[float], origin: list[float],
                colour: tuple[float, float, float] = (0.8, 0.8, 0.8)) -> Instance:
@@ -91,6 +108,12 @@ def build_scene(case: Case):
             placed(quad, [0, 0, 5], [0, 10, 0], [-5, 0, 2.5]),
             placed(quad, [10, 0, 0], [0, 0, 5], [0, -5, 2.5]),
             placed(quad, [10, 0, 0], [0, 0, 5], [0, 5, 2.5], (0.8, 0.1, 0.1))]
+    ball = icosphere(0.02, 1)
+    places = np.random.default_rng(7).uniform(-4.9, 4.9, (case.instances, 2))
+    for x, y in places:
+        matrix = np.eye(4)
+        matrix[:3, 3] = x, y, 0.02
+        room.append(Instance(ball, matrix, room[0].materials))
     lamp_matrix = np.eye(4)
     lamp_matrix[:3, 3] = (0, 1.5, 2.5)
     lamp = Light("lamp", LightKind.POINT, lamp_matrix, power=300.0)
@@ -102,7 +125,8 @@ def build_scene(case: Case):
     view = np.eye(4)
     view[2, 3] = -4.9  # the camera at z = 4.9, under the ceiling, looking down
     camera = Camera(view, projection, case.width, case.height, is_orthographic=True)
-    return Scene(room, [lamp], camera=camera), cells * cells * 2 + 10
+    return Scene(room, [lamp], camera=camera), \
+        cells * cells * 2 + 10 + case.instances * ball.triangle_count
 
 
 def run_case(name: str) -> dict:

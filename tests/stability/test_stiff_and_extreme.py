@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import re
 import time
+from dataclasses import replace
 
 import hypothesis
 import numpy as np
@@ -21,6 +22,7 @@ import pytest
 from hypothesis import strategies as st
 
 from addon.core.frame.renderer import RenderError
+from addon.core.frame.scene_size import SceneLimits, check_scene_size, physical_memory
 from addon.core.scene.model import (
     AreaShape,
     Camera,
@@ -35,6 +37,7 @@ from addon.core.scene.model import (
 from addon.core.settings import Settings, SettingsError
 from tests.core.builders import (
     grid,
+    icosphere,
     inside_sphere_camera,
     light,
     rotation_x,
@@ -172,6 +175,68 @@ def test_too_many_triangles_for_ray_tracing_are_refused_up_front(renderer, recor
     record(f"{2 * cells * cells:,} triangles (over the ray tracer's buffer), 1 bounce",
            "refused up front, limit named", "< 5 s", f"refused after {seconds:.1f} s")
     assert seconds < 5.0
+
+
+def scatter_scene(mesh: Mesh, instances: int) -> Scene:
+    """``instances`` copies of ``mesh`` in a row over a floor, as a geometry-nodes scatter
+    exports them: one mesh, one matrix each."""
+    scene = floor_scene_with(grid(1, 10.0))
+    material = scene.instances[0].materials
+    offsets = np.linspace(-4.0, 4.0, instances)
+    scene.instances += [Instance(mesh, translation(x, 0.0, 0.1), material) for x in offsets]
+    return scene
+
+
+@pytest.mark.parametrize("limit", ["storage buffer", "memory"])
+def test_too_many_instanced_triangles_are_refused_before_flattening(renderer, record, limit):
+    """A scatter whose triangles after instancing exceed the ray tracer's storage buffer
+    (2.8M on llvmpipe) or, with no ray tracing, this machine's memory (300 B a triangle) is
+    refused with the limit named before any triangle is flattened: in well under a second,
+    where a million instances took 91 s and 20 GiB before (tools/bench_size_limits.py
+    inst-1M)."""
+    if limit == "storage buffer":
+        ball = icosphere(0.05, 1)  # 80 triangles
+        storage = int(renderer.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+        scene = scatter_scene(ball, storage // 48 // ball.triangle_count + 1000)
+        settings = Settings(antialiasing=1, bounces=1, vpl_count=16)
+    else:
+        memory = physical_memory()
+        if memory is None:
+            pytest.skip("the platform does not report its physical memory")
+        tile = grid(100, 0.1)  # 20,000 triangles
+        scene = scatter_scene(tile, int(memory * 0.8 / 300 / tile.triangle_count) + 100)
+        settings = Settings(antialiasing=1, bounces=0, direct_shadows="shadow_maps")
+    start = time.perf_counter()
+    with pytest.raises(RenderError, match=f"triangles after instancing.*{limit}") as refused:
+        renderer.render(scene, settings)
+    seconds = time.perf_counter() - start
+    triangles = sum(inst.mesh.triangle_count for inst in scene.instances)
+    record(f"{len(scene.instances):,} instances, {triangles:,} triangles ({limit})",
+           "refused before flattening, limit named", "< 1 s",
+           f"refused after {seconds * 1000:.0f} ms: “{str(refused.value)[:90]}…”")
+    assert "use fewer instances" in str(refused.value)
+    assert seconds < 1.0
+
+
+def test_the_storage_limit_applies_only_to_frames_that_trace_rays(renderer):
+    """Over the storage-buffer limit but with bounces 0 and shadow-map direct light, no ray
+    is traced, so the scene is not refused (the check is no stricter than the renderer);
+    hybrid direct shadows trace rays and are refused. The material table's texture binds
+    every frame."""
+    ball = icosphere(0.05, 1)
+    storage = int(renderer.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+    scene = scatter_scene(ball, 16)
+    scene.camera.width = scene.camera.height = 8
+    big = Settings(antialiasing=1, bounces=0, direct_shadows="shadow_maps")
+    limits = SceneLimits(storage_bytes=16 * 48, texture_size=1024, memory_bytes=None)
+    check_scene_size(scene, big, limits)  # traces no ray: passes
+    with pytest.raises(RenderError, match="storage buffer"):
+        check_scene_size(scene, Settings(bounces=0), limits)
+    with pytest.raises(RenderError, match="texture size"):  # 4096 triangles a texel row
+        check_scene_size(scatter_scene(ball, 52), big, replace(limits, texture_size=1))
+    frame, _ = renderer.render(scene, big)
+    assert storage > 0 and np.isfinite(frame.passes["Combined"]).all()
+    assert frame.passes["Combined"][..., :3].mean() > 0
 
 
 def floor_scene_with(mesh: Mesh) -> Scene:

@@ -22,6 +22,8 @@ class GpuSession:
         self.ctx = ctx
         self.programs = ProgramCache(ctx)
         self.max_texture = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
+        self.max_storage = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0) \
+            if ctx.version_code >= 430 else 0  # bytes; 0: no storage buffers, no ray tracer
         self._helpers: dict[type, RayTracer | ImperfectShadowMaps | GeometryAwareBlur] = {}
 
     def _helper(self, cls: type[Helper]) -> Helper:

@@ -54,7 +54,7 @@ class Renderer:
         self.kept = KeptProducts()
         self._automatic = ChooseParameters(self.gpu, self.kept, self.render)
         self.stages: list[Stage] = [
-            CheckInput(), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
+            CheckInput(self.gpu), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
             PlanLightPasses(self.gpu, self.kept), PlanDenoise(), RenderImage(self.gpu, self.kept),
             Denoise(), Sanitize(),

@@ -19,6 +19,7 @@ from .near_field import NearField
 from .planner import plan_frame, plan_gather, visible_bounds
 from .progressive import pass_camera, pass_settings
 from .reuse import KeptProducts
+from .scene_size import SceneLimits, check_scene_size, physical_memory
 from .state import FrameState, RenderError, Stage
 from .visibility import (
     VISIBILITY,
@@ -32,13 +33,19 @@ MAX_FRAME_SAMPLES = 1 << 27  # supersampled pixels per frame: the passes alone t
 
 
 class CheckInput(Stage):
-    """Settings in range and a camera with a non-empty image of a size the GPU can hold."""
+    """Settings in range, a camera with a non-empty image of a size the GPU can hold, and a
+    scene whose flattened triangles fit the machine (before they are flattened)."""
 
     name = "check input"
     makes = ("camera",)
 
+    def __init__(self, gpu: GpuSession) -> None:
+        self.gpu = gpu
+
     def run(self, frame: FrameState) -> None:
         frame.settings.validate()
+        check_scene_size(frame.scene, frame.settings, SceneLimits(
+            self.gpu.max_storage, self.gpu.max_texture, physical_memory()))
         frame.point_seed = frame.settings.seed
         frame.settings = pass_settings(frame.settings, frame.pass_index)
         camera = frame.scene.camera

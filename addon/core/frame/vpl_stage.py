@@ -57,7 +57,7 @@ def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometr
         try:
             tracer.upload(geometry.positions.reshape(-1, 3, 3))
         except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
-            raise RenderError(f"indirect light: {exc}") from None
+            raise RenderError(f"ray tracing: {exc}") from None
     kept.keep("bvh", key)
     return tracer
 
