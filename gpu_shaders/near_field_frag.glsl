@@ -77,6 +77,7 @@ void main() {
 #endif
     out_light = vec4(0.0);
     out_hit_position = out_hit_normal = out_hit_factor = vec4(0.0);
+    gl_FragDepth = 0.0;  // the depth test keeps the gather at unseen hits to those (1.0)
     vec4 normal = texelFetch(u_origin_normal, px, 0);
     if (normal.w == 0.0) return;
     vec3 origin = texelFetch(u_origin_position, px, 0).xyz
@@ -92,6 +93,7 @@ void main() {
         out_light = vec4(weight * radiance, 0.0);
         return;
     }
+    gl_FragDepth = 1.0;
     out_hit_position = vec4(origin + dir * t, 1.0);
     out_hit_normal = vec4(facing_normal(triangle, dir), 1.0);
     out_hit_factor = vec4(material_of(triangle).albedo.rgb * weight, 0.0);

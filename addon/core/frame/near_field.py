@@ -68,7 +68,8 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
                        HIT_FACTOR_LOCATION=first_hit + 2,
                        SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
         hits = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in range(3)]
-        target = scope.own(ctx.framebuffer([*indirect.color_attachments, *hits]))
+        unseen = scope.own(ctx.depth_renderbuffer(size))  # 1 at unseen hits, 0 elsewhere
+        target = scope.own(ctx.framebuffer([*indirect.color_attachments, *hits], unseen))
         hit_targets = scope.own(ctx.framebuffer(hits))
         program = programs.get("fullscreen_vert.glsl", "near_field_frag.glsl", defines,
                                version=430)
@@ -85,25 +86,34 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
             hit_targets.clear(0.0, 0.0, 0.0, 0.0)
             target.use()
-            ctx.enable(moderngl.BLEND)
+            ctx.enable(moderngl.BLEND | moderngl.DEPTH_TEST)
+            ctx.depth_func = "1"  # every fragment writes its depth
             ctx.blend_func = moderngl.ONE, moderngl.ONE
             vao.render(moderngl.TRIANGLES, vertices=3)
-            ctx.disable(moderngl.BLEND)
-            _add_offscreen(ctx, programs, hits, indirect, gather_at, indirect_gbuffer)
+            ctx.depth_func = "<"
+            ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
+            _add_offscreen(ctx, programs, hits, unseen, indirect, gather_at, indirect_gbuffer)
 
 
 def _add_offscreen(ctx: moderngl.Context, programs: ProgramCache, hits: list[moderngl.Texture],
-                   indirect: moderngl.Framebuffer, gather_at: GatherAt, like: GBuffer) -> None:
+                   unseen: moderngl.Renderbuffer, indirect: moderngl.Framebuffer,
+                   gather_at: GatherAt, like: GBuffer) -> None:
     """Gather the direct light at the unseen hits (position, normal, factor) and add it,
-    times each hit's factor, to the indirect light's diffuse target."""
+    times each hit's factor, to the indirect light's diffuse target. The depth test against
+    ``unseen`` (1 at those hits, 0 elsewhere; the full-screen draw is at 0.5) keeps the
+    gather from running anywhere else: most samples' rays hit what the camera sees, or
+    nothing."""
     with GpuScope() as scope:
         position, normal, factor = hits
         samples = GBuffer({"position": position, "normal": normal, "geometric": normal}, {},
                           like.view_projection)
         light = scope.own(ctx.framebuffer([scope.own(ctx.texture(position.size, 4,
-                                                                 dtype="f4"))]))
+                                                                 dtype="f4"))], unseen))
+        light.depth_mask = False  # tested, not written: clear() keeps it too
         light.clear(0.0, 0.0, 0.0, 0.0)
+        ctx.enable(moderngl.DEPTH_TEST)
         gather_at(samples, light)
+        ctx.disable(moderngl.DEPTH_TEST)
         light.color_attachments[0].use(0)
         factor.use(1)
         program = programs.get("fullscreen_vert.glsl", "modulate_frag.glsl")
