@@ -10,11 +10,21 @@ BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
 
 
 def downsample(image: np.ndarray, factor: int) -> np.ndarray:
-    """Mean of each factor × factor block of an (h, w, c) image."""
+    """Mean of each factor × factor block of an (h, w, c) image (float32: rows added, then
+    columns, as whole lines; several times faster than a mean over two strided axes)."""
     if factor == 1:
         return image
     h, w, c = image.shape
-    return image.reshape(h // factor, factor, w // factor, factor, c).mean(axis=(1, 3))
+    lines = image.reshape(h // factor, factor, w * c)
+    rows = lines[:, 0].astype(np.float32)  # a copy
+    for k in range(1, factor):
+        rows += lines[:, k]
+    blocks = rows.reshape(h // factor, w // factor, factor, c)
+    result = blocks[:, :, 0].copy()
+    for k in range(1, factor):
+        result += blocks[:, :, k]
+    result *= np.float32(1.0 / (factor * factor))
+    return result
 
 
 def _glossy(gbuffer: dict[str, np.ndarray], direct: np.ndarray, indirect: np.ndarray
@@ -45,11 +55,21 @@ def compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray], direc
     albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
     diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
     gloss_col, gloss_dir, gloss_ind = _glossy(gbuffer, direct, indirect)
-    combined = np.concatenate([(diff_dir + diff_ind) * albedo + gloss_dir + gloss_ind
-                               + emission, covered], axis=-1)
+    # On whole RGBA texels (numpy runs several times faster over contiguous 4-channel data
+    # than over 3-channel views); alpha is set last.
+    combined = np.add(direct[..., :4], indirect[..., :4])
+    combined *= gbuffer["albedo"]
+    if direct.shape[-1] > 4:
+        combined += direct[..., 4:8]
+        combined += indirect[..., 4:8]
+    combined += gbuffer["emission"]
+    combined[..., 3:] = covered
     if background is not None:
-        combined[..., 3:] += 1.0 - covered
-        combined[..., :3] += (1.0 - covered) * background
+        rows, cols = np.nonzero(covered[..., 0] < 1.0)  # most samples see a surface
+        uncovered = 1.0 - covered[rows, cols]
+        sky = np.broadcast_to(background, (*covered.shape[:2], 3))  # may be one colour
+        combined[rows, cols, :3] += uncovered * sky[rows, cols]
+        combined[rows, cols, 3:] += uncovered
     h, w = covered.shape[0] // aa, covered.shape[1] // aa
     region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
     images = {"Combined": lambda: combined, "DiffDir": lambda: diff_dir,

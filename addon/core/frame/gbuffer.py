@@ -3,6 +3,7 @@ with specular materials each pixel's glossy lobe (gpu_shaders/principled_lib.gls
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 
 import moderngl
@@ -35,14 +36,37 @@ class Tile:
         return self.x1 - self.x0, self.y1 - self.y0
 
 
+class TextureImages(Mapping[str, np.ndarray]):
+    """Textures as (h, w, 4) float32 arrays, each read back from the GPU when first asked for
+    (a frame reads only the layers its passes need)."""
+
+    def __init__(self, textures: dict[str, moderngl.Texture]) -> None:
+        self._textures = textures
+        self._read: dict[str, np.ndarray] = {}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._read:
+            texture = self._textures[name]
+            self._read[name] = np.frombuffer(texture.read(), dtype=np.float32).reshape(
+                texture.height, texture.width, 4)
+        return self._read[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._textures)
+
+    def __len__(self) -> int:
+        return len(self._textures)
+
+
 @dataclass
 class GBuffer:
-    """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays;
+    """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays
+    (read back when first used);
     ``view_projection``: world to the tile's clip space, as a mat4 uniform; ``view``: the
     camera uniforms a glossy gather needs (empty without GLOSSY_LAYERS)."""
 
     textures: dict[str, moderngl.Texture]
-    images: dict[str, np.ndarray]
+    images: Mapping[str, np.ndarray]
     view_projection: tuple[float, ...]
     view: dict[str, object] = field(default_factory=dict)
 
@@ -63,11 +87,9 @@ def tile_projection(projection: np.ndarray, tile: Tile) -> np.ndarray:
 def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffers | None,
                    shapes: SceneBuffers | None,
                    textures: tuple[moderngl.TextureArray, moderngl.Texture] | None,
-                   camera: Camera, tile: Tile, scope: GpuScope,
-                   read_images: bool = True) -> GBuffer:
+                   camera: Camera, tile: Tile, scope: GpuScope) -> GBuffer:
     """Rasterise the scene's triangles and the lights' outlines into the tile's g-buffer,
-    whose textures ``scope`` owns; without ``read_images`` its ``images`` stay empty (a
-    g-buffer only the GPU reads)."""
+    whose textures ``scope`` owns."""
     size = tile.size
     glossy = scene is not None and scene.has_specular
     names = LAYERS + GLOSSY_LAYERS if glossy else LAYERS
@@ -110,8 +132,6 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
         vao.render(moderngl.TRIANGLES, vertices=buffers.vertex_count)
     ctx.disable(moderngl.DEPTH_TEST)
     by_name = dict(zip(names, layers, strict=True))
-    images = {name: np.frombuffer(tex.read(), dtype=np.float32).reshape(size[1], size[0], 4)
-              for name, tex in by_name.items()} if read_images else {}
     view = {name: uniforms[name] for name in ("u_camera_position", "u_camera_forward",
                                               "u_orthographic")} if glossy else {}
-    return GBuffer(by_name, images, uniforms["u_view_projection"], view)
+    return GBuffer(by_name, TextureImages(by_name), uniforms["u_view_projection"], view)

@@ -114,8 +114,7 @@ class GBufferStage(TileStage):
         with frame.stats.timed(self.name):
             work.gbuffer = self._render(data, frame, work, work.tile)
             if aa > 1 and (per_pixel or hinted):
-                work.pixels = self._render(data, frame, work, pixel_tile(work.tile, aa),
-                                           read_images=False)
+                work.pixels = self._render(data, frame, work, pixel_tile(work.tile, aa))
         work.indirect_gbuffer = work.pixels if per_pixel and work.pixels else work.gbuffer
         glossy = work.gbuffer.glossy
         work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
@@ -124,10 +123,10 @@ class GBufferStage(TileStage):
         if any(p.blurred for p in frame.light_passes):
             work.soft = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
 
-    def _render(self, data: FrameGpu, frame: FrameState, work: TileWork, tile: Tile,
-                read_images: bool = True) -> GBuffer:
+    def _render(self, data: FrameGpu, frame: FrameState, work: TileWork, tile: Tile
+                ) -> GBuffer:
         return render_gbuffer(self.gpu.ctx, self.gpu.programs, data.scene, data.shapes,
-                              data.textures, frame.camera, tile, work.scope, read_images)
+                              data.textures, frame.camera, tile, work.scope)
 
 
 class GatherStage(TileStage):
