@@ -1,20 +1,23 @@
 """Benchmark: an older commit of VPL GI against this working tree, side by side in one run.
 
-For each sample scene it renders a command-line frame with default settings in each tree
-(`python -m addon render`, every frame its own process, so nothing is reused between frames:
-each frame does all of its work), alternating old and new, and prints the median of
-``--repeat`` per stage and in total; then, per tree, the viewport's first-frame latencies
-(this tree's tools/bench_viewport.py on each tree's add-on) and the 10k-instance export +
-upload against Cycles' sync (tools/bench_export.py). The ``error`` part renders each scene
-twice per tree and once with ``--reference`` overrides in this tree (default
-``visibility=exact``: the same VPLs with ray-traced visibility) and prints each tree's
-relative RMSE against it and whether its two frames are bit-identical. ``--set`` overrides
-apply to every frame. The older commit is checked out with ``git worktree`` in a temporary
-folder (removed at the end); both trees run with this interpreter.
+For each sample scene it renders a command-line frame with default settings in each tree (`python
+-m addon render`, every frame its own process, so nothing is reused between frames: each frame does
+all of its work), alternating old and new, and prints the median of ``--repeat`` per stage and in
+total, and each tree's error against Cycles where the report (devtools/report.py) has cached its
+two references for that scene, size and ``--set bounces=N`` (``--reference-samples`` each);
+``--new-set`` adds settings to this tree's frames only (to time a cheaper setting against the old
+defaults at equal error); then, per tree, the viewport's first-frame latencies (this tree's
+tools/bench_viewport.py on each tree's add-on) and the 10k-instance export + upload against Cycles'
+sync (tools/bench_export.py). The ``error`` part renders each scene twice per tree and once with
+``--reference`` overrides in this tree (default ``visibility=exact``: the same VPLs with ray-traced
+visibility) and prints each tree's relative RMSE against it and whether its two frames are bit-
+identical. ``--set`` overrides apply to every frame. The older commit is checked out with ``git
+worktree`` in a temporary folder (removed at the end); both trees run with this interpreter.
 
     .venv/bin/python tools/bench_versions.py --old babc501 [--scenes interior cornell_box]
         [--size 640x360] [--repeat 3] [--parts frame viewport export error]
-        [--set NAME=VALUE] [--reference NAME=VALUE]
+        [--set NAME=VALUE] [--new-set NAME=VALUE] [--reference NAME=VALUE]
+        [--reference-samples 128]
 """
 
 from __future__ import annotations
@@ -71,19 +74,56 @@ def frame_timings(tree: Path, scene: str, size: str, out: Path,
     return timings
 
 
+def cycles_references(scene: str, size: str, overrides: tuple[str, ...], samples: int
+                      ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The report's two cached Cycles references of this scene, size and ``bounces=N``
+    override, or None (no bounces override, or not rendered yet: run the report once)."""
+    sys.path.insert(0, str(REPO))
+    import bpy
+
+    from devtools.report import (
+        DEFAULT_CACHE,
+        REFERENCE_SEEDS,
+        cycles_settings,
+        file_digest,
+        reference_key,
+    )
+
+    bounces = next((int(o.split("=", 1)[1]) for o in overrides if o.startswith("bounces=")),
+                   None)
+    if bounces is None:
+        return None
+    width, height = (int(v) for v in size.split("x"))
+    digest = file_digest(REPO / "sample_scenes" / f"{scene}.blend")
+    paths = [DEFAULT_CACHE / (reference_key(digest, (width, height),
+                                            cycles_settings(samples, bounces, seed),
+                                            bpy.app.version_string) + ".npy")
+             for seed in REFERENCE_SEEDS]
+    return tuple(np.load(p) for p in paths) if all(p.is_file() for p in paths) else None
+
+
 def frame_table(trees: dict[str, Path], scene: str, size: str, repeat: int,
-                overrides: tuple[str, ...] = ()) -> None:
+                overrides: tuple[str, ...] = (), new_overrides: tuple[str, ...] = (),
+                reference_samples: int = 128) -> None:
     samples: dict[str, list[dict[str, float]]] = {label: [] for label in trees}
+    settings = {label: overrides + (new_overrides if tree == REPO else ())
+                for label, tree in trees.items()}
+    errors: dict[str, float] = {}
+    references = cycles_references(scene, size, overrides, reference_samples)
     with tempfile.TemporaryDirectory() as folder:
         for i in range(repeat):
-            for label, tree in trees.items():  # alternating, so load drifts hit both alike
-                samples[label].append(frame_timings(tree, scene, size,
-                                                    Path(folder) / f"{label}{i}.png", overrides))
+            for k, (label, tree) in enumerate(trees.items()):  # alternating: load drifts hit
+                out = Path(folder) / f"{k}_{i}.exr"  # both alike
+                samples[label].append(frame_timings(tree, scene, size, out, settings[label]))
+                if references is not None and label not in errors:
+                    from devtools.report import error_metrics, read_exr
+                    errors[label] = error_metrics(read_exr(out), *references)[
+                        "relative_rmse_unbiased"]
     stages = list(dict.fromkeys(s for label in trees for t in samples[label] for s in t))
     stages.remove("total")
-    print(f"\n{scene}, {size}, {' '.join(overrides) or 'defaults'}: median of {repeat} "
-          "command-line frames per tree "
-          "(seconds; each frame its own process)")
+    print(f"\n{scene}, {size}, {' '.join(overrides) or 'defaults'}"
+          f"{'; this tree also ' + ' '.join(new_overrides) if new_overrides else ''}: median of "
+          f"{repeat} command-line frames per tree (seconds; each frame its own process)")
     print("| stage | " + " | ".join(trees) + " | new / old |")
     print("|---|" + "---|" * (len(trees) + 1))
     for stage in [*stages, "total"]:
@@ -92,6 +132,14 @@ def frame_table(trees: dict[str, Path], scene: str, size: str, repeat: int,
         ratio = f"{medians[1] / medians[0]:.2f}" if medians[0] > 0 else "–"
         cells = " | ".join(f"{m:.3f}" if m else "–" for m in medians)
         print(f"| {'**total**' if stage == 'total' else stage} | {cells} | {ratio} |")
+    if errors:
+        print("| error against Cycles (noise-free relative RMSE, 2 × "
+              f"{reference_samples} samples) | "
+              + " | ".join(f"{errors[label]:.1%}" for label in trees) + " | |")
+    else:
+        print(f"(no error against Cycles: run `python -m devtools report "
+              f"sample_scenes/{scene}.blend -r {size} --set bounces=N --reference-samples "
+              f"{reference_samples}` once and pass the same --set bounces=N here)")
 
 
 def error_table(trees: dict[str, Path], scene: str, size: str, overrides: tuple[str, ...],
@@ -159,6 +207,10 @@ def main() -> None:
                         choices=["frame", "viewport", "export", "error"])
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="a setting for every frame of the frame and error parts")
+    parser.add_argument("--new-set", action="append", default=[], metavar="NAME=VALUE",
+                        help="a setting for this tree's frames only (frame part)")
+    parser.add_argument("--reference-samples", type=int, default=128,
+                        help="samples of each cached Cycles reference the frame part uses")
     parser.add_argument("--reference", action="append", metavar="NAME=VALUE",
                         help="settings of the error part's reference (visibility=exact)")
     args = parser.parse_args()
@@ -167,7 +219,8 @@ def main() -> None:
         trees = {f"old ({args.old})": old, "new (this tree)": REPO}
         if "frame" in args.parts:
             for scene in args.scenes:
-                frame_table(trees, scene, args.size, args.repeat, overrides)
+                frame_table(trees, scene, args.size, args.repeat, overrides,
+                            tuple(args.new_set), args.reference_samples)
         if "viewport" in args.parts:
             viewport_table(trees, args.scenes, int(args.size.split("x")[0]))
         if "export" in args.parts:
