@@ -5,7 +5,7 @@
 // distance, whose outgoing radiance (this batch's light, gathered at y) arrives with weight
 // 1 - d²/clamp².
 // With SHADOW_HINTS (ray-traced samples) each sample's visibility comes from the pixels' hints
-// where they agree (lights_lib.glsl), and from a ray elsewhere.
+// where they agree (lights_lib.glsl), and from rays over the supersample's footprint elsewhere.
 // With GLOSSY a second target gets the glossy radiance towards the camera, summed over the
 // same samples with the pixel's lobe from the g-buffer (bias compensation adds no glossy
 // light). With VPL_GLOSSY, VPLs at glossy surfaces also emit through their lobe (lights_lib).

@@ -124,13 +124,49 @@ uniform float u_ray_offset;  // ray-origin offset along the normal, scene-relati
 #ifdef SHADOW_HINTS
 // Shadow hints (shadow_hints_frag.glsl): each pixel's visibility of the batch's samples. A
 // supersample whose 3×3 pixels all know a sample's visibility and agree on it takes that
-// instead of tracing its ray; the others (shadow edges, penumbrae, silhouettes) trace.
+// instead of tracing; the others (shadow edges, penumbrae, silhouettes) trace EDGE_RAYS rays
+// from 2×2 points of the supersample's cell, carried onto the tangent plane of its surface by
+// camera rays, so that a shadow edge crossing the cell gets a fractional visibility (the box
+// filter's coverage) instead of all or nothing.
 uniform usampler2D u_shadow_hints;
 uniform int u_hint_factor;  // supersamples per pixel edge
+uniform mat4 u_inverse_view_projection;  // the tile's clip space to world
+uniform vec2 u_tile_size;   // supersamples
 const uint HINT_KNOWN = 1u << 31;
+const int EDGE_RAYS = 4;
+const vec2 EDGE_OFFSETS[EDGE_RAYS] = vec2[](vec2(-0.25, -0.25), vec2(0.25, -0.25),
+                                           vec2(-0.25, 0.25), vec2(0.25, 0.25));
 uint g_hints_agreed = 0u;   // bits of samples the 3×3 pixels agree on
 uint g_hints_lit = 0u;      // their visibility
-int g_hint_bit = -1;        // the sample being gathered: its bit, or -1 (no hint)
+int g_hint_bit = -1;        // the sample being gathered: its bit, or -1 (no hint: one ray)
+bool g_footprint_known = false;
+vec3 g_footprint_x = vec3(0.0);  // one supersample's step across the tangent plane, in x
+vec3 g_footprint_y = vec3(0.0);  //   and in y (zero where the camera grazes the surface)
+
+// Where the camera ray through tile coordinate `at` (in supersamples) meets the plane
+// through `p` with normal `n`; `p` itself where the ray grazes the plane.
+vec3 on_tangent_plane(vec2 at, vec3 p, vec3 n) {
+    vec2 ndc = at / u_tile_size * 2.0 - 1.0;
+    vec4 near = u_inverse_view_projection * vec4(ndc, -1.0, 1.0);
+    vec4 far = u_inverse_view_projection * vec4(ndc, 1.0, 1.0);
+    vec3 origin = near.xyz / near.w;
+    vec3 dir = normalize(far.xyz / far.w - origin);
+    float facing = dot(n, dir);
+    if (!(abs(facing) > 0.05)) return p;  // grazing (or not finite)
+    return origin + dir * (dot(n, p - origin) / facing);
+}
+
+// g_footprint_x and g_footprint_y of this fragment's supersample, at its first shadow edge.
+void find_footprint(vec3 world, vec3 geometric_normal) {
+    vec2 centre = gl_FragCoord.xy;
+    vec3 here = on_tangent_plane(centre, world, geometric_normal);
+    g_footprint_x = on_tangent_plane(centre + vec2(1.0, 0.0), world, geometric_normal) - here;
+    g_footprint_y = on_tangent_plane(centre + vec2(0.0, 1.0), world, geometric_normal) - here;
+    if (any(isnan(g_footprint_x + g_footprint_y)) || any(isinf(g_footprint_x + g_footprint_y))) {
+        g_footprint_x = g_footprint_y = vec3(0.0);
+    }
+    g_footprint_known = true;
+}
 
 void read_shadow_hints(ivec2 supersample) {
     ivec2 pixel = supersample / u_hint_factor;
@@ -148,14 +184,8 @@ void read_shadow_hints(ivec2 supersample) {
 #endif
 
 
-// Ray-traced visibility: 1 if nothing blocks the segment to the sample (or its direction).
-float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
-    if (s.tile < 0) return 1.0;  // the light casts no shadow
-#ifdef SHADOW_HINTS
-    if (g_hint_bit >= 0 && ((g_hints_agreed >> g_hint_bit) & 1u) != 0u) {
-        return float((g_hints_lit >> g_hint_bit) & 1u);
-    }
-#endif
+// One ray: 1 if nothing blocks the segment from `world` to the sample (or its direction).
+float traced_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     vec3 origin = world + geometric_normal * u_ray_offset;
     if (s.kind == KIND_DIRECTIONAL) {
         return rt_occluded(origin, -s.axis, 0.0, 3.0e38) ? 0.0 : 1.0;
@@ -165,6 +195,27 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     float t_max = distance * (1.0 - 1e-4) - u_ray_offset;
     if (t_max <= 0.0) return 1.0;
     return rt_occluded(origin, to_light / distance, 0.0, t_max) ? 0.0 : 1.0;
+}
+
+// Ray-traced visibility of the sample from `world`, in [0, 1].
+float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+    if (s.tile < 0) return 1.0;  // the light casts no shadow
+#ifdef SHADOW_HINTS
+    if (g_hint_bit >= 0) {
+        if (((g_hints_agreed >> g_hint_bit) & 1u) != 0u) {
+            return float((g_hints_lit >> g_hint_bit) & 1u);
+        }
+        if (!g_footprint_known) find_footprint(world, geometric_normal);
+        float lit = 0.0;
+        for (int k = 0; k < EDGE_RAYS; ++k) {
+            vec3 at = world + g_footprint_x * EDGE_OFFSETS[k].x
+                      + g_footprint_y * EDGE_OFFSETS[k].y;
+            lit += traced_visibility(s, at, geometric_normal);
+        }
+        return lit / float(EDGE_RAYS);
+    }
+#endif
+    return traced_visibility(s, world, geometric_normal);
 }
 #elif defined(ISM_VISIBILITY)
 #include "ism_lib.glsl"

@@ -94,6 +94,12 @@ def read_textures(textures: Sequence[moderngl.Texture]) -> np.ndarray:
                            for t in textures], axis=-1)
 
 
+def inverse_mat4(uniform: tuple[float, ...]) -> tuple[float, ...]:
+    """The inverse of a mat4 uniform (column-major floats), as one."""
+    matrix = np.array(uniform, np.float64).reshape(4, 4)  # the transpose; inverting commutes
+    return tuple(np.linalg.inv(matrix).astype("f4").ravel())
+
+
 def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
            atlas: moderngl.Texture, gbuffer: GBuffer, accumulator: moderngl.Framebuffer,
            scene: SceneBuffers | None, centre: np.ndarray, radius: float, bias: float,
@@ -118,7 +124,9 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         if hints is not None:
             defines.update(SHADOW_HINTS=1)
             hints[0].use(HINTS_UNIT)
-            uniforms.update(u_shadow_hints=HINTS_UNIT, u_hint_factor=hints[1])
+            uniforms.update(u_shadow_hints=HINTS_UNIT, u_hint_factor=hints[1],
+                            u_inverse_view_projection=inverse_mat4(gbuffer.view_projection),
+                            u_tile_size=gbuffer.textures["position"].size)
         if gbuffer.glossy:
             defines.update(GLOSSY=1)
             for unit, name in zip(LOBE_UNITS, GLOSSY_LAYERS, strict=True):
