@@ -61,9 +61,9 @@ class TextureImages(Mapping[str, np.ndarray]):
 @dataclass
 class GBuffer:
     """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays
-    (read back when first used);
-    ``view_projection``: world to the tile's clip space, as a mat4 uniform; ``view``: the
-    camera uniforms a glossy gather needs (empty without GLOSSY_LAYERS)."""
+    (read back when first used); ``view_projection``: world to the tile's clip space, as a
+    mat4 uniform; ``view``: the camera uniforms a glossy gather needs (empty without
+    GLOSSY_LAYERS)."""
 
     textures: dict[str, moderngl.Texture]
     images: Mapping[str, np.ndarray]
