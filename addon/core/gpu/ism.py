@@ -74,7 +74,8 @@ EMPTY_BITS = 0xFFFFFFFF  # ISM_EMPTY_BITS: an empty splat texel, above every flo
 BEHIND = 1.25  # ISM_BEHIND: a splat this many times as far as the surface around is a hole
 FOOTPRINT_SCALE = 1.25  # footprint side / the side of a point's projected area; 0: one texel
 MAX_FOOTPRINT = 1 / 8  # largest footprint side, as a fraction of the tile edge
-ISM_BIAS_TEXELS = 1.0  # receiver offset in texels: measured best against exact visibility
+ISM_BIAS_TEXELS = 1.0  # depth tolerance in texels (the receiver is lifted 1.5× that along its
+# normal: ISM_NORMAL_OFFSET in gpu_shaders/ism_lib.glsl); measured best against exact visibility
 
 QUERY_DTYPE = np.dtype([("world", "<f4", 3), ("vpl", "<i4"), ("normal", "<f4", 3),
                         ("pad", "<f4")])
