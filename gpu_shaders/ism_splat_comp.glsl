@@ -3,8 +3,8 @@
 // VPL): x = the point in the VPL's set, y = the VPL, whose atlas tile names its set (a partial
 // update renders a few tiles). The point's position comes from the current triangle vertices,
 // so points follow moved and deformed triangles. Depths are distances (positive floats, whose
-// bits compare like the floats as uints), kept with imageAtomicMin over a square footprint of
-// texels.
+// bits compare like the floats as uints), kept with imageAtomicMin over the texels of the
+// point's footprint: the ellipse its disc projects to (a square in directional maps).
 #include "ism_lib.glsl"
 #include "ism_points_lib.glsl"
 
@@ -36,20 +36,6 @@ int random_side(float side, uint id) {
     float up = (side * side - low * low) / (2.0 * low + 1.0);  // P(round up): mean area side^2
     return clamp(int(low) + (ism_unit(pcg(id)) < up ? 1 : 0), 1, u_max_footprint);
 }
-
-// Side in texels of the square footprint of a point standing for `u_point_area` of a surface
-// with (unnormalised) normal `n`, seen along unit `d` at `distance`: u_footprint_scale times
-// the square root of its projected area, i.e. of its solid angle area |cos| / distance^2 times
-// the map's texels per steradian, (res / 2)^2 / (1 + z)^2. Rounded up or down at random so
-// that the expected footprint area is right: always rounding down leaves holes, up bloats.
-int footprint(vec3 n, vec3 d, float distance, float cos_normal, uint id) {
-    float len_n = length(n);
-    float cos_surface = len_n > 0.0 ? abs(dot(n, d)) / len_n : 0.0;
-    float side = u_footprint_scale * sqrt(u_point_area * cos_surface) / distance
-        * 0.5 * float(u_resolution) / (1.0 + cos_normal);
-    return random_side(side, id);
-}
-
 
 // Depth of the texel whose centre is at `uv`: the distance along its ray (in the VPL's frame
 // t, b, n) to the plane through the point with normal `surface`, whose ray at the point's own
@@ -105,15 +91,40 @@ void main() {
     float distance;
     if (!ism_project(origin.xyz, n, world, map, distance)) return;
     vec3 d = (world - origin.xyz) / distance;
-    int side = footprint(surface, d, distance, map.z, uint(vpl * u_points_per_vpl + i));
-    ivec2 first = ivec2(floor(ism_texel(map, float(u_resolution)) - 0.5 * float(side) + 0.5));
-    ivec2 lo = max(first, ivec2(0));
-    ivec2 hi = min(first + side, ivec2(u_resolution));
+    float len_s = length(surface);
+    if (!(len_s > 0.0)) return;
+    // The point's disc (of u_footprint_scale² its share of the surface) projected into the
+    // map: an ellipse c + M (a, b), a² + b² <= 1, M's columns the images of two radii. Grown
+    // by half a texel (Σ = M Mᵀ + I / 4) so that edge-on discs still cover a line of texels.
+    vec3 tu, tv;
+    basis_of(surface / len_s, tu, tv);
+    float radius = u_footprint_scale * sqrt(u_point_area / PI);
+    float res = float(u_resolution);
+    vec2 c = ism_texel(map, res);
+    vec3 other;
+    float ignored;
+    vec2 cols[2];
+    vec3 axes[2] = vec3[](tu, tv);
+    for (int k = 0; k < 2; ++k) {
+        cols[k] = ism_project(origin.xyz, n, world + radius * axes[k], other, ignored)
+                  ? ism_texel(other, res) - c : vec2(0.0);
+    }
+    mat2 sigma = mat2(cols[0].x * cols[0].x + cols[1].x * cols[1].x + 0.25,
+                      cols[0].x * cols[0].y + cols[1].x * cols[1].y,
+                      cols[0].x * cols[0].y + cols[1].x * cols[1].y,
+                      cols[0].y * cols[0].y + cols[1].y * cols[1].y + 0.25);
+    mat2 inverse_sigma = inverse(sigma);
+    vec2 half_extent = min(sqrt(vec2(sigma[0][0], sigma[1][1])),
+                           vec2(0.5 * float(u_max_footprint)));
+    ivec2 lo = max(ivec2(floor(c - half_extent)), ivec2(0));
+    ivec2 hi = min(ivec2(ceil(c + half_extent)), ivec2(u_resolution));
     vec3 t, b;
     basis_of(n, t, b);
-    float texel_uv = 2.0 / float(u_resolution);
+    float texel_uv = 2.0 / res;
     for (int y = lo.y; y < hi.y; ++y) {
         for (int x = lo.x; x < hi.x; ++x) {
+            vec2 offset = vec2(x, y) + 0.5 - c;
+            if (dot(offset, inverse_sigma * offset) > 1.0) continue;
             vec2 uv = (vec2(x, y) + 0.5) * texel_uv - 1.0;
             float depth = plane_depth(t, b, n, uv, surface, d, distance);
             imageAtomicMin(u_splat, tile + ivec2(x, y), floatBitsToUint(depth));
