@@ -3,14 +3,13 @@ VPLs (indirect light), with the batch's visibility, into an accumulator."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import moderngl
 import numpy as np
 
-from ..gpu.gl import ProgramCache, set_uniforms
+from ..gpu.gl import ProgramCache, read_textures, set_uniforms
 from ..gpu.ism import ISM_BIAS_TEXELS
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.shadow_atlas import near_far
@@ -85,13 +84,6 @@ def new_accumulator(ctx: moderngl.Context, size: tuple[int, int], scope: GpuScop
 def read_accumulator(accumulator: moderngl.Framebuffer) -> np.ndarray:
     """The accumulator as (h, w, 4) float32, or (h, w, 8) with its glossy target after."""
     return read_textures(accumulator.color_attachments)
-
-
-def read_textures(textures: Sequence[moderngl.Texture]) -> np.ndarray:
-    """RGBA32F textures side by side as one (h, w, 4 × len(textures)) float32 array."""
-    w, h = textures[0].size
-    return np.concatenate([np.frombuffer(t.read(), dtype=np.float32).reshape(h, w, 4)
-                           for t in textures], axis=-1)
 
 
 def inverse_mat4(uniform: tuple[float, ...]) -> tuple[float, ...]:

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
-from ..gpu.gl import ProgramCache, set_uniforms
+from ..gpu.gl import ProgramCache, read_textures, set_uniforms
 from ..gpu.scene_buffers import SceneBuffers
 from ..scene.model import Camera
 from .gpu_scope import GpuScope
@@ -46,9 +46,7 @@ class TextureImages(Mapping[str, np.ndarray]):
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name not in self._read:
-            texture = self._textures[name]
-            self._read[name] = np.frombuffer(texture.read(), dtype=np.float32).reshape(
-                texture.height, texture.width, 4)
+            self._read[name] = read_textures([self._textures[name]])
         return self._read[name]
 
     def __iter__(self) -> Iterator[str]:

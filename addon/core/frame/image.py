@@ -11,6 +11,7 @@ from functools import partial
 import moderngl
 import numpy as np
 
+from ..gpu.gl import read_textures
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.texture_array import upload as upload_textures
 from ..gpu.upsample import upsample
@@ -18,14 +19,7 @@ from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
 from .compose import compose
 from .denoise import DenoisingData
-from .gather import (
-    RAY_OFFSET,
-    LightPass,
-    gather,
-    new_accumulator,
-    read_accumulator,
-    read_textures,
-)
+from .gather import RAY_OFFSET, LightPass, gather, new_accumulator, read_accumulator
 from .gbuffer import GBuffer, Tile, render_gbuffer
 from .gpu_scope import GpuScope
 from .gpu_session import GpuSession
@@ -251,7 +245,6 @@ class BlurStage(TileStage):
                 targets, textures["position"], textures["normal"], frame.blur_radius)])
             self.gpu.ctx.finish()
             return [[next(results) for _ in a.color_attachments] for a in accumulators]
-
 
 
 class ComposeStage(TileStage):

@@ -1,9 +1,9 @@
 """Up-front limits on a scene's size. Instances are flattened into one triangle list, so the
 triangle count after instancing must fit the machine's memory, the GPU's table of the
 triangles' materials (a texture) and, when the frame traces rays, the GPU's largest storage
-buffer. They are checked from the instances' triangle counts before
-any triangle is flattened: a million-instance scatter is refused in a second, not after
-minutes and tens of GiB (tools/bench_size_limits.py, cases inst-*)."""
+buffer. They are checked from the instances' triangle counts before any triangle is
+flattened: a million-instance scatter is refused in a second, not after minutes and tens of
+GiB (tools/bench_size_limits.py, cases inst-*)."""
 
 from __future__ import annotations
 

@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from functools import cache
 from pathlib import Path
 
 import moderngl
+import numpy as np
 
 SHADER_DIR = Path(__file__).resolve().parents[3] / "gpu_shaders"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
@@ -196,3 +198,9 @@ def draw_into_new_textures(ctx: moderngl.Context, vao: moderngl.VertexArray,
         fbo.release()
     return targets
 
+
+def read_textures(textures: Sequence[moderngl.Texture]) -> np.ndarray:
+    """RGBA32F textures side by side as one (h, w, 4 × len(textures)) float32 array."""
+    w, h = textures[0].size
+    return np.concatenate([np.frombuffer(t.read(), dtype=np.float32).reshape(h, w, 4)
+                           for t in textures], axis=-1)
