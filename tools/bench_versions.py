@@ -127,10 +127,13 @@ def frame_table(trees: dict[str, Path], scene: str, size: str, repeat: int,
     print("| stage | " + " | ".join(trees) + " | new / old |")
     print("|---|" + "---|" * (len(trees) + 1))
     for stage in [*stages, "total"]:
-        medians = [statistics.median(t.get(stage, 0.0) for t in samples[label])
-                   for label in trees]
-        ratio = f"{medians[1] / medians[0]:.2f}" if medians[0] > 0 else "–"
-        cells = " | ".join(f"{m:.3f}" if m else "–" for m in medians)
+        ran = [[t[stage] for t in samples[label] if stage in t] for label in trees]
+        medians = [statistics.median(times) if times else None for times in ran]
+        # a ratio only where both trees ran the stage for at least a millisecond (the stages:
+        # line rounds to ms); "–": the tree did not run it; "< 0.001": it ran in under 1 ms
+        ratio = f"{medians[1] / medians[0]:.2f}" if all(medians) else "–"
+        cells = " | ".join("–" if m is None else f"{m:.3f}" if m else "< 0.001"
+                           for m in medians)
         print(f"| {'**total**' if stage == 'total' else stage} | {cells} | {ratio} |")
     if errors:
         print("| error against Cycles (noise-free relative RMSE, 2 × "
