@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from addon.core.frame.stages import indirect_interleave
 from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import Settings
 from devtools import metrics
@@ -56,3 +57,19 @@ def test_indirect_light_per_pixel_matches_per_supersample(renderer):
     inner = (slice(band, -band), slice(band, -band))
     assert metrics.relative_rmse(image[inner], reference[inner]) < 0.025
     np.testing.assert_array_equal(pixel.passes["DiffDir"], full.passes["DiffDir"])
+
+
+@pytest.mark.parametrize(("interleave", "antialiasing", "pattern"),
+                         [(8, 3, 4), (8, 2, 4), (8, 4, 2), (8, 8, 1), (4, 3, 2), (2, 3, 1),
+                          (1, 3, 1), (8, 1, 8)])
+def test_per_pixel_indirect_light_keeps_the_pattern_s_extent_in_the_image(
+        interleave, antialiasing, pattern):
+    """Gathered per pixel, the indirect light's K×K pattern is the power of two at or above
+    K / antialiasing pixels (a cell of K supersamples' extent: 8 at antialiasing 3 → 4 pixels;
+    per pixel with K = 8 each pixel held a 64th of the VPLs, and the interior's error rose
+    from 8.8 to 11.8 %, 11.0 % with K = 4). Per supersample it stays K."""
+    settings = Settings(interleave=interleave, antialiasing=antialiasing,
+                        indirect_resolution="pixel")
+    assert indirect_interleave(settings) == pattern
+    assert indirect_interleave(Settings(interleave=interleave, antialiasing=antialiasing)) \
+        == interleave

@@ -3,12 +3,14 @@ samples, gather settings, light passes with their visibility, and the final NaN 
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 
 from ..scene.bounds import robust_bounds
 from ..scene.geometry import bounding_sphere, flatten_instances, light_shapes
+from ..settings import Settings
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from .batches import shadow_map_batches
 from .compose import sanitize
@@ -148,6 +150,16 @@ class PlanGather(Stage):
         frame.settings = replace(frame.settings, pull_push_levels=levels)
 
 
+def indirect_interleave(settings: Settings) -> int:
+    """The indirect light's interleaving pattern: ``interleave`` supersamples, or, gathered per
+    pixel, the power of two at or above interleave / antialiasing pixels, so that a pattern
+    covers at least the same part of the image (8 supersamples at antialiasing 3: 4 pixels)."""
+    k, aa = settings.interleave, settings.antialiasing
+    if settings.indirect_resolution != "pixel" or aa == 1:
+        return k
+    return 1 << max(0, math.ceil(math.log2(k / aa)))
+
+
 def blur_radius(interleave: int, radius: int) -> int:
     """The blur radius, rounded up to a multiple of K/2 (0 without interleaving)."""
     if interleave == 1:
@@ -174,7 +186,7 @@ class PlanLightPasses(Stage):
         vpl_batches = mode.batches(vpl_samples, settings, self.gpu.max_texture)
         passes = self._direct_passes(frame)
         clamp = max(settings.clamp_distance * radius, radius * 1e-6)
-        passes += [LightPass("indirect light", b, clamp, mode, settings.interleave)
+        passes += [LightPass("indirect light", b, clamp, mode, indirect_interleave(settings))
                    for b in vpl_batches]
         frame.blur_radius = blur_radius(settings.interleave, settings.blur_radius) \
             if any(p.interleave > 1 and (p.indirect or p.blurred) for p in passes) else 0
