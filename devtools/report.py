@@ -32,7 +32,7 @@ import numpy as np
 from addon import ENGINE_ID
 from addon.core.gpu.gl import GLUnavailableError, shared_context
 from addon.core.settings import Value
-from addon.engine import monitor
+from addon.engine import monitor, shared_renderer
 
 from . import metrics
 from . import report_tables as tables
@@ -44,7 +44,9 @@ LADDER_SEED = 100
 """Cycles ladder renders use seeds LADDER_SEED + i, independent of the references'."""
 TIMING = ("wall-clock seconds of bpy.ops.render.render(), scene export included (Cycles: sync "
           "and BVH build), writing and reading the image excluded; after one untimed warm-up "
-          "render per engine and VPL GI mode (GL context, shader compilation, Cycles kernels)")
+          "render per engine and VPL GI mode (GL context, shader compilation, Cycles kernels); "
+          "every VPL GI frame starts afresh, reusing nothing the warm-up or an earlier frame "
+          "made (VPLs, shadow maps, BVH), as Cycles rebuilds its BVH")
 METRICS = {
     "relative_rmse_unbiased": "sqrt(max(0, mean((x - r1)(x - r2)))) / mean(r): relative RMSE "
                               "against the converged image, free of the references' noise",
@@ -257,8 +259,12 @@ def vpl_values(base: dict[str, Value], overrides: dict[str, Value], line: VPLLin
 
 def render_vpl(scene: bpy.types.Scene, values: dict[str, Value], exr: Path
                ) -> tuple[np.ndarray, float]:
+    """A VPL GI frame started afresh, as a new process's or one after an edit: nothing is kept
+    from an earlier render (VPLs, imperfect and triangle shadow maps, the ray tracer's BVH,
+    the ISM point table); the GL context and compiled shaders stay, as Cycles' kernels do."""
     scene.render.engine = ENGINE_ID
     scene.vpl_gi.assign(values)
+    shared_renderer().forget_frames()
     return render_timed(scene, exr)
 
 
