@@ -76,6 +76,10 @@ def test_report_has_every_field_and_finite_numbers(two_runs):
         if entry["engine"] == "VPL_GI":  # the planner's account of the frame
             assert entry["stages"]["ran"]["g-buffer"] > 0
             assert entry["stages"]["skipped"]["world light"] == "black world"
+        if entry["kind"] == "vpl":  # made afresh, nothing kept from the warm-up's frame
+            assert not {"vpl generation", "ism", "ism points", "shadow maps",
+                        "ray tracing setup"} & entry["stages"]["skipped"].keys()
+            assert entry["stages"]["ran"]["ray tracing setup"] > 0
     (auto,) = report["automatic"]
     assert auto["budget"] == 0.5 and auto["seconds"] > 0 and 0 < auto["error"] < 10
     assert "automatic, 0.5 s budget" in result.stdout
