@@ -28,6 +28,7 @@ from .result import PASS_CHANNELS
 from .reuse import KeptProducts
 from .shadow_hints import render_hints, takes_hints
 from .shadow_maps import KeptAtlases, ShadowAtlases
+from .stages import indirect_per_pixel
 from .state import FrameState, RenderError, Stage
 from .visibility import FrameMaps, RayTracedVisibility
 
@@ -102,14 +103,13 @@ class GBufferStage(TileStage):
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
         aa, settings = frame.settings.antialiasing, frame.settings
-        per_pixel = settings.indirect_resolution == "pixel" \
-            and any(p.indirect for p in frame.light_passes)
+        per_pixel = indirect_per_pixel(settings) and any(p.indirect for p in frame.light_passes)
         hinted = settings.adaptive_shadows and any(map(takes_hints, frame.light_passes))
         with frame.stats.timed(self.name):
             work.gbuffer = self._render(data, frame, work, work.tile)
             if aa > 1 and (per_pixel or hinted):
                 work.pixels = self._render(data, frame, work, pixel_tile(work.tile, aa))
-        work.indirect_gbuffer = work.pixels if per_pixel and work.pixels else work.gbuffer
+        work.indirect_gbuffer = work.pixels if per_pixel else work.gbuffer
         glossy = work.gbuffer.glossy
         work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
         work.indirect = new_accumulator(self.gpu.ctx, work.indirect_gbuffer.textures[

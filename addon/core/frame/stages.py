@@ -150,14 +150,20 @@ class PlanGather(Stage):
         frame.settings = replace(frame.settings, pull_push_levels=levels)
 
 
+def indirect_per_pixel(settings: Settings) -> bool:
+    """Whether VPLs and their bias compensation are gathered once per pixel (the pixel-centre
+    g-buffer) rather than per supersample: with antialiasing only."""
+    return settings.indirect_resolution == "pixel" and settings.antialiasing > 1
+
+
 def indirect_interleave(settings: Settings) -> int:
     """The indirect light's interleaving pattern: ``interleave`` supersamples, or, gathered per
     pixel, the power of two at or above interleave / antialiasing pixels, so that a pattern
     covers at least the same part of the image (8 supersamples at antialiasing 3: 4 pixels)."""
-    k, aa = settings.interleave, settings.antialiasing
-    if settings.indirect_resolution != "pixel" or aa == 1:
+    k = settings.interleave
+    if not indirect_per_pixel(settings):
         return k
-    return 1 << max(0, math.ceil(math.log2(k / aa)))
+    return 1 << max(0, math.ceil(math.log2(k / settings.antialiasing)))
 
 
 def blur_radius(interleave: int, radius: int) -> int:
