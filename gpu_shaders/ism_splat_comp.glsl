@@ -23,7 +23,8 @@ layout(r32ui, binding = 0) uniform uimage2D u_splat;
 uniform int u_columns;
 uniform int u_resolution;
 uniform float u_point_area;      // surface area each point stands for
-uniform float u_footprint_scale; // footprint side / the side of the point's projected area
+uniform float u_footprint_scale; // footprint disc radius / that of the point's share of the
+                                 // surface (directional: square side / projected area's side)
 uniform int u_max_footprint;     // largest footprint side, texels
 uniform int u_first_row;         // the first VPL of this dispatch
 uniform vec3 u_scene_centre;     // bounding sphere of the scene, for directional maps
@@ -109,10 +110,7 @@ void main() {
         cols[k] = ism_project(origin.xyz, n, world + radius * axes[k], other, ignored)
                   ? ism_texel(other, res) - c : vec2(0.0);
     }
-    mat2 sigma = mat2(cols[0].x * cols[0].x + cols[1].x * cols[1].x + 0.25,
-                      cols[0].x * cols[0].y + cols[1].x * cols[1].y,
-                      cols[0].x * cols[0].y + cols[1].x * cols[1].y,
-                      cols[0].y * cols[0].y + cols[1].y * cols[1].y + 0.25);
+    mat2 sigma = outerProduct(cols[0], cols[0]) + outerProduct(cols[1], cols[1]) + mat2(0.25);
     mat2 inverse_sigma = inverse(sigma);
     vec2 half_extent = min(sqrt(vec2(sigma[0][0], sigma[1][1])),
                            vec2(0.5 * float(u_max_footprint)));
