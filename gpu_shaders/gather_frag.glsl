@@ -42,29 +42,48 @@ struct Lobe {
 
 // Sum over this draw's samples; with interleaving (u_interleave = K > 1) each pixel of a K×K
 // pattern takes every K²-th sample and scales by K², so the expectation is unchanged. With a
-// lobe (a.w > 0) the glossy radiance of the same samples goes into ``glossy``.
+// lobe (a.w > 0) the glossy radiance of the same samples goes into ``glossy``. With
+// AREA_SHAPES, the diffuse light of each run of an area light's samples is its exact
+// unshadowed light times the fraction their shadows keep (lights_lib.glsl).
 vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lobe,
             out vec3 glossy) {
     vec3 irradiance = vec3(0.0);
     glossy = vec3(0.0);
     ivec2 px = ivec2(gl_FragCoord.xy);
+#ifdef AREA_SHAPES
+    int run = 0;  // u_area_shape's samples, and their unshadowed and shadowed sums
+    float open = 0.0, shaded = 0.0;
+#endif
     for (int i = interleave_first(u_first, px); i < u_first + u_count;
          i += interleave_stride()) {
         LightSample s = light_sample(i);
 #ifdef SHADOW_HINTS
         g_hint_bit = interleave_size() > 1 ? 0 : i;
 #endif
-        if (s.generation <= max_generation) {
-            vec3 e = sample_irradiance(s, world, normal, geometric);
-            irradiance += e;
-#ifdef GLOSSY
-            if (lobe.a.w > 0.0 && any(greaterThan(e, vec3(0.0)))) {
-                vec3 l = s.kind == KIND_DIRECTIONAL ? -s.axis : normalize(s.position - world);
-                glossy += e * glossy_brdf(lobe.a, lobe.b, lobe.c, normal, lobe.view, l);
-            }
+        if (s.generation > max_generation) continue;
+        vec3 e = unshadowed_irradiance(s, world, normal);
+#ifdef AREA_SHAPES
+        ++run;
+        open += e.r + e.g + e.b;
 #endif
+        if (any(greaterThan(e, vec3(0.0)))) e *= shadow_visibility(s, world, geometric);
+#ifdef AREA_SHAPES
+        shaded += e.r + e.g + e.b;
+#endif
+        irradiance += e;
+#ifdef GLOSSY
+        if (lobe.a.w > 0.0 && any(greaterThan(e, vec3(0.0)))) {
+            vec3 l = s.kind == KIND_DIRECTIONAL ? -s.axis : normalize(s.position - world);
+            glossy += e * glossy_brdf(lobe.a, lobe.b, lobe.c, normal, lobe.view, l);
         }
+#endif
     }
+#ifdef AREA_SHAPES
+    if (u_area_shape >= 0) {  // this draw's samples are all of that light's
+        irradiance = area_light_irradiance(u_area_shape, shaded, open, run, u_area_intensity,
+                                           world, normal);
+    }
+#endif
     float weight = interleave_weight();
     glossy *= weight;
     return irradiance * weight;

@@ -2,6 +2,7 @@
 // With VPL_GLOSSY the table has 9 texels per sample: texel 4's w flags a VPL at a glossy
 // surface, whose texels 5-8 are its GGX lobe scaled by the incident flux (principled_lib's
 // lobe_a/b/c) and the direction its light came from (transport/vpl.py's VPLs.glossy).
+// A negative texel 4 w, -(k + 1), marks a sample of area light k of the AREA_SHAPES table.
 #ifndef LIGHTS_LIB_GLSL
 #define LIGHTS_LIB_GLSL
 #include "common_lib.glsl"
@@ -23,6 +24,7 @@ struct LightSample {
     int generation;     // bounces the light has made: 0 for lights, k for k-th bounce VPLs
     float spread_tan;   // area-light spread: tan of the half angle, 0 for none
     float spread_norm;  // Cycles' normalisation of the spread (keeps the light's power)
+    int shape;          // its area light in the AREA_SHAPES table, -1 for none
 #ifdef VPL_GLOSSY
     vec4 lobe_a;        // flux x A, alpha (0: no glossy emission)
     vec4 lobe_b;        // flux x B, eta
@@ -48,12 +50,89 @@ LightSample light_sample(int index) {
         d = texelFetch(u_light_table, ivec2(8, index), 0);
     }
     return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
-                       t3.w, int(t4.x), t4.y, t4.z, a, b, c, d.xyz);
+                       t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1, a, b, c, d.xyz);
 #else
     return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
-                       t3.w, int(t4.x), t4.y, t4.z);
+                       t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1);
 #endif
 }
+
+// Squared distances below this are clamped: bounds the 1/d² singularity of VPLs (the clamp
+// setting) and keeps any sample lying on a surface finite.
+uniform float u_min_distance2;
+
+#ifdef AREA_SHAPES
+// Area lights' outlines (transport/lights.py AreaShapes) for the ratio estimator of their
+// light (Heitz, Hill & McGuire 2018): the light's exact unshadowed irradiance times the
+// fraction its samples' shadowed point estimates keep of their unshadowed ones, so unshadowed
+// light is exact and the samples give only the fraction in shadow.
+uniform sampler2D u_area_shapes;  // rows of AREA_SHAPES_WIDTH texels (a power of two)
+uniform int u_area_shape;         // the area light whose samples a draw gathers, -1 for none
+uniform vec3 u_area_intensity;    // the intensity of each of its samples
+
+vec4 area_texel(int i) {
+    return texelFetch(u_area_shapes, ivec2(i & (AREA_SHAPES_WIDTH - 1), i / AREA_SHAPES_WIDTH),
+                      0);
+}
+
+// Twice the projected solid angle of a spherical polygon's edge a -> b (not unit vectors),
+// signed by the winding: the edge's angle θ times n · its plane's unit normal (Lambert), with
+// θ / sin θ from the rational fit of Heitz et al. 2016 (LTC, which fits θ / (2π sin θ)),
+// avoiding atan.
+float outline_edge(vec3 a, vec3 b, vec3 n) {
+    if (a == vec3(0.0) || b == vec3(0.0)) return 0.0;
+    a = normalize(a);
+    b = normalize(b);
+    float x = dot(a, b);
+    float y = abs(x);
+    float v = (0.8543985 + (0.4965155 + 0.0145206 * y) * y) / (3.4175940 + (4.1616724 + y) * y);
+    float angle_over_sin = x > 0.0 ? v : 0.5 * inversesqrt(max(1.0 - x * x, 1e-7)) - v;
+    return 2.0 * PI * angle_over_sin * dot(cross(a, b), n);
+}
+
+// The projected solid angle (∫ cos dω) of the convex outline points first .. first + count - 1
+// seen from x with normal n, clipped at x's horizon.
+float outline_projected_solid_angle(int first, int count, vec3 x, vec3 n) {
+    float sum = 0.0;
+    vec3 previous = area_texel(first + count - 1).xyz - x;
+    float h_previous = dot(previous, n);
+    vec3 leaves = vec3(0.0), enters = vec3(0.0);  // where the outline crosses the horizon
+    for (int i = first; i < first + count; ++i) {
+        vec3 current = area_texel(i).xyz - x;
+        float h = dot(current, n);
+        if (h_previous > 0.0 && h > 0.0) {
+            sum += outline_edge(previous, current, n);
+        } else if (h_previous > 0.0 || h > 0.0) {
+            vec3 crossing = mix(previous, current, h_previous / (h_previous - h));
+            if (h_previous > 0.0) {
+                sum += outline_edge(previous, crossing, n);
+                leaves = crossing;
+            } else {
+                sum += outline_edge(crossing, current, n);
+                enters = crossing;
+            }
+        }
+        previous = current;
+        h_previous = h;
+    }
+    return 0.5 * abs(sum + outline_edge(leaves, enters, n));
+}
+
+// Area light `shape`'s irradiance at x (normal n) from `run` of its samples whose unshadowed
+// point estimates sum to `open` and shadowed ones to `shaded` (each over r, g, b),
+// `intensity` being each sample's: the light's exact unshadowed irradiance times shaded /
+// open, times the run's share of its samples. Called once per draw: llvmpipe runs both sides
+// of a branch, so inside the loop it would cost every sample.
+vec3 area_light_irradiance(int shape, float shaded, float open, int run, vec3 intensity,
+                           vec3 x, vec3 n) {
+    if (!(open > 0.0)) return vec3(0.0);
+    vec4 header = area_texel(shape);  // first outline point, points, samples, outline area
+    // radiance = intensity × samples / area, and the run's share of the samples run / samples
+    float exact = outline_projected_solid_angle(int(header.x), int(header.y), x, n)
+                  * float(run) / max(header.w, 1e-30);
+    return intensity * exact * (shaded / open);
+}
+#endif
 
 // Cycles' spot mask: smoothstep of the cosine past the cone edge, scaled by the blend.
 float spot_mask(LightSample s, vec3 from_light) {
@@ -254,26 +333,16 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
 }
 #endif
 
-// Squared distances below this are clamped: bounds the 1/d² singularity of VPLs (the clamp
-// setting) and keeps any sample lying on a surface finite.
-uniform float u_min_distance2;
-
-// Irradiance (W/m^2) at a surface point from one sample, shadowed.
-vec3 sample_irradiance(LightSample s, vec3 world, vec3 normal, vec3 geometric_normal) {
-    if (s.kind == KIND_DIRECTIONAL) {
-        float cos_receiver = dot(normal, -s.axis);
-        if (cos_receiver <= 0.0) return vec3(0.0);
-        return s.intensity * cos_receiver * shadow_visibility(s, world, geometric_normal);
-    }
+// Irradiance (W/m^2) at a surface point from one sample, before its shadow
+// (shadow_visibility).
+vec3 unshadowed_irradiance(LightSample s, vec3 world, vec3 normal) {
+    if (s.kind == KIND_DIRECTIONAL) return s.intensity * max(dot(normal, -s.axis), 0.0);
     vec3 to_light = s.position - world;
     float distance2 = dot(to_light, to_light);
     if (distance2 <= 0.0) return vec3(0.0);
     vec3 dir = to_light * inversesqrt(distance2);
     float cos_receiver = dot(normal, dir);
     if (cos_receiver <= 0.0) return vec3(0.0);
-    vec3 intensity = emitted_intensity(s, -dir);
-    if (all(equal(intensity, vec3(0.0)))) return vec3(0.0);
-    return intensity * cos_receiver / max(distance2, u_min_distance2)
-        * shadow_visibility(s, world, geometric_normal);
+    return emitted_intensity(s, -dir) * cos_receiver / max(distance2, u_min_distance2);
 }
 #endif

@@ -24,13 +24,15 @@ from tests.blender.rendering import configure_cycles, open_scene, render_linear
 SIZE = 64
 CYCLES_SAMPLES = 512
 # scene: (|energy| bound, interior relRMSE bound, overall relRMSE bound)
-# Measured (bpy 4.5.15, llvmpipe): energy ≤ 0.5 %, interior ≤ 1.2 %, overall ≤ 5.3 %.
+# Measured (bpy 4.5.15, llvmpipe): energy ≤ 0.5 %, interior ≤ 0.5 %, overall ≤ 5.3 %. The
+# Cornell box's interior error was 1.2 % before area lights took their unshadowed light from
+# their outline (the tall block's face, whose plane cuts the light, was dark): 0.14 % now.
 BOUNDS = {
     "light_point": (0.005, 0.005, 0.02),
     "light_spot": (0.005, 0.005, 0.07),
     "light_sun": (0.005, 0.005, 0.025),
     "light_area": (0.005, 0.01, 0.03),
-    "cornell_box": (0.015, 0.025, 0.08),
+    "cornell_box": (0.015, 0.005, 0.08),
     "multi_light": (0.01, 0.015, 0.05),
 }
 

@@ -13,8 +13,10 @@ import pytest
 
 from addon.core.frame import batches
 from addon.core.frame import image as image_stage
+from addon.core.scene.geometry import flatten_instances
 from addon.core.scene.model import AreaShape, Instance, LightKind, Material, World
 from addon.core.settings import Settings
+from addon.core.transport.lights import build_light_samples
 from tests.core.builders import (
     floor_scene,
     light,
@@ -83,6 +85,45 @@ def test_area_light_is_lambertian_with_total_power(renderer):
     x, y = pixel_centres()
     expected = rectangle_irradiance(x, y, height, side / 2, power / (np.pi * side * side))
     np.testing.assert_allclose(irradiance(frame), expected, rtol=1e-2)
+
+
+def test_an_area_light_cut_by_the_receiver_s_plane_gives_its_exact_light(renderer):
+    """A tilted square light that pokes through the floor: each floor point sees only the
+    part of the light above its horizon. The light's 16 samples alone quantise that part (a
+    fixed subset of them is above it): the ratio estimator keeps only their shadows' fraction
+    and takes the unshadowed light from the outline. Measured: 0.002 % off the quadrature at
+    most, where the samples' own estimate is up to 11 % off (the Cornell box's tall block,
+    whose face cuts the ceiling light's plane, was 7-8 % dark in direct light before)."""
+    power, side = 60.0, 1.0
+    matrix = translation(0, 0, 0.25) @ rotation_x(np.radians(-70))
+    area = light(LightKind.AREA, matrix, power=power, area_shape=AreaShape.SQUARE,
+                 size_x=side)
+    scene = floor_scene([area])
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
+    x, y = pixel_centres()
+    front = y < -0.8  # the floor in front of the light, off its footprint
+    points = np.stack([x[front], y[front], np.zeros(front.sum())], axis=1)
+    steps = 300
+    u = (np.arange(steps) + 0.5) / steps - 0.5
+    local = np.stack(np.meshgrid(u * side, u * side), axis=-1).reshape(-1, 2)
+    on_light = np.hstack([local, np.zeros((len(local), 1))]) @ matrix[:3, :3].T + matrix[:3, 3]
+    travel = -matrix[:3, 2]
+
+    def estimate(sources: np.ndarray, weight: float) -> np.ndarray:
+        d = sources[None] - points[:, None]  # towards the light
+        r2 = (d * d).sum(axis=-1)
+        cos_receiver = np.maximum(d[..., 2], 0) / np.sqrt(r2)
+        cos_emitter = np.maximum(-(d @ travel), 0) / np.sqrt(r2)
+        return weight * (cos_receiver * cos_emitter / r2).sum(axis=1)
+
+    radiance = power / (np.pi * side * side)
+    exact = estimate(on_light, radiance * side * side / len(on_light))
+    samples = build_light_samples(scene, flatten_instances(scene, []), Settings(), [])
+    point_estimate = estimate(samples.position, radiance * side * side / len(samples))
+    rendered = irradiance(frame)[front]
+    sampled_error = np.abs(point_estimate / exact - 1).max()
+    assert sampled_error > 0.03  # the case the estimator is for
+    np.testing.assert_allclose(rendered, exact, rtol=sampled_error / 10)
 
 
 def test_emissive_surface_lights_both_sides(renderer):

@@ -13,6 +13,7 @@ from ..gpu.gl import ProgramCache, read_textures, set_uniforms
 from ..gpu.ism import ISM_BIAS_TEXELS
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.shadow_atlas import near_far
+from ..transport.lights import AreaShapes
 from .batches import Batch
 from .gbuffer import GLOSSY_LAYERS, GBuffer
 from .gpu_scope import GpuScope
@@ -23,6 +24,8 @@ if TYPE_CHECKING:
 SURFACE_VERTICES_BINDING = 4  # the position stream as surface_lib.glsl's storage buffer
 LOBE_UNITS = 9, 10, 11  # the g-buffer's glossy lobe layers (units 6-8: the scene's tables)
 HINTS_UNIT = 12  # the shadow hints
+AREA_SHAPES_UNIT = 13  # the area lights' outlines (transport/lights.py AreaShapes)
+AREA_SHAPES_WIDTH = 1024  # texels per row of their texture (a power of two)
 RAY_OFFSET = 1e-4  # rays from a pixel start this fraction of the scene's radius off its surface
 
 
@@ -60,6 +63,16 @@ def light_table_texture(ctx: moderngl.Context, batch: Batch, centre: np.ndarray,
     near, far = near_far(s, centre, radius)
     table = s.table(batch.first_tile, near, far)
     return ctx.texture((table.shape[1], len(s)), 4, table.tobytes(), dtype="f4")
+
+
+def area_shapes_texture(ctx: moderngl.Context, shapes: AreaShapes) -> moderngl.Texture:
+    """The area lights' outline texels as the float texture lights_lib.glsl reads, in rows
+    of at most AREA_SHAPES_WIDTH (the caller releases it)."""
+    texels = shapes.texels
+    rows = -(-len(texels) // AREA_SHAPES_WIDTH)
+    padded = np.zeros((rows * AREA_SHAPES_WIDTH, 4), np.float32)
+    padded[:len(texels)] = texels
+    return ctx.texture((AREA_SHAPES_WIDTH, rows), 4, padded.tobytes(), dtype="f4")
 
 
 def samples_per_draw(rays_per_sample: int, compensation: Compensation | None) -> int:
@@ -113,6 +126,10 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         uniforms: dict[str, object] = {}
         if light_table.width > 5:  # some VPLs reflect glossily (LightSamples.table)
             defines.update(VPL_GLOSSY=1)
+        if s.shapes is not None and s.shape is not None and bool(np.any(s.shape >= 0)):
+            defines.update(AREA_SHAPES=1, AREA_SHAPES_WIDTH=AREA_SHAPES_WIDTH)
+            scope.own(area_shapes_texture(ctx, s.shapes)).use(AREA_SHAPES_UNIT)
+            uniforms.update(u_area_shapes=AREA_SHAPES_UNIT)
         if hints is not None:
             defines.update(SHADOW_HINTS=1)
             hints[0].use(HINTS_UNIT)
@@ -147,7 +164,22 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         ctx.blend_func = moderngl.ONE, moderngl.ONE
         vao = scope.own(ctx.vertex_array(program, []))
         chunk = samples_per_draw(visibility.rays_per_sample, compensation)
-        for first in range(0, len(s), chunk):
-            set_uniforms(program, u_first=first, u_count=min(chunk, len(s) - first))
+        shapes = "AREA_SHAPES" in defines
+        for first, count in draws(len(s), s.shape if shapes else None, chunk):
+            if shapes:
+                shape = int(s.shape[first])
+                set_uniforms(program, u_area_shape=shape,
+                             u_area_intensity=tuple(s.intensity[first]) if shape >= 0
+                             else (0.0, 0.0, 0.0))
+            set_uniforms(program, u_first=first, u_count=count)
             vao.render(moderngl.TRIANGLES, vertices=3)
         ctx.disable(moderngl.BLEND)
+
+
+def draws(count: int, shape: np.ndarray | None, chunk: int) -> list[tuple[int, int]]:
+    """(first, count) of the draws of ``count`` samples: at most ``chunk`` each and, with
+    ``shape`` (each sample's area light, -1 for none), one light's samples or none per draw."""
+    bounds = np.flatnonzero(np.diff(shape)) + 1 if shape is not None else np.zeros(0, int)
+    runs = zip(np.r_[0, bounds], np.r_[bounds, count], strict=True)
+    return [(first, min(chunk, int(stop) - first)) for start, stop in runs
+            for first in range(int(start), int(stop), chunk)]

@@ -4,7 +4,9 @@ the shaders evaluate with one shadow map each (the seed's "area lights as many p
 Units follow Cycles (each factor was checked against Cycles renders):
 - point/spot of power P: intensity P / (4 pi) W/sr in every direction (spot: masked);
 - sun of strength S: irradiance S W/m² on a surface facing it;
-- area light of power P: a one-sided Lambertian emitter of total flux P, peak intensity P / pi;
+- area light of power P: a one-sided Lambertian emitter of total flux P, peak intensity P / pi
+  (radiance P / (pi A)); its samples' unshadowed sum is replaced by the exact irradiance of its
+  outline (AreaShapes);
 - world of radiance L: irradiance pi L on an unoccluded surface;
 - emission of radiance L: a two-sided Lambertian emitter of peak intensity L·A per triangle.
 """
@@ -16,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene.environment import EnvironmentSampler
-from ..scene.geometry import WorldGeometry
+from ..scene.geometry import WorldGeometry, area_light_outline
 from ..scene.model import Light, LightKind, Scene
 from ..scene.vectors import unit
 from ..settings import Settings
@@ -46,6 +48,9 @@ class LightSamples:
     # when no sample has one (the table then has no glossy texels)
     broad: np.ndarray | None = None  # (n,) bool a sample of light from everywhere (the
     # world), whose light varies smoothly over surfaces, diffuse and glossy; None: none is
+    shape: np.ndarray | None = None  # (n,) int the sample's area light in ``shapes``, -1 for
+    # none; None: no sample has one
+    shapes: AreaShapes | None = None  # the area lights' outlines (per light, not per sample)
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -74,14 +79,44 @@ class LightSamples:
         t[:, 3, 1], t[:, 3, 2], t[:, 3, 3] = self.resolution, near, far
         t[:, 4, 0] = self.generation
         t[:, 4, 1:3] = self.spread
+        if self.shape is not None:  # negative: -(shape + 1); the glossy flag is positive
+            t[:, 4, 3] = np.where(self.shape >= 0, -(self.shape + 1), 0)
         if glossy:
-            t[:, 4, 3] = self.glossy[:, 0, 3] > 0
+            t[:, 4, 3] = np.where(self.glossy[:, 0, 3] > 0, 1.0, t[:, 4, 3])
             t[:, 5:] = self.glossy
         return t
 
     def subset(self, index: np.ndarray) -> LightSamples:
-        return LightSamples(*(None if getattr(self, f) is None else getattr(self, f)[index]
-                              for f in self.__dataclass_fields__))
+        return LightSamples(**{f: self.shapes if f == "shapes" else
+                               None if getattr(self, f) is None else getattr(self, f)[index]
+                               for f in self.__dataclass_fields__})
+
+
+@dataclass(frozen=True)
+class AreaShapes:
+    """Outlines of area lights for the ratio estimator of their direct light (Heitz, Hill &
+    McGuire 2018): the light's exact unshadowed irradiance (its outline's projected solid
+    angle, clipped at the receiver's horizon, times its radiance) times the fraction of its
+    samples' unshadowed point estimates that their shadows keep. Unshadowed light is then
+    exact, also where a receiver's plane cuts the light, and the samples give only the
+    fraction in shadow. ``texels`` (T, 4) float32, read by lights_lib.glsl: texel k of light k
+    = (first outline texel, outline points, samples, outline area), then the outlines' world
+    points."""
+
+    texels: np.ndarray
+
+    @staticmethod
+    def build(outlines: list[np.ndarray], samples: list[int]) -> AreaShapes:
+        """From each light's world outline (m, 3) (convex, in order) and sample count."""
+        headers = np.zeros((len(outlines), 4))
+        at = len(outlines)
+        for k, (outline, count) in enumerate(zip(outlines, samples, strict=True)):
+            edges = np.cross(outline, np.roll(outline, -1, axis=0)).sum(axis=0)
+            headers[k] = at, len(outline), count, 0.5 * float(np.linalg.norm(edges))
+            at += len(outline)
+        points = np.concatenate(outlines)
+        rows = np.hstack([points, np.zeros((len(points), 1))])
+        return AreaShapes(np.concatenate([headers, rows]).astype(np.float32))
 
 
 def fibonacci_sphere(n: int, rng: np.random.Generator) -> np.ndarray:
@@ -125,10 +160,16 @@ def concentric_disk(u: np.ndarray) -> np.ndarray:
 class _Builder:
     def __init__(self) -> None:
         self.rows: list[dict] = []
+        self.outlines: list[np.ndarray] = []  # of the area lights whose samples have a shape
+
+    def new_shape(self, outline: np.ndarray) -> int:
+        """The index of a new area-light shape (its samples are added with it)."""
+        self.outlines.append(outline)
+        return len(self.outlines) - 1
 
     def add(self, *, position, axis, kind, intensity, shadow, resolution,
             spot_cos=NO_SPOT, spot_smooth=0.0, soft=False, spread=(0.0, 0.0),
-            broad=False) -> None:
+            broad=False, shape=-1) -> None:
         position = np.atleast_2d(position)
         n = len(position)
         self.rows.append({
@@ -144,6 +185,7 @@ class _Builder:
             "soft": np.full(n, soft),
             "spread": np.broadcast_to(spread, (n, 2)),
             "broad": np.full(n, broad),
+            "shape": np.full(n, shape),
         })
 
     def build(self) -> LightSamples:
@@ -153,7 +195,11 @@ class _Builder:
                                 np.zeros(0, int), np.zeros(0, int), np.zeros(0, bool),
                                 np.zeros((0, 2)))
         keys = self.rows[0].keys()
-        return LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
+        samples = LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
+        if self.outlines:
+            samples.shapes = AreaShapes.build(self.outlines, list(np.bincount(
+                samples.shape[samples.shape >= 0], minlength=len(self.outlines))))
+        return samples
 
 
 def area_light_points(light: Light, u: np.ndarray) -> np.ndarray:
@@ -243,9 +289,15 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
     elif light.kind is LightKind.AREA:
         n = s.light_samples
         u = stratified_square(n, rng)
+        spread = spread_parameters(light)
+        shape = -1
+        if spread == (0.0, 0.0) and min(light.area_size) > 0:  # Lambertian: exact outline
+            ring = area_light_outline(light)
+            outline = np.hstack([ring, np.zeros((len(ring), 1))]) @ m[:3, :3].T + m[:3, 3]
+            shape = b.new_shape(outline)
         b.add(position=area_light_points(light, u), axis=travel, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
-              resolution=s.sample_shadow_resolution, soft=True, spread=spread_parameters(light))
+              resolution=s.sample_shadow_resolution, soft=True, spread=spread, shape=shape)
 
 
 def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator) -> None:
