@@ -8,10 +8,10 @@
 // bounce twice; with more, y's indirect light is all of its VPLs', one bounce too many for the
 // last generation, a share of the clamp's share). Each draw traces one ray per pixel; a hit
 // the camera does not see is written out as a surface sample (position, normal facing x, and
-// albedo(y) · weight / rays) whose direct light the renderer gathers and adds afterwards
-// (near_field.py). Output in pass units (irradiance / pi), added to the indirect light before
-// its blur. The rays start from the indirect light's samples (u_origin_*:
-// one per pixel or per supersample); hits are looked up in the supersamples' g-buffer and
+// albedo(y) · weight / rays) whose light (direct, and with more than one bounce the VPLs')
+// the renderer gathers and adds afterwards (near_field.py). Output in pass units
+// (irradiance / pi), added to the indirect light before its blur. The rays start from the
+// indirect light's samples (u_origin_*: one per pixel or per supersample); hits are looked up in the supersamples' g-buffer and
 // direct light, and in the indirect light at its own resolution.
 #include "common_lib.glsl"
 #include "raytrace_lib.glsl"

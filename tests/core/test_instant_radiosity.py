@@ -99,11 +99,15 @@ def test_compensation_from_the_image_restores_what_the_camera_sees(renderer, bou
     assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
 
 
-def test_compensation_gathers_light_where_the_camera_does_not_see(renderer):
+@pytest.mark.parametrize(("bounces", "visibility"), [(1, "exact"), (3, "ism")])
+def test_compensation_gathers_light_where_the_camera_does_not_see(renderer, bounces,
+                                                                  visibility):
     """A 20° view of the sphere's wall: most surfaces within the clamp distance of its centre
-    (a 35° cone) are off screen. Their hits take the direct light gathered there instead of the
-    image's, so the clamped share still comes back (one bounce: the hits' direct light is all
-    of it)."""
+    (a 35° cone) are off screen. Their hits take the light gathered there instead of the
+    image's, so the clamped share still comes back: with one bounce their direct light, with
+    more also their VPLs' light (with imperfect shadow maps). Measured (compensated /
+    unclamped): 1.006 with one bounce; with 3, 1.008, where the hits' direct light alone gave
+    0.991 (the clamped share of bounces 2 and 3 was missing)."""
     rho, clamp, size = 0.5, 0.6, 32
     scene = sphere_scene(rho)
     camera = inside_sphere_camera(size)
@@ -114,13 +118,13 @@ def test_compensation_gathers_light_where_the_camera_does_not_see(renderer):
 
     def indirect(**settings) -> float:
         frame, _ = renderer.render(scene, Settings(
-            antialiasing=1, bounces=1, vpl_count=256, visibility="exact", interleave=1,
-            **settings))
+            antialiasing=1, bounces=bounces, vpl_count=256, visibility=visibility,
+            interleave=1, **settings))
         return float(frame.passes["DiffInd"][centre, centre, 0].mean())
 
     unclamped = indirect(clamp_distance=0.0)
     compensated = indirect(clamp_distance=clamp, bias_compensation="image", bias_samples=256)
-    assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
+    assert compensated / unclamped == pytest.approx(1.005, abs=0.007)
 
 
 def test_scrambled_halton_is_stratified_and_seeded():

@@ -30,7 +30,7 @@ from .shadow_hints import render_hints, takes_hints
 from .shadow_maps import KeptAtlases, ShadowAtlases
 from .stages import indirect_per_pixel
 from .state import FrameState, RenderError, Stage
-from .visibility import FrameMaps, RayTracedVisibility
+from .visibility import FrameMaps, ImperfectVisibility, RayTracedVisibility
 
 MAX_TILE = 2048  # supersampled pixels per image tile edge (each tile renders its own maps)
 
@@ -184,18 +184,30 @@ class NearFieldStage(TileStage):
             compensate_from_image(self.gpu.ctx, self.gpu.programs, frame.near_field,
                                   work.gbuffer, work.indirect_gbuffer, (work.direct, work.soft),
                                   work.indirect, RAY_OFFSET * frame.radius, data.scene,
-                                  partial(self._direct_light_at, frame, data))
+                                  partial(self._light_at, frame, data))
             self.gpu.ctx.finish()
 
-    def _direct_light_at(self, frame: FrameState, data: FrameGpu, samples: GBuffer,
-                         target: moderngl.Framebuffer) -> None:
-        """Every direct light pass's light at the surface samples, shadowed by rays."""
+    def _light_at(self, frame: FrameState, data: FrameGpu, samples: GBuffer,
+                  target: moderngl.Framebuffer) -> None:
+        """Every direct light pass's light at the surface samples, shadowed by rays, and
+        where the hits' light may bounce once more (bounces > 1) the VPLs' light: an
+        off-screen ceiling lit only by VPLs gives the wall below it its near light. Only
+        with imperfect shadow maps in one atlas, kept from the gather: triangle maps or
+        several atlases would be made again, and ray-traced visibility would trace a ray
+        per VPL at every hit of every compensation ray."""
         traced = RayTracedVisibility()
+        indirect = [p for p in frame.light_passes if p.indirect]
+        with_vpls = frame.near_field.indirect_at_hits and len(indirect) == 1 \
+            and type(indirect[0].visibility) is ImperfectVisibility
         for light_pass in frame.light_passes:
             if not light_pass.indirect:
                 gather(self.gpu.ctx, self.gpu.programs, replace(light_pass, visibility=traced),
                        data.maps.shadow_atlases.placeholder(), samples, target, data.scene,
                        frame.centre, frame.radius, frame.settings.shadow_bias)
+            elif with_vpls:
+                atlas = light_pass.visibility.maps(light_pass.batch, data.maps)
+                gather(self.gpu.ctx, self.gpu.programs, light_pass, atlas, samples, target,
+                       data.scene, frame.centre, frame.radius, frame.settings.shadow_bias)
 
 
 class BlurStage(TileStage):

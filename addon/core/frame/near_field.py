@@ -3,7 +3,8 @@ the VPL clamp removes, brought back by short rays whose hits take their radiance
 direct and indirect light already gathered. One ray per supersample and pass costs about what
 one hard light's shadow rays do; the blur that follows averages the rays of neighbours. Hits
 the camera does not see (off screen, hidden, seen from behind: a window's sill beside the
-image's edge) become surface samples whose direct light is gathered there instead."""
+image's edge, a ceiling above it) become surface samples whose light is gathered there
+instead (direct light, and with more than one bounce the VPLs' light)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ MATCH_FRACTION = 0.1  # a hit matches the surface seen at its pixel within this 
 TEXTURE_UNITS = [u for u in range(16) if u not in (*MATERIAL_UNITS, GGX_TABLES_UNIT)]
 
 GatherAt = Callable[[GBuffer, moderngl.Framebuffer], None]
-"""Adds the direct light at a g-buffer's surface samples to an accumulator."""
+"""Adds the light at a g-buffer's surface samples to an accumulator."""
 
 
 @dataclass(frozen=True)
@@ -44,7 +45,7 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
     samples of ``indirect_gbuffer`` (the indirect light's: per pixel or, like ``gbuffer``, per
     supersample), one ray per draw. ``direct``: the direct light's accumulators (``gbuffer``'s
     size), hard and (when soft lights are interleaved) soft. Hits the camera does not see get
-    their direct light from ``gather_at``. The ray tracer's scene (``scene``'s triangles) must
+    their light from ``gather_at``. The ray tracer's scene (``scene``'s triangles) must
     be bound."""
     with GpuScope() as scope:
         size = indirect.size
@@ -98,7 +99,7 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
 def _add_offscreen(ctx: moderngl.Context, programs: ProgramCache, hits: list[moderngl.Texture],
                    unseen: moderngl.Renderbuffer, indirect: moderngl.Framebuffer,
                    gather_at: GatherAt, like: GBuffer) -> None:
-    """Gather the direct light at the unseen hits (position, normal, factor) and add it,
+    """Gather the light at the unseen hits (position, normal, factor) and add it,
     times each hit's factor, to the indirect light's diffuse target. The depth test against
     ``unseen`` (1 at those hits, 0 elsewhere; the full-screen draw is at 0.5) keeps the
     gather from running anywhere else: most samples' rays hit what the camera sees, or
