@@ -299,8 +299,8 @@ class Settings:
                  Choice("image", "From the Image",
                         "each ray's hit takes its light from the image already gathered (one "
                         "ray per supersample costs about one hard light's shadows); hits the "
-                        "camera cannot see gather their light there (direct light, and "
-                        "with more than one bounce the VPLs' light)")),
+                        "camera cannot see gather their light there (direct light; with "
+                        "more than one bounce and imperfect shadow maps also the VPLs')")),
         applies=unless("clamp_distance", 0.0))
     bias_samples: int = setting(
         1, "Compensation Rays", "clamping",
