@@ -43,7 +43,7 @@ struct Lobe {
 // Sum over this draw's samples; with interleaving (u_interleave = K > 1) each pixel of a K×K
 // pattern takes every K²-th sample and scales by K², so the expectation is unchanged. With a
 // lobe (a.w > 0) the glossy radiance of the same samples goes into ``glossy``. With
-// AREA_SHAPES, the diffuse light of each run of an area light's samples is its exact
+// AREA_SHAPES, the diffuse light of a draw of an area light's samples is its exact
 // unshadowed light times the fraction their shadows keep (lights_lib.glsl).
 vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lobe,
             out vec3 glossy) {
@@ -51,7 +51,7 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
     glossy = vec3(0.0);
     ivec2 px = ivec2(gl_FragCoord.xy);
 #ifdef AREA_SHAPES
-    int run = 0;  // u_area_shape's samples, and their unshadowed and shadowed sums
+    int run = 0;  // the draw's samples, and their unshadowed and shadowed sums
     float open = 0.0, shaded = 0.0;
 #endif
     for (int i = interleave_first(u_first, px); i < u_first + u_count;
@@ -79,8 +79,9 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
 #endif
     }
 #ifdef AREA_SHAPES
-    if (u_area_shape >= 0) {  // this draw's samples are all of that light's
-        irradiance = area_light_irradiance(u_area_shape, shaded, open, run, u_area_intensity,
+    LightSample first = light_sample(u_first);  // a draw holds one area light's samples or none
+    if (first.shape >= 0) {
+        irradiance = area_light_irradiance(first.shape, shaded, open, run, first.intensity,
                                            world, normal);
     }
 #endif

@@ -67,8 +67,6 @@ uniform float u_min_distance2;
 // fraction its samples' shadowed point estimates keep of their unshadowed ones, so unshadowed
 // light is exact and the samples give only the fraction in shadow.
 uniform sampler2D u_area_shapes;  // rows of AREA_SHAPES_WIDTH texels (a power of two)
-uniform int u_area_shape;         // the area light whose samples a draw gathers, -1 for none
-uniform vec3 u_area_intensity;    // the intensity of each of its samples
 
 vec4 area_texel(int i) {
     return texelFetch(u_area_shapes, ivec2(i & (AREA_SHAPES_WIDTH - 1), i / AREA_SHAPES_WIDTH),

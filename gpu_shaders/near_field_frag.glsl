@@ -11,8 +11,9 @@
 // albedo(y) · weight / rays) whose light (direct, and with more than one bounce the VPLs')
 // the renderer gathers and adds afterwards (near_field.py). Output in pass units
 // (irradiance / pi), added to the indirect light before its blur. The rays start from the
-// indirect light's samples (u_origin_*: one per pixel or per supersample); hits are looked up in the supersamples' g-buffer and
-// direct light, and in the indirect light at its own resolution.
+// indirect light's samples (u_origin_*: one per pixel or per supersample); hits are looked
+// up in the supersamples' g-buffer and direct light, and in the indirect light at its own
+// resolution.
 #include "common_lib.glsl"
 #include "raytrace_lib.glsl"
 #include "compensation_lib.glsl"

@@ -164,13 +164,8 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         ctx.blend_func = moderngl.ONE, moderngl.ONE
         vao = scope.own(ctx.vertex_array(program, []))
         chunk = samples_per_draw(visibility.rays_per_sample, compensation)
-        shapes = "AREA_SHAPES" in defines
-        for first, count in draws(len(s), s.shape if shapes else None, chunk):
-            if shapes:
-                shape = int(s.shape[first])
-                set_uniforms(program, u_area_shape=shape,
-                             u_area_intensity=tuple(s.intensity[first]) if shape >= 0
-                             else (0.0, 0.0, 0.0))
+        shape = s.shape if "AREA_SHAPES" in defines else None
+        for first, count in draws(len(s), shape, chunk):
             set_uniforms(program, u_first=first, u_count=count)
             vao.render(moderngl.TRIANGLES, vertices=3)
         ctx.disable(moderngl.BLEND)

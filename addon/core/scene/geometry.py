@@ -189,7 +189,8 @@ def empty_geometry() -> WorldGeometry:
                          np.zeros((1, MATERIAL_COLUMNS), np.float32))
 
 
-def _transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Points (N, 3) through a 4×4 affine matrix."""
     return points @ matrix[:3, :3].T + matrix[:3, 3]
 
 
@@ -453,7 +454,7 @@ def light_shapes(scene: Scene) -> WorldGeometry:
         n = len(ring)
         fan = np.stack([np.zeros((n, 2)), ring, np.roll(ring, -1, axis=0)], axis=1).reshape(-1, 2)
         local = np.hstack([fan, np.zeros((len(fan), 1))])
-        world = _transform_points(light.matrix, local)
+        world = transform_points(light.matrix, local)
         area = light.world_area
         if area <= 0:
             continue

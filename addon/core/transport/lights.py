@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene.environment import EnvironmentSampler
-from ..scene.geometry import WorldGeometry, area_light_outline
+from ..scene.geometry import WorldGeometry, area_light_outline, transform_points
 from ..scene.model import Light, LightKind, Scene
 from ..scene.vectors import unit
 from ..settings import Settings
@@ -207,8 +207,7 @@ def area_light_points(light: Light, u: np.ndarray) -> np.ndarray:
     offsets ``u`` (n, 2) in [0, 1)²."""
     on_shape = 0.5 * concentric_disk(u) if light.is_round else u - 0.5
     local = np.hstack([on_shape * light.area_size, np.zeros((len(u), 1))])
-    m = light.matrix
-    return local @ m[:3, :3].T + m[:3, 3]
+    return transform_points(light.matrix, local)
 
 
 def spot_mask(cos_to_axis: np.ndarray, spot_cos: float, spot_smooth: float) -> np.ndarray:
@@ -293,8 +292,7 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         shape = -1
         if spread == (0.0, 0.0) and min(light.area_size) > 0:  # Lambertian: exact outline
             ring = area_light_outline(light)
-            outline = np.hstack([ring, np.zeros((len(ring), 1))]) @ m[:3, :3].T + m[:3, 3]
-            shape = b.new_shape(outline)
+            shape = b.new_shape(transform_points(m, np.hstack([ring, np.zeros((len(ring), 1))])))
         b.add(position=area_light_points(light, u), axis=travel, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
               resolution=s.sample_shadow_resolution, soft=True, spread=spread, shape=shape)
