@@ -216,8 +216,8 @@ class Settings:
     passes: int = setting(
         1, "Passes", "sampling",
         "Passes of a final render, each with its own light samples and VPLs, averaged and "
-        "shown after each pass; the VPL clamp distance shrinks as 1/√pass, so the image keeps "
-        "converging",
+        "shown after each pass; the VPL clamp distance shrinks as pass^(-1/6), so the image "
+        "keeps converging",
         low=1, high=1 << 16, soft_high=64)
     viewport_passes: int = setting(
         16, "Viewport Passes", "sampling",
