@@ -10,7 +10,7 @@ it; the energy the clamp removes (what bias compensation does not restore) shrin
 near region's area, c_K² ∝ K^(-2a), so its square as K^(-4a). The two rates meet at
 a = 1/6: mean squared error ∝ K^(-2/3), a consistent estimator. (With a = 1/2, the
 schedule before, the hot spots' share stayed constant over passes: Sponza's 4 passes
-measured 35.8 %, now 27.7 %; docs/measurements.md.) The noise of the average is estimated
+measured 35.8 %, now 27.7 %; docs/how-it-works.md.) The noise of the average is estimated
 from the difference of the averages of the even and of the odd passes (independent halves)."""
 
 from __future__ import annotations
