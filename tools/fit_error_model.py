@@ -1,16 +1,22 @@
 """Fit the automatic mode's error model (addon/core/frame/error_model.json) on measurements.
 
 - Noise and floor: from error-against-time reports (``python -m devtools report``), the VPL GI
-  imperfect-shadow-map lines: relative RMSE² = floor² + noise² / paths, least squares per
-  scene with a shared noise constant; the stored floor is that of the first report's scene.
+  imperfect-shadow-map lines: relative RMSE² = floor² + noise² / paths, least squares of the
+  residuals relative to each render's own RMSE² (one frame with a hot spot, or a scene with
+  a large floor, does not decide the noise), per scene with a shared noise constant; the
+  stored floor is that of the first report's scene.
   The interleave factor compares the first report's lines with and without interleaving.
 - ISM term: on the sample scenes, VPL GI with imperfect shadow maps against exact (ray-traced)
   visibility, the same VPLs (256 light paths, one bounce, no interleaving), for each
   resolution/points pair; stored as the error beyond the default pair's, averaged over the
   scenes in squares.
 
-    .venv/bin/python tools/fit_error_model.py renders/report_cornell_box/report.json \
-        renders/report_interior/report.json renders/report_sponza/report.json
+    .venv/bin/python tools/fit_error_model.py renders/fit_cornell_box/report.json \
+        renders/fit_interior/report.json renders/fit_sponza/report.json
+
+on reports made with ``--set bounces=4 --cycles-samples none --oidn-samples none --vpl-ladder
+vpl_count=256,512,1024,2048,4096 --vpl-ladder interleave=1,4 --out renders/fit_SCENE`` (the
+Cornell box with ``--reference-samples 256``, the interior 128, Sponza's OBJ 64).
 """
 
 from __future__ import annotations
@@ -51,8 +57,8 @@ def fit_noise(reports: list[dict]) -> tuple[float, list[float], dict[str, float]
         for paths, error in (p for line in ism_lines(report).values() for p in line):
             row = np.zeros(len(reports) + 1)
             row[0], row[1 + i] = 1.0 / paths, 1.0
-            rows.append(row)
-            targets.append(error**2)
+            rows.append(row / error**2)
+            targets.append(1.0)
     from scipy.optimize import nnls
 
     solution, _ = nnls(np.array(rows), np.array(targets))

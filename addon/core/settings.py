@@ -380,8 +380,9 @@ class Settings:
         choices=(Choice("off", "Off", "use the settings as set"),
                  Choice("time", "Time Budget",
                         "the least error within time_budget: passes until it is spent, the "
-                        "first sized from the cost model, the others from its measured time "
-                        "(adapts to the machine: farms pin the parameters instead)"),
+                        "first sized from the cost model, the others from its measured time, "
+                        "averaged by their light paths (adapts to the machine: farms pin the "
+                        "parameters instead)"),
                  Choice("error", "Target Error",
                         "the least predicted time within target_error")))
     time_budget: float = setting(

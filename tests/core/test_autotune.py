@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from addon.core.frame import autotune
+from addon.core.frame.stages import blur_radius
 from addon.core.settings import Settings, SettingsError
 
 COST = autotune.CostModel("test GL", paths=2e-5, splat=2e-9, texels=1e-9, gather=4e-9,
-                          blur=1e-8, pixels=2e-6, maps=1e-9, pool=5e-7)
+                          blur=1e-8, pixels=2e-6, maps=1e-9, pool=5e-7, frame=0.02)
 WORK = autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
                          vpls_per_path=2.5, bounces=4)
 
@@ -60,7 +61,10 @@ def test_an_unreachable_target_takes_the_least_error():
     settings = replace(Settings(), auto_parameters="error", target_error=0.001)
     model = autotune.load_error_model()
     choice = autotune.choose(settings, WORK, COST, model)
-    assert choice.error == pytest.approx(model.floor, rel=0.01)  # nothing gets below the floor
+    most = autotune.PATHS[-1]
+    assert choice.settings.vpl_count == most
+    assert choice.error == min(model.error(most, k, p, r) for k, p, r in model.options())
+    assert choice.error > model.floor  # nothing gets below the floor
 
 
 def test_calibration_recovers_the_coefficients_of_a_linear_machine():
@@ -78,10 +82,13 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
                 + COST.texels * vpls * s.ism_resolution**2,
                 "indirect light": COST.gather * pixels * vpls / s.interleave**2,
                 "blur": COST.blur * pixels * s.blur_radius if s.interleave > 1 else 0.0,
-                "g-buffer": COST.pixels * pixels, "direct light maps": COST.maps * 6 * 4800}
+                "g-buffer": 0.5 * (COST.frame + COST.pixels * pixels),
+                "bias compensation": 0.5 * (COST.frame + COST.pixels * pixels),
+                "direct light maps": COST.maps * 6 * 4800}
 
     fitted = autotune.calibrate(render, "test GL", Settings())
-    for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool"):
+    for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool",
+                 "frame"):
         assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
 
 
@@ -151,8 +158,16 @@ def test_no_choice_is_below_the_cheapest_useful_frame(vpls_per_path):
     model = autotune.load_error_model()
     tiny = autotune.choose(replace(Settings(), auto_parameters="time", time_budget=0.01),
                            work, COST, model)
-    assert tiny.settings.vpl_count == least and not tiny.useful
+    assert tiny.settings.vpl_count >= least and not tiny.useful
     assert tiny.seconds > 0.01
+    fastest = min(autotune.predict_seconds(COST, work, least, k, points, resolution,
+                                           blur_radius(k, 4))
+                  for k, points, resolution in model.options())
+    assert tiny.seconds <= autotune.OVERRUN * fastest  # a little more time for less error
+    assert tiny.error <= min(model.error(least, k, p, r) for k, p, r in model.options()
+                             if autotune.predict_seconds(COST, work, least, k, p, r,
+                                                         blur_radius(k, 4))
+                             == fastest)
     ample = autotune.choose(replace(Settings(), auto_parameters="time", time_budget=60.0),
                             work, COST, model)
     assert ample.useful and ample.settings.vpl_count >= least and ample.seconds <= 60.0
@@ -160,6 +175,27 @@ def test_no_choice_is_below_the_cheapest_useful_frame(vpls_per_path):
 
 def test_a_measured_fixed_cost_replaces_the_modelled_one():
     modelled = autotune.predict_seconds(COST, WORK, 256, 4, 1024, 64, 4)
-    rest = COST.pixels * WORK.pixels + COST.maps * WORK.shadow_tiles * WORK.triangles
+    rest = COST.frame + COST.pixels * WORK.pixels + COST.maps * WORK.shadow_tiles * WORK.triangles
     measured = autotune.predict_seconds(COST, replace(WORK, fixed=0.25), 256, 4, 1024, 64, 4)
     assert measured == pytest.approx(modelled - rest + 0.25)
+
+
+def test_a_budget_is_split_into_passes_only_where_the_cheapest_useful_frame_fits_a_share():
+    """Two passes that would both be the cheapest useful frame, the second past the budget,
+    are planned as one pass of the whole budget instead."""
+    model = autotune.load_error_model()
+    cheapest = autotune.choose(replace(Settings(), auto_parameters="time", time_budget=0.0),
+                               WORK, COST, model)
+    fastest = min(autotune.predict_seconds(COST, WORK, WORK.least_paths(), k, p, r,
+                                           blur_radius(k, 4))
+                  for k, p, r in model.options())
+    assert fastest <= cheapest.seconds
+
+    def planned(budget: float) -> int:
+        settings = replace(Settings(), auto_parameters="time", time_budget=budget)
+        return autotune.passes_sharing(settings, WORK, COST, model, 2)
+
+    assert planned(2 * fastest) == 2
+    assert planned(1.9 * fastest) == 1
+    assert autotune.passes_sharing(replace(Settings(), auto_parameters="time"), WORK, COST,
+                                   model, 1) == 1

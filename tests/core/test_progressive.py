@@ -119,6 +119,29 @@ def test_noise_estimate_matches_the_noise_of_the_average() -> None:
     assert accumulator.noise() == pytest.approx(actual, rel=0.1)
 
 
+def test_passes_of_unequal_size_are_averaged_by_their_weights() -> None:
+    """Passes whose noise variance is 1 / weight (the time mode's passes of different light
+    path counts) are averaged by weight: less noise than the plain mean, and the estimate
+    still matches it."""
+    rng = np.random.default_rng(2)
+    truth = np.full((64, 64, 4), 2.0, np.float32)
+    weights = [512, 181, 512, 181, 724, 181]
+    weighted, plain = Accumulator(), Accumulator()
+    for w in weights:
+        noisy = truth + rng.normal(0, 8.0 / np.sqrt(w), truth.shape).astype(np.float32)
+        weighted.add(Frame(64, 64, {"Combined": noisy}), weight=w)
+        plain.add(Frame(64, 64, {"Combined": noisy}))
+
+    def error(accumulator: Accumulator) -> float:
+        average = accumulator.average().passes["Combined"][..., :3]
+        return float(np.sqrt(np.mean((average - 2.0) ** 2))) / 2.0
+
+    expected = 8.0 / np.sqrt(sum(weights)) / 2.0  # the inverse-variance average's
+    assert error(weighted) == pytest.approx(expected, rel=0.05)
+    assert error(plain) > 1.1 * error(weighted)
+    assert weighted.noise() == pytest.approx(error(weighted), rel=0.1)
+
+
 @pytest.mark.parametrize(("name", "value"), [("passes", 0), ("passes", -1),
                                              ("time_limit", float("nan")),
                                              ("time_limit", -1.0), ("noise_threshold", 2.0)])

@@ -17,7 +17,7 @@ from .planner import reaches_bounds
 from .result import Frame, Stats
 from .reuse import KeptProducts
 from .state import FrameState, Stage
-from .vpl_stage import upload_triangles
+from .vpl_stage import may_guide, upload_triangles
 
 PROBE_PATHS = 64  # light paths the automatic mode traces to learn how many VPLs a path leaves
 
@@ -37,6 +37,12 @@ class ChooseParameters(Stage):
         """Where the measured cost model is kept (None: measure each time)."""
         self.last: tuple[Settings, autotune.Workload, autotune.Choice] | None = None
         """The last frame's settings, workload and choice (for :meth:`rechoose`)."""
+        self.split = 1
+        """Passes the time mode would share the next frame's time_budget among (budget.py);
+        the choice is for one share of it, or for all of it when the cheapest useful frame
+        does not fit a share (see :attr:`planned`)."""
+        self.planned = 1
+        """Passes the last frame's time_budget was planned as."""
         self._cost: tuple[tuple, autotune.CostModel] | None = None
         self._error: tuple[tuple, autotune.ErrorModel] | None = None
 
@@ -53,7 +59,7 @@ class ChooseParameters(Stage):
             report(0.0, "Measuring this machine's cost model (once)")
             with stats.timed("cost model calibration"):
                 model = autotune.calibrate(self._calibration_frame, name,
-                                           Settings(antialiasing=1))
+                                           Settings(light_samples=4))
             self.kept.forget(anchors=False)
             return model
 
@@ -97,10 +103,14 @@ class ChooseParameters(Stage):
                 pixels=camera.width * camera.height * settings.antialiasing**2,
                 triangles=frame.geometry.vertex_count // 3,
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
-                vpls_per_path=self._vpls_per_path(frame),
+                **self._vpls_per_path(frame),
                 bounces=settings.bounces,
                 area_table=self._ism_area_table(frame.geometry.vertex_count // 3))
-        choice = autotune.choose(settings, work, cost, self.error_model())
+        errors = self.error_model()
+        self.planned = autotune.passes_sharing(settings, work, cost, errors, self.split) \
+            if settings.auto_parameters == "time" else 1
+        share = replace(settings, time_budget=settings.time_budget / self.planned)
+        choice = autotune.choose(share, work, cost, errors)
         self.last = (settings, work, choice)
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
                            f"{choice.describe()}")
@@ -111,20 +121,24 @@ class ChooseParameters(Stage):
         """Whether the ISM area table of these triangles is built already."""
         return getattr(self.gpu.ism_if_made, "prepared_triangles", None) == triangles
 
-    def _vpls_per_path(self, frame: FrameState) -> float:
-        """VPLs that can light the view per light path, from a probe of PROBE_PATHS paths."""
+    def _vpls_per_path(self, frame: FrameState) -> dict[str, float | None]:
+        """The workload's VPLs that can light the view per light path, from a probe of
+        PROBE_PATHS paths, and with camera guidance the VPLs gathered per path: all of the
+        probe's (guidance keeps as many as the paths leave, chosen where the camera looks)."""
         settings = frame.settings
         probe = replace(settings, vpl_count=PROBE_PATHS, incremental=False)
         try:
             tracer = upload_triangles(self.gpu, self.kept, frame.geometry, frame.stats)
         except GLUnavailableError:
-            return float(settings.bounces)
+            return {"vpls_per_path": float(settings.bounces)}
         vpls = generate_vpls(frame.scene, frame.geometry, probe, tracer, frame.centre,
                              frame.radius)
         samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
         in_view_count = int(reaches_bounds(samples, frame.in_view).sum()) \
             if frame.in_view is not None else len(vpls)
-        return max(in_view_count, 1) / PROBE_PATHS
+        guided = len(vpls) / PROBE_PATHS if may_guide(settings) else None
+        return {"vpls_per_path": max(in_view_count, 1) / PROBE_PATHS,
+                "gathered_per_path": guided}
 
     def _calibration_frame(self, settings: Settings) -> dict[str, float | int]:
         """Stage timings and counts of one frame of the calibration scene."""

@@ -9,7 +9,8 @@ Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interl
     ISM area table  c_pool · triangles, when the table of triangle areas must be built
     indirect light  c_gather · P · V / K²
     blur            c_blur · P · radius (K > 1)
-    the rest        c_pixels · P + c_maps · shadow-map tiles · triangles  (not chosen here)
+    the rest        c_frame + c_pixels · P + c_maps · shadow-map tiles · triangles  (not
+                    chosen here: PIXEL_STAGES, the direct light's shadow maps)
     (replaced by ``Workload.fixed``, their time measured in a pass, when it is known)
 Error (relative RMSE against a converged image):
     sqrt(floor² + noise² / paths + ism(points, resolution)²)
@@ -30,14 +31,22 @@ import numpy as np
 
 from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene
 from ..settings import Settings
+from .stages import blur_radius
 
-COST_MODEL_VERSION = 3
+COST_MODEL_VERSION = 4
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
 PATHS = tuple(round(16 * 2 ** (k / 4)) for k in range(41))
 """Light-path counts the automatic mode considers: 16 to 16384 in steps of 2^(1/4) (19 %)."""
 MIN_VIEW_VPLS = 64
 """VPLs lighting the view of the cheapest useful frame (the interior at 384² with 3 of them was
 51 % dark and 79 % off; see docs/measurements.md)."""
+OVERRUN = 1.1
+"""Below the cheapest useful frame's time, the choice is the least predicted error among the
+candidates within this factor of the fastest (the least light paths; better ISMs cost little)."""
+PIXEL_STAGES = ("g-buffer", "direct light", "shadow hints", "bias compensation", "upsample",
+                "compose")
+"""The stages whose time grows with the supersamples (from a cost per frame) and that the choice
+does not set."""
 
 
 @dataclass(frozen=True)
@@ -50,9 +59,10 @@ class CostModel:
     texels: float  # per VPL and ISM texel
     gather: float  # per pixel and VPL gathered
     blur: float  # per pixel and blur radius
-    pixels: float  # per pixel: g-buffer, direct light, compose
+    pixels: float  # per pixel: PIXEL_STAGES
     maps: float  # per shadow-map tile and triangle
     pool: float  # per triangle of the ISM area table (the points are drawn on the GPU)
+    frame: float = 0.0  # per frame: PIXEL_STAGES' cost whatever the pixels (draws, passes)
     version: int = COST_MODEL_VERSION
 
 
@@ -87,6 +97,8 @@ class Workload:
     vpls_per_path: float  # VPLs that can light the view per light path
     bounces: int
     area_table: bool = False  # the ISM area table of these triangles is built already
+    gathered_per_path: float | None = None  # VPLs gathered per light path, when camera
+    # guidance keeps more of them in view than the paths leave there (None: vpls_per_path)
     fixed: float | None = None  # measured seconds of the work not chosen here (None: modelled)
     scale: float = 1.0  # measured / modelled seconds of the chosen work (the machine's load)
     # (applied to the ISM area table's modelled time too)
@@ -119,14 +131,20 @@ def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int
     pool = 0.0 if work.area_table else cost.pool * work.triangles
     return (work.scale * (pool + chosen_seconds(cost, work, paths, interleave, points,
                                                 resolution, blur_radius))
-            + (work.fixed if work.fixed is not None else
-               cost.pixels * work.pixels + cost.maps * work.shadow_tiles * work.triangles))
+            + fixed_seconds(cost, work))
+
+
+def fixed_seconds(cost: CostModel, work: Workload) -> float:
+    """Predicted (or measured) seconds of the work the choice does not set."""
+    if work.fixed is not None:
+        return work.fixed
+    return cost.frame + cost.pixels * work.pixels + cost.maps * work.shadow_tiles * work.triangles
 
 
 def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
                    resolution: int, blur_radius: int) -> float:
     """Predicted seconds of the stages these parameters set (not the ISM area table)."""
-    vpls = paths * work.vpls_per_path
+    vpls = paths * (work.gathered_per_path or work.vpls_per_path)
     return (cost.paths * paths * max(1, work.bounces)
             + cost.splat * vpls * points + cost.texels * vpls * resolution**2
             + cost.gather * work.pixels * vpls / interleave**2
@@ -138,17 +156,13 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
     (mode 'time'), or of least predicted time within ``settings.target_error`` (mode
     'error'). Never fewer light paths than the cheapest useful frame's; when nothing meets the
     goal, the closest candidate, marked not ``useful`` when the budget is below that frame."""
-    candidates = []
-    least = work.least_paths()
-    for paths, (k, points, resolution) in product([p for p in PATHS if p >= least],
-                                                  errors.options()):
-        blur = 0 if k == 1 else max(k, settings.blur_radius)
-        seconds = predict_seconds(cost, work, paths, k, points, resolution, blur)
-        error = errors.error(paths, k, points, resolution)
-        candidates.append((seconds, error, paths, k, points, resolution, blur))
+    candidates = _candidates(settings, work, cost, errors)
     if settings.auto_parameters == "time":
         fitting = [c for c in candidates if c[0] <= settings.time_budget]
-        best = min(fitting, key=lambda c: (c[1], c[0])) if fitting else min(candidates)
+        if not fitting:  # the cheapest useful frame: its least error for little more time
+            fastest = min(candidates)[0]
+            fitting = [c for c in candidates if c[0] <= OVERRUN * fastest]
+        best = min(fitting, key=lambda c: (c[1], c[0]))
     else:
         fitting = [c for c in candidates if c[1] <= settings.target_error]
         best = min(fitting) if fitting else min(candidates, key=lambda c: (c[1], c[0]))
@@ -157,7 +171,33 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
                      ism_resolution=resolution, blur_radius=max(1, blur or settings.blur_radius),
                      visibility="ism")
     return Choice(chosen, seconds, error,
-                  useful=settings.auto_parameters != "time" or bool(fitting))
+                  useful=settings.auto_parameters != "time" or seconds <= settings.time_budget)
+
+
+def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel
+                ) -> list[tuple[float, float, int, int, int, int, int]]:
+    """(seconds, error, paths, interleave, points, resolution, blur) of every choice with at
+    least the cheapest useful frame's light paths."""
+    candidates = []
+    least = work.least_paths()
+    for paths, (k, points, resolution) in product([p for p in PATHS if p >= least],
+                                                  errors.options()):
+        blur = blur_radius(k, settings.blur_radius)
+        seconds = predict_seconds(cost, work, paths, k, points, resolution, blur)
+        error = errors.error(paths, k, points, resolution)
+        candidates.append((seconds, error, paths, k, points, resolution, blur))
+    return candidates
+
+
+def passes_sharing(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel,
+                   split: int) -> int:
+    """How many passes the time mode plans ``settings.time_budget`` as: ``split`` when the
+    cheapest useful frame fits a share of it, else 1 (the passes would all be that frame, and
+    the second would not fit)."""
+    if split <= 1:
+        return 1
+    fastest = min(_candidates(settings, work, cost, errors))[0]
+    return split if fastest <= settings.time_budget / split else 1
 
 
 # -- the error model ---------------------------------------------------------------------------
@@ -173,8 +213,9 @@ Render = Callable[[Settings], dict[str, float | int]]
 """Renders the calibration scene with the given settings and returns its stage timings
 (seconds) and counts (``vpls``, ``pixels``, ``triangles``, ``shadow_tiles``)."""
 
-CALIBRATION = (  # (paths, interleave, points, resolution): spread so each term is separable
-    (64, 1, 1024, 64), (256, 4, 4096, 128), (128, 2, 1024, 256), (512, 8, 2048, 64),
+CALIBRATION = (  # (paths, interleave, points, resolution, antialiasing): spread so each term
+    # is separable (two pixel counts part the cost per frame from the cost per pixel)
+    (64, 1, 1024, 64, 1), (256, 4, 4096, 128, 2), (128, 2, 1024, 256, 1), (512, 8, 2048, 64, 2),
 )
 
 
@@ -191,9 +232,10 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     """Measure the cost model: render the calibration scene at the CALIBRATION settings and
     fit each stage's coefficients to its measured seconds."""
     rows = []
-    for paths, k, points, resolution in CALIBRATION:
+    for paths, k, points, resolution, aa in CALIBRATION:
         settings = replace(base, vpl_count=paths, interleave=k, ism_points=points,
-                           ism_resolution=resolution, visibility="ism", auto_parameters="off")
+                           ism_resolution=resolution, antialiasing=aa, visibility="ism",
+                           auto_parameters="off")
         first = render(settings)  # builds the ISM area table (if new), compiles shaders
         rows.append((settings, {**render(settings), "ism points": first.get("ism points")}))
 
@@ -212,15 +254,15 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     blurred = column(lambda s, m: s.interleave > 1) * pixels * column(
         lambda s, m: s.blur_radius)
     (blur,) = _through_origin(blurred[:, None], column(lambda s, m: m.get("blur", 0.0)))
-    (pixel,) = _through_origin(pixels[:, None], column(
-        lambda s, m: sum(m.get(k, 0.0) for k in ("g-buffer", "direct light", "compose"))))
+    frame, pixel = _through_origin(np.stack([np.ones_like(pixels), pixels], axis=1), column(
+        lambda s, m: sum(m.get(k, 0.0) for k in PIXEL_STAGES)))
     (maps,) = _through_origin(column(lambda s, m: m["shadow_tiles"] * m["triangles"])[:, None],
                               column(lambda s, m: m.get("direct light maps", 0.0)))
     built = [m for _, m in rows if m["ism points"] is not None]  # the table is built once
     pool = (sum(m["ism points"] for m in built) / sum(m["triangles"] for m in built)
             if built else 0.0)
     return CostModel(renderer_name, float(paths), float(splat), float(texels), float(gather),
-                     float(blur), float(pixel), float(maps), float(pool))
+                     float(blur), float(pixel), float(maps), float(pool), float(frame))
 
 
 def cached_cost_model(cache: Path | None, renderer_name: str,
@@ -251,8 +293,9 @@ def default_cost_cache() -> Path:
 
 
 def calibration_scene() -> Scene:
-    """A closed 4 × 4 × 3 m room of 4800 triangles with a box in it, lit by a point light, seen
-    at 128² pixels: the scene the cost model is measured on."""
+    """A closed 4 × 4 × 3 m room of 4800 triangles with a box in it, lit by a point light (ray
+    traced) and an area light (its samples shadow mapped), seen at 128² pixels: the scene the
+    cost model is measured on."""
     faces = []
     n = 20
     g = np.linspace(0.0, 1.0, n + 1)
@@ -280,8 +323,9 @@ def calibration_scene() -> Scene:
     box = np.eye(4)
     box[:3, :3] *= 0.3
     box[:3, 3] = (0.5, 0.3, 1.0)
-    light = np.eye(4)
+    light, panel = np.eye(4), np.eye(4)
     light[:3, 3] = (-0.8, -0.5, 2.4)
+    panel[:3, 3] = (0.8, 0.5, 2.9)  # under the ceiling, facing down (-z)
     near, far = 0.05, 50.0
     projection = np.array([[1.2, 0, 0, 0], [0, 1.2, 0, 0],
                            [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
@@ -291,5 +335,6 @@ def calibration_scene() -> Scene:
     view[:3, :3] = [[1, 0, 0], [0, 0, 1], [0, -1, 0]]  # look along +y
     materials = [Material("walls", (0.7, 0.6, 0.5))]
     return Scene([Instance(room, np.eye(4), materials), Instance(room, box, materials)],
-                 [Light("calibration", LightKind.POINT, light, power=200.0)],
+                 [Light("calibration", LightKind.POINT, light, power=200.0),
+                  Light("calibration panel", LightKind.AREA, panel, power=100.0, size_x=0.5)],
                  camera=Camera(view, projection, 128, 128))

@@ -1,15 +1,18 @@
 """The automatic mode 'time' as a progressive render: passes until the time budget is spent.
 
-Pass 0 gets the parameters of least predicted error for BUDGET_SPLIT-th of the budget (never
-fewer than the cheapest useful frame's, see autotune.MIN_VIEW_VPLS). Its wall time tells what
-the work the automatic mode does not choose (g-buffer, direct light, compose) really costs
-here, which the cost model, measured on its small calibration scene, can be far off for (the
-interior at 640×360: 5.6 s predicted for a pass of 9.5 s, the calibration room having no world
-shadow maps and short compensation rays), and how far the chosen work's time
-is from the model's (the machine's load). The later passes get the choice made again with
-those measurements for the rest of the budget, and passes run while the next one
-fits (progressive.py's time limit). A budget below the cheapest useful frame still renders that
-frame, with one warning naming the time it took.
+Pass 0 gets the parameters of least predicted error for BUDGET_SPLIT-th of the budget, or for
+all of it when the cheapest useful frame (see autotune.MIN_VIEW_VPLS) does not fit that share
+(two passes would then both be that frame, and the second would not fit). Its wall time tells
+what the work the automatic mode does not choose (g-buffer, direct light, bias compensation,
+shadow maps, compose) really costs here, and how far the chosen work's time is from the
+model's: the cost model is measured on a small room, and its stages cost more per pixel on
+larger scenes (the interior at 640×360: 609 light paths predicted at 4.5 s took 5.8 s; its
+indirect gather and blur took twice the model's time). The later passes get the choice made
+again with those measurements for the rest of the budget, and passes run while the next one
+fits (progressive.py's time limit). Passes are averaged weighted by their light paths (the VPL
+noise's variance goes as 1 / paths), so a smaller later pass adds to the image instead of
+diluting it. A budget below the cheapest useful frame still renders that frame, with one
+warning naming the time it took.
 
 The chosen parameters depend on this machine's speed: frames of one job rendered on different
 machines differ. Render farms pin the parameters instead (auto_parameters = off)."""
@@ -28,16 +31,18 @@ from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
 
 BUDGET_SPLIT = 2
-"""Passes the budget is planned as: pass 0 gets this fraction of it (measured on the interior,
-docs/measurements.md: 1 pass / 2 / 4 at equal budgets)."""
+"""Passes the budget is planned as where the cheapest useful frame fits a share: pass 0 gets
+this fraction of it (measured on the Cornell box, docs/measurements.md: 1 pass / 2 / 4 at equal
+budgets)."""
 PLAN_HEADROOM = 0.9
 """Share of the rest of the budget the later passes are planned for: the rest is measured
 before the choice is made again, and a pass predicted to fill all of it would not start, since
 the choice's own time is past by then (progressive.py starts a pass only when it fits)."""
 MAX_BUDGET_PASSES = 1 << 16  # the passes setting's own limit
-LEAST_BUDGET = 0.01  # the time_budget setting's own limit
-CHOSEN_STAGES = ("vpl generation", "ism ", "indirect light", "blur")
-"""Stages (by name prefix) whose time the automatic mode's parameters set."""
+CHOSEN_STAGES = ("vpl generation", "indirect light", "blur")
+"""Stages (by name prefix) whose time the automatic mode's parameters set ("indirect light
+maps" holds the ISM stages' time: "ism upload", "ism splat" and "ism pull_push" are timed
+within it, and counting them too had the work not chosen measured at 0 s)."""
 ONCE_STAGES = ("automatic parameters", "cost model calibration", "ray tracing setup",
                "ism points")
 """Stages of pass 0 that later passes do not repeat (the BVH and the ISM area table are kept)."""
@@ -71,6 +76,7 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
     later: Settings | None = None
     expected: float | None = None  # seconds of the first later pass (predicted)
     walls: list[float] = []  # of the later passes
+    paths: list[int] = []  # light paths of each pass: its weight (noise variance ∝ 1 / paths)
     notes: list[str] = []
     warnings: list[str] = []
 
@@ -81,37 +87,48 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
             began = time.perf_counter()
             result = render_pass(scene, later, index, progress, cancelled)
             walls.append(time.perf_counter() - began)
+            paths.append(later.vpl_count)
             return result
-        first = replace(settings, time_budget=max(budget / BUDGET_SPLIT, LEAST_BUDGET))
         began = time.perf_counter()
-        frame, stats = render_pass(scene, first, index, progress, cancelled)
+        chooser.split = BUDGET_SPLIT
+        try:
+            frame, stats = render_pass(scene, settings, index, progress, cancelled)
+        finally:
+            chooser.split = 1
         wall = time.perf_counter() - began
         if chooser.last is None:  # no indirect light: every pass alike
             later = replace(settings, auto_parameters="off")
+            paths.append(later.vpl_count)  # every pass alike
             return frame, stats
         chosen = chooser.last[2]
+        paths.append(chosen.settings.vpl_count)
         fixed, variable = split_seconds(wall, stats)
         rest = max(budget - (time.perf_counter() - start), 0.0)
         again = chooser.rechoose(fixed, variable,
-                                 PLAN_HEADROOM * rest / max(1, BUDGET_SPLIT - 1))
+                                 PLAN_HEADROOM * rest / max(1, chooser.planned - 1))
         later = replace(again.settings if again is not None else chosen.settings,
                         auto_parameters="off", time_budget=budget)
         if again is not None:
             expected = again.seconds
             notes.append(f"automatic parameters of passes 2+: {again.describe()} (measured "
                          f"{fixed:.2f} s per pass of work not chosen)")
-        least = chooser.last[1].least_paths()
         repeated = wall - once_seconds(stats)
-        if repeated > budget and chosen.settings.vpl_count <= least:
+        if repeated > budget and not chosen.useful:
             warnings.append(f"time budget {budget:g} s is below the cheapest useful frame of "
-                            f"this scene ({least} light paths, ≈ {repeated:.1f} s here); rendered "
-                            f"that ({FARM_NOTE})")
+                            f"this scene ({chosen.settings.vpl_count} light paths, "
+                            f"≈ {repeated:.1f} s here); rendered that ({FARM_NOTE})")
+        elif repeated > budget:
+            warnings.append(f"time budget {budget:g} s overrun: the first pass took "
+                            f"{repeated:.1f} s, predicted {chosen.seconds:.1f} s (the cost "
+                            f"model, measured on a small room, can be off for this scene; the "
+                            f"passes after the first are sized from its measured time)")
         return frame, stats
 
     frame, stats = render_passes(
         one_pass, scene, replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget),
         progress, cancelled, on_pass, open_ended=True,
-        next_seconds=lambda: sum(walls) / len(walls) if walls else expected)
+        next_seconds=lambda: sum(walls) / len(walls) if walls else expected,
+        pass_weight=lambda index: paths[index])
     stats.timings.update(calibration.timings)
     stats.notes.extend(notes)
     stats.warnings.extend(warnings)

@@ -67,19 +67,24 @@ class PassReport:
 
 
 class Accumulator:
-    """Running sums of the passes' images, in float64, in two halves (even, odd passes)."""
+    """Weighted running sums of the passes' images, in float64, in two halves (even, odd
+    passes)."""
 
     def __init__(self) -> None:
         self.count = 0
         self._halves: list[dict[str, np.ndarray]] = [{}, {}]
+        self._weights = [0.0, 0.0]
         self._last: Frame | None = None
 
-    def add(self, frame: Frame) -> None:
+    def add(self, frame: Frame, weight: float = 1.0) -> None:
+        """Add a pass's images with ``weight`` (its share of the average: the inverse of its
+        variance, up to a constant)."""
         half = self._halves[self.count % 2]
         for name, image in frame.passes.items():
             if name not in UNFILTERED_PASSES:
-                image = image.astype(np.float64)
+                image = image.astype(np.float64) * weight
                 half[name] = half[name] + image if name in half else image
+        self._weights[self.count % 2] += weight
         self.count += 1
         self._last = frame
 
@@ -88,20 +93,24 @@ class Accumulator:
         for name in passes:
             if name not in UNFILTERED_PASSES:
                 total = sum(h[name] for h in self._halves if name in h)
-                passes[name] = (total / self.count).astype(np.float32)
+                passes[name] = (total / sum(self._weights)).astype(np.float32)
         return Frame(self._last.width, self._last.height, passes)
 
     def noise(self) -> float | None:
-        """RMS of (even average − odd average) / 2, relative to the mean of Combined's RGB:
-        about the noise of the average of all passes (None before two even halves)."""
+        """RMS of (even average − odd average) · √(W_even W_odd) / (W_even + W_odd), relative
+        to the mean of Combined's RGB: about the noise of the average of all passes, whose
+        weights are inverse variances (1/2 of the difference for equal halves; None before two
+        even halves)."""
         if self.count < 2 or self.count % 2:
             return None
-        half = self.count // 2
-        even, odd = (h["Combined"][..., :3] / half for h in self._halves)
-        mean = float(np.mean((even + odd) / 2))
+        even, odd = (h["Combined"][..., :3] / w for h, w in zip(self._halves, self._weights,
+                                                                strict=True))
+        w_even, w_odd = self._weights
+        mean = float(np.mean((w_even * even + w_odd * odd) / (w_even + w_odd)))
         if mean <= 0:
             return 0.0
-        return float(np.sqrt(np.mean((even - odd) ** 2))) / 2 / mean
+        share = np.sqrt(w_even * w_odd) / (w_even + w_odd)
+        return float(np.sqrt(np.mean((even - odd) ** 2)) * share) / mean
 
 
 def merge_stats(total: Stats, one: Stats) -> None:
@@ -124,13 +133,15 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
                   cancelled: CancelCallback | None = None,
                   on_pass: Callable[[PassReport], None] | None = None,
                   open_ended: bool = False,
-                  next_seconds: Callable[[], float | None] | None = None
+                  next_seconds: Callable[[], float | None] | None = None,
+                  pass_weight: Callable[[int], float] | None = None
                   ) -> tuple[Frame, Stats]:
     """Render ``settings.passes`` passes (fewer when the time limit or the noise threshold is
     reached first) and return their average; ``on_pass`` sees the average after each pass.
     ``open_ended``: the time limit, not the pass count, ends the render (progress is time);
-    ``next_seconds``: the expected time of the next pass (None or absent: the mean so far).
-    Cancelling raises RenderCancelled from inside the current pass."""
+    ``next_seconds``: the expected time of the next pass (None or absent: the mean so far);
+    ``pass_weight``: each pass's weight in the average, by its index, after it rendered
+    (absent: all alike). Cancelling raises RenderCancelled from inside the current pass."""
     report = progress or (lambda _f, _m: None)
     check = cancelled or (lambda: False)
     total, accumulator = Stats(), Accumulator()
@@ -147,7 +158,7 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
             report((index + fraction) / planned, prefix + message)
 
         frame, stats = render_pass(scene, settings, index, pass_progress, check)
-        accumulator.add(frame)
+        accumulator.add(frame, pass_weight(index) if pass_weight is not None else 1.0)
         merge_stats(total, stats)
         noise = accumulator.noise()
         if on_pass is not None:

@@ -12,6 +12,7 @@ from ..gpu.raytrace import RayTracer
 from ..gpu.rsm import render_rsm, rsm_hits, rsm_light_samples
 from ..gpu.scene_buffers import SceneBuffers
 from ..scene.geometry import WorldGeometry
+from ..settings import Settings
 from ..transport.guidance import (
     USEFUL_SHARE,
     camera_points,
@@ -42,6 +43,12 @@ that lights a camera point, against USEFUL_SHARE): a few ms, where deciding from
 round (FIRST_ROUND × vpl_count paths) cost 0.4 s on the Cornell box, which then skips it."""
 INCREMENTAL_FIELDS = ("vpl_count", "bounces", "seed", "termination")
 """Settings whose change makes Incremental Instant Radiosity start afresh."""
+
+
+def may_guide(settings: Settings) -> bool:
+    """Whether camera guidance may choose the frame's VPLs (when few light the view)."""
+    return settings.vpl_guidance == "camera" and settings.vpl_source == "paths" \
+        and not settings.incremental
 
 
 def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometry,
@@ -97,8 +104,7 @@ class MakeVPLs(Stage):
 
     def _vpls(self, frame: FrameState) -> VPLs:
         scene, settings, stats, kept = frame.scene, frame.settings, frame.stats, self.kept
-        guided = settings.vpl_guidance == "camera" and settings.vpl_source == "paths" \
-            and not settings.incremental
+        guided = may_guide(settings)
         key = (kept.versions.geometry, content_key(scene.lights, scene.world, scene.portals),
                *settings_key(settings, VPL_FIELDS),
                content_key(frame.camera) if guided else None)
