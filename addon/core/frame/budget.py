@@ -6,7 +6,7 @@ all of it when the cheapest useful frame (see autotune.MIN_VIEW_VPLS) does not f
 what the work the automatic mode does not choose (g-buffer, direct light, bias compensation,
 shadow maps, compose) really costs here, and how far the chosen work's time is from the
 model's: the cost model is measured on a small room, and its stages cost more per pixel on
-larger scenes (the interior at 640×360: 609 light paths predicted at 4.5 s took 5.8 s; its
+larger scenes (the interior at 640×360: 609 light paths predicted at 4.47 s took 5.7 s; its
 indirect gather and blur took twice the model's time). The later passes get the choice made
 again with those measurements for the rest of the budget, and passes run while the next one
 fits (progressive.py's time limit). Passes are averaged weighted by their light paths (the VPL
