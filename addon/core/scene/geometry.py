@@ -289,11 +289,9 @@ class _MaterialTable:
 
 
 def _apply(rows: np.ndarray, linear: np.ndarray) -> np.ndarray:
-    """(R, 3) rows through (k, 3, 3) linear maps in float32, as (k, R, 3): one matrix product
-    of the rows with all maps side by side (a stacked matmul pays per small matrix)."""
-    side_by_side = linear.astype(np.float32).transpose(2, 0, 1).reshape(3, -1)
-    product = np.asarray(rows, np.float32) @ side_by_side  # (R, k·3)
-    return product.reshape(len(rows), -1, 3).transpose(1, 0, 2)
+    """(R, 3) rows through (k, 3, 3) linear maps in float32, as a C-contiguous (k, R, 3)."""
+    return np.matmul(np.asarray(rows, np.float32)[None],
+                     linear.astype(np.float32).transpose(0, 2, 1))
 
 
 def _gather_rows(values: np.ndarray, index: np.ndarray | None, out: np.ndarray) -> None:
