@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, replace
 
+import numpy as np
 import pytest
 
 from addon.core.frame import autotune
@@ -86,6 +87,18 @@ def test_a_budget_below_the_cheapest_useful_frame_renders_that_and_says_so(rende
     assert f"({chosen} light paths" in warning and "auto_parameters off" in warning
     indirect = frame.passes["DiffInd"]
     assert float(indirect.mean()) > 0  # not a dark image
+
+
+def test_a_budget_without_indirect_light_renders_alike_passes(renderer, cached_cost):
+    """With no indirect light nothing is chosen: the passes use the settings as set, alike."""
+    renderer.forget_frames()
+    frame, stats = renderer.render_progressive(scene(), replace(BASE, bounces=0,
+                                                                time_budget=1.5))
+    assert stats.counts["passes"] >= 2, stats.notes
+    assert not [n for n in stats.notes if n.startswith("automatic parameters")]
+    assert not stats.warnings
+    combined = frame.passes["Combined"]
+    assert np.isfinite(combined).all() and float(combined[..., :3].mean()) > 0
 
 
 def test_a_first_pass_past_its_predicted_time_says_so(renderer, tmp_path):
