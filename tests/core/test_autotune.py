@@ -191,11 +191,12 @@ def test_a_budget_is_split_into_passes_only_where_the_cheapest_useful_frame_fits
                   for k, p, r in model.options())
     assert fastest <= cheapest.seconds
 
-    def planned(budget: float) -> int:
+    def planned(budget: float, split: int = 2) -> autotune.Choice:
         settings = replace(Settings(), auto_parameters="time", time_budget=budget)
-        return autotune.passes_sharing(settings, WORK, COST, model, 2)
+        return autotune.choose(settings, WORK, COST, model, split)
 
-    assert planned(2 * fastest) == 2
-    assert planned(1.9 * fastest) == 1
-    assert autotune.passes_sharing(replace(Settings(), auto_parameters="time"), WORK, COST,
-                                   model, 1) == 1
+    assert planned(2 * fastest).passes == 2
+    assert planned(2 * fastest).seconds <= fastest  # chosen for half the budget
+    assert planned(1.9 * fastest).passes == 1
+    assert planned(1.9 * fastest).seconds <= 1.9 * fastest  # for all of it
+    assert planned(2 * fastest, split=1).passes == 1

@@ -38,11 +38,8 @@ class ChooseParameters(Stage):
         self.last: tuple[Settings, autotune.Workload, autotune.Choice] | None = None
         """The last frame's settings, workload and choice (for :meth:`rechoose`)."""
         self.split = 1
-        """Passes the time mode would share the next frame's time_budget among (budget.py);
-        the choice is for one share of it, or for all of it when the cheapest useful frame
-        does not fit a share (see :attr:`planned`)."""
-        self.planned = 1
-        """Passes the last frame's time_budget was planned as."""
+        """Passes the time mode would share the next frame's time_budget among (budget.py;
+        the choice's ``passes`` says whether it did, see autotune.choose)."""
         self._cost: tuple[tuple, autotune.CostModel] | None = None
         self._error: tuple[tuple, autotune.ErrorModel] | None = None
 
@@ -106,11 +103,7 @@ class ChooseParameters(Stage):
                 **self._vpls_per_path(frame),
                 bounces=settings.bounces,
                 area_table=self._ism_area_table(frame.geometry.vertex_count // 3))
-        errors = self.error_model()
-        self.planned = autotune.passes_sharing(settings, work, cost, errors, self.split) \
-            if settings.auto_parameters == "time" else 1
-        share = replace(settings, time_budget=settings.time_budget / self.planned)
-        choice = autotune.choose(share, work, cost, errors)
+        choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
                            f"{choice.describe()}")

@@ -117,6 +117,7 @@ class Choice:
     seconds: float
     error: float
     useful: bool = True  # False: the goal needs less than the cheapest useful frame
+    passes: int = 1  # passes the time budget is planned as (the choice is for one share)
 
     def describe(self) -> str:
         s = self.settings
@@ -151,16 +152,23 @@ def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int,
             + (cost.blur * work.pixels * blur_radius if interleave > 1 else 0.0))
 
 
-def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel) -> Choice:
+def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel,
+           split: int = 1) -> Choice:
     """The parameters of least predicted error within ``settings.time_budget`` seconds
     (mode 'time'), or of least predicted time within ``settings.target_error`` (mode
     'error'). Never fewer light paths than the cheapest useful frame's; when nothing meets the
-    goal, the closest candidate, marked not ``useful`` when the budget is below that frame."""
+    goal, the closest candidate, marked not ``useful`` when the budget is below that frame.
+    ``split``: passes the time mode would share the budget among; the choice is for one
+    share when the cheapest useful frame fits it, else for all of it (the passes would all be
+    that frame, and the second would not fit), as ``Choice.passes`` says."""
     candidates = _candidates(settings, work, cost, errors)
+    budget, passes = settings.time_budget, 1
     if settings.auto_parameters == "time":
-        fitting = [c for c in candidates if c[0] <= settings.time_budget]
+        fastest = min(candidates)[0]
+        if split > 1 and fastest <= budget / split:
+            budget, passes = budget / split, split
+        fitting = [c for c in candidates if c[0] <= budget]
         if not fitting:  # the cheapest useful frame: its least error for little more time
-            fastest = min(candidates)[0]
             fitting = [c for c in candidates if c[0] <= OVERRUN * fastest]
         best = min(fitting, key=lambda c: (c[1], c[0]))
     else:
@@ -171,7 +179,7 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
                      ism_resolution=resolution, blur_radius=max(1, blur or settings.blur_radius),
                      visibility="ism")
     return Choice(chosen, seconds, error,
-                  useful=settings.auto_parameters != "time" or seconds <= settings.time_budget)
+                  useful=settings.auto_parameters != "time" or seconds <= budget, passes=passes)
 
 
 def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel
@@ -188,16 +196,6 @@ def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: Err
         candidates.append((seconds, error, paths, k, points, resolution, blur))
     return candidates
 
-
-def passes_sharing(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel,
-                   split: int) -> int:
-    """How many passes the time mode plans ``settings.time_budget`` as: ``split`` when the
-    cheapest useful frame fits a share of it, else 1 (the passes would all be that frame, and
-    the second would not fit)."""
-    if split <= 1:
-        return 1
-    fastest = min(_candidates(settings, work, cost, errors))[0]
-    return split if fastest <= settings.time_budget / split else 1
 
 
 # -- the error model ---------------------------------------------------------------------------

@@ -105,7 +105,7 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         fixed, variable = split_seconds(wall, stats)
         rest = max(budget - (time.perf_counter() - start), 0.0)
         again = chooser.rechoose(fixed, variable,
-                                 PLAN_HEADROOM * rest / max(1, chooser.planned - 1))
+                                 PLAN_HEADROOM * rest / max(1, chosen.passes - 1))
         later = replace(again.settings if again is not None else chosen.settings,
                         auto_parameters="off", time_budget=budget)
         if again is not None:
