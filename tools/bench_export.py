@@ -5,9 +5,12 @@ that its mesh takes the n-gon path — or 10k instances of a small mesh scattere
 nodes) it prints: our export time (cold, and again with a warm
 ExportCache), our upload time (core.geometry.flatten_instances plus
 core.scene_buffers.SceneBuffers: the vertex buffer and material tables the renderer uploads),
-Cycles' time to its first sample (a 1-sample 8×8 render minus the same render of an empty
-scene, median of --repeat), and peak RSS after building the scene and of our export + upload
-and of Cycles, each measured in its own process (so each peak is its own).
+our ray-tracing set-up (the BVH built and uploaded, as a frame that traces rays does it: a mesh
+shared by several instances once, under a tree of its instances), Cycles' time to its first
+sample (a 1-sample 8×8 render minus the same render of an empty scene: its sync and BVH,
+median of --repeat), both ratios (without and with our BVH), and peak RSS after building the
+scene and of our export + upload and of Cycles, each measured in its own process (so each peak
+is its own).
 
     .venv/bin/python tools/bench_export.py [--scenes 100k 1M 1Mngon 5M inst10k] [--repeat 5]
 """
@@ -96,7 +99,8 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
     """Export (cold and with a warm cache) and upload of one scene, in this process."""
     import bpy
 
-    from addon.core.gpu.gl import create_context
+    from addon.core.gpu.gl import ProgramCache, create_context
+    from addon.core.gpu.raytrace import RayTracer
     from addon.core.gpu.scene_buffers import SceneBuffers
     from addon.core.scene.geometry import flatten_instances
     from addon.export import ExportCache, export_scene
@@ -104,8 +108,10 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
     build_scene(bpy, name)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     row: dict[str, float] = {"rss_scene": peak_rss_mib()}
-    exports, cached, uploads = [], [], []
+    exports, cached, uploads, traced = [], [], [], []
     ctx = create_context()
+    programs = ProgramCache(ctx)
+    tracer = RayTracer(ctx, programs)
     for _ in range(repeat):
         start = time.perf_counter()
         exported = export_scene(depsgraph)
@@ -115,6 +121,10 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
         buffers = SceneBuffers(ctx, geometry)
         ctx.finish()
         uploads.append(time.perf_counter() - start)
+        start = time.perf_counter()
+        tracer.upload(*geometry.world_triangles(), geometry.instanced)
+        ctx.finish()
+        traced.append(time.perf_counter() - start)
         buffers.release()
         del exported, geometry
         cache = ExportCache()
@@ -122,10 +132,13 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
         start = time.perf_counter()
         export_scene(depsgraph, cache)
         cached.append(time.perf_counter() - start)
+    tracer.release()
+    programs.release()
     ctx.release()
     row.update(triangles=sum(i.mesh.triangle_count for i in export_scene(depsgraph).instances),
                export=statistics.median(exports), export_cached=statistics.median(cached),
-               upload=statistics.median(uploads), rss=peak_rss_mib())
+               upload=statistics.median(uploads), rays=statistics.median(traced),
+               rss=peak_rss_mib())
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return row
 
@@ -165,23 +178,25 @@ def main() -> None:
         print(json.dumps(measure(name, args.repeat)))
         return
     header = (f"{'scene':>8} {'triangles':>10} {'export':>8} {'cached':>8} {'upload':>8} "
-              f"{'ours':>8} {'Cycles':>8} {'ratio':>6} {'RSS scene':>10} {'RSS ours':>9} "
-              f"{'RSS Cycles':>10}")
+              f"{'ours':>8} {'BVH':>8} {'Cycles':>8} {'ratio':>6} {'+BVH':>6} "
+              f"{'RSS scene':>10} {'RSS ours':>9} {'RSS Cycles':>10}")
     print(header)
     print("-" * len(header))
     for name in args.scenes:
         row = run_part("ours", name, args.repeat)
         cycles = run_part("cycles", name, args.repeat)
-        ours = row["export"] + row["upload"]
+        ours, sync = row["export"] + row["upload"], cycles["cycles_sync"]
         print(f"{name:>8} {int(row['triangles']):>10,} {row['export']:>7.3f}s "
               f"{row['export_cached']:>7.3f}s {row['upload']:>7.3f}s {ours:>7.3f}s "
-              f"{cycles['cycles_sync']:>7.3f}s {ours / cycles['cycles_sync']:>6.2f} "
-              f"{row['rss_scene']:>7.0f}MiB {row['rss']:>6.0f}MiB "
-              f"{cycles['rss']:>7.0f}MiB", flush=True)
+              f"{row['rays']:>7.3f}s {sync:>7.3f}s {ours / sync:>6.2f} "
+              f"{(ours + row['rays']) / sync:>6.2f} {row['rss_scene']:>7.0f}MiB "
+              f"{row['rss']:>6.0f}MiB {cycles['rss']:>7.0f}MiB", flush=True)
     print("export/cached: export_scene cold / with a warm ExportCache; upload: "
-          "flatten_instances + SceneBuffers; ours = export + upload; Cycles: 1-sample 8×8 render "
-          "minus an empty scene's (its sync + BVH); ratio = ours / Cycles; RSS: peak after "
-          "building the scene, and peak of the process that ran ours / Cycles (separate processes)")
+          "flatten_instances + SceneBuffers; ours = export + upload; BVH: the ray tracer's "
+          "build + upload (RayTracer.upload); Cycles: 1-sample 8×8 render minus an empty "
+          "scene's (its sync + BVH); ratio = ours / Cycles; +BVH = (ours + BVH) / Cycles; RSS: "
+          "peak after building the scene, and peak of the process that ran ours / Cycles "
+          "(separate processes)")
 
 
 if __name__ == "__main__":
