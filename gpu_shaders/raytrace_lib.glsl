@@ -7,11 +7,7 @@
 
 #define RT_BINDING_NODES 10
 #define RT_BINDING_TRIANGLES 11
-#define RT_BINDING_INSTANCES 14
-#define RT_STACK_SIZE 64  // >= the depth through both levels (checked when they are built)
-#ifndef RT_INSTANCES
-#define RT_INSTANCES 0  // 1: node 0 is a top-level tree of instances (RayTracer sets it)
-#endif
+#define RT_STACK_SIZE 64  // >= the BVH depth (checked when it is built)
 
 // Relative growth of a box's exit distance, covering the rounding of the slab test (2 gamma(3)
 // of Ize 2013, "Robust BVH Ray Traversal") so boxes that just contain a hit are never missed.
@@ -21,7 +17,6 @@
 #define RT_MIN_DIR_FRACTION 1.0e-20
 
 // Interior node: a = left child, a + 1 = right child, b = -1. Leaf: triangles a .. a + b - 1.
-// Top-level leaf: instance a, b = -2. Node 0 is the top-level root.
 struct RtNode {
     vec3 lo;
     int a;
@@ -39,20 +34,7 @@ struct RtTriangle {
     float pad2;
 };
 
-// A mesh's tree (root) seen through one instance: rows take world points to the mesh's space;
-// its triangles' ids count from first_id.
-struct RtInstance {
-    vec4 rows[3];
-    int root;
-    int first_id;
-    int pad0;
-    int pad1;
-};
-
 layout(std430, binding = RT_BINDING_NODES) readonly buffer RtNodes { RtNode rt_nodes[]; };
-layout(std430, binding = RT_BINDING_INSTANCES) readonly buffer RtInstances {
-    RtInstance rt_instances[];
-};
 layout(std430, binding = RT_BINDING_TRIANGLES) readonly buffer RtTriangles {
     RtTriangle rt_triangles[];
 };
@@ -119,16 +101,21 @@ bool rt_hit_triangle(RtRay ray, RtTriangle tri, float t_min, float t_max, out fl
     return t > t_min && t < t_max;
 }
 
-// Nearest-child-first stack traversal of one mesh's tree from `root`, the ray in the mesh's
-// space: a hit closer than t sets t, uv and triangle (first_id + the triangle's id). With
-// any_hit it returns at the first hit in range. Returns whether it hit.
-bool rt_trace_mesh(RtRay ray, int root, int first_id, float t_min, bool any_hit, inout float t,
-                   inout int triangle, inout vec2 uv) {
+// Nearest-child-first stack traversal. With any_hit it returns at the first hit in range.
+bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, bool any_hit, out float t,
+              out int triangle, out vec2 uv) {
+    t = t_max;
+    triangle = -1;
+    uv = vec2(0.0);
+    if (!(t_min < t_max) || dir == vec3(0.0)) return false;
+    RtRay ray = rt_make_ray(origin, dir);
+    float t_root;
+    if (!rt_hit_box(ray, rt_nodes[0].lo, rt_nodes[0].hi, t_min, t, t_root)) return false;
+
     int stack[RT_STACK_SIZE];
     float stack_near[RT_STACK_SIZE];
     int size = 0;
-    int node = root;
-    bool found = false;
+    int node = 0;
     while (true) {
         RtNode n = rt_nodes[node];
         if (n.b < 0) {
@@ -155,77 +142,18 @@ bool rt_trace_mesh(RtRay ray, int root, int first_id, float t_min, bool any_hit,
                 if (rt_hit_triangle(ray, rt_triangles[i], t_min, t, t_hit, uv_hit)) {
                     t = t_hit;
                     uv = uv_hit;
-                    triangle = first_id + rt_triangles[i].id;
-                    found = true;
+                    triangle = rt_triangles[i].id;
                     if (any_hit) return true;
                 }
             }
         }
         // Pop the nearest pending node that may still hold a closer hit.
         do {
-            if (size == 0) return found;
-            --size;
-        } while (stack_near[size] > rt_grow(t));
-        node = stack[size];
-    }
-}
-
-// The top level's traversal: at each instance leaf, its mesh with the ray in the mesh's space
-// (an affine map keeps t).
-bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, bool any_hit, out float t,
-              out int triangle, out vec2 uv) {
-    t = t_max;
-    triangle = -1;
-    uv = vec2(0.0);
-    if (!(t_min < t_max) || dir == vec3(0.0)) return false;
-    RtRay ray = rt_make_ray(origin, dir);
-    float t_root;
-    if (!rt_hit_box(ray, rt_nodes[0].lo, rt_nodes[0].hi, t_min, t, t_root)) return false;
-
-#if !RT_INSTANCES
-    return rt_trace_mesh(ray, 0, 0, t_min, any_hit, t, triangle, uv);
-#else
-    int stack[RT_STACK_SIZE];
-    float stack_near[RT_STACK_SIZE];
-    int size = 0;
-    int node = 0;
-    vec4 o = vec4(origin, 1.0);
-    vec4 d = vec4(dir, 0.0);
-    while (true) {
-        RtNode n = rt_nodes[node];
-        if (n.b == -1) {  // as in rt_trace_mesh (a shared function measured slower)
-            float t_left, t_right;
-            bool left = rt_hit_box(ray, rt_nodes[n.a].lo, rt_nodes[n.a].hi, t_min, t, t_left);
-            bool right = rt_hit_box(ray, rt_nodes[n.a + 1].lo, rt_nodes[n.a + 1].hi, t_min, t,
-                                    t_right);
-            if (left || right) {
-                bool left_first = left && (!right || t_left <= t_right);
-                if (left && right) {
-                    stack[size] = left_first ? n.a + 1 : n.a;
-                    stack_near[size] = left_first ? t_right : t_left;
-                    ++size;
-                }
-                node = left_first ? n.a : n.a + 1;
-                continue;
-            }
-        } else {  // an instance
-            RtInstance inst = rt_instances[n.a];
-            RtRay local = rt_make_ray(vec3(dot(inst.rows[0], o), dot(inst.rows[1], o),
-                                           dot(inst.rows[2], o)),
-                                      vec3(dot(inst.rows[0], d), dot(inst.rows[1], d),
-                                           dot(inst.rows[2], d)));
-            if (rt_trace_mesh(local, inst.root, inst.first_id, t_min, any_hit, t, triangle, uv)
-                && any_hit) {
-                return true;
-            }
-        }
-        do {
             if (size == 0) return triangle >= 0;
             --size;
         } while (stack_near[size] > rt_grow(t));
         node = stack[size];
     }
-#endif
 }
 
 // Closest hit with t_min < t < t_max: its t, ORIGINAL triangle index and barycentric (u, v) =

@@ -5,8 +5,8 @@ that its mesh takes the n-gon path — or 10k instances of a small mesh scattere
 nodes) it prints: our export time (cold, and again with a warm
 ExportCache), our upload time (core.geometry.flatten_instances plus
 core.scene_buffers.SceneBuffers: the vertex buffer and material tables the renderer uploads),
-our ray-tracing set-up (the BVH built and uploaded, as a frame that traces rays does it: a mesh
-shared by several instances once, under a tree of its instances), Cycles' time to its first
+our ray-tracing set-up (the BVH over the flattened triangles built and uploaded, as a frame
+that traces rays does it), Cycles' time to its first
 sample (a 1-sample 8×8 render minus the same render of an empty scene: its sync and BVH,
 median of --repeat), both ratios (without and with our BVH), and peak RSS after building the
 scene and of our export + upload and of Cycles, each measured in its own process (so each peak
@@ -123,7 +123,7 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
         uploads.append(time.perf_counter() - start)
         start = time.perf_counter()
         try:
-            tracer.upload(*geometry.world_triangles(), geometry.instanced)
+            tracer.upload(geometry.positions.reshape(-1, 3, 3))
             ctx.finish()
             traced.append(time.perf_counter() - start)
         except ValueError:  # over the storage-buffer limit: the renderer refuses to trace it

@@ -17,7 +17,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from addon.core.gpu.gl import ProgramCache, shared_context
-from addon.core.gpu.raytrace import RayTracer, build_scene_bvh
+from addon.core.gpu.raytrace import RayTracer, build_bvh
 
 
 def soup(count: int, rng: np.random.Generator) -> np.ndarray:
@@ -53,10 +53,10 @@ def rays_per_second(query, count: int) -> float:
 def bench(name: str, triangles: np.ndarray, tracer: RayTracer, rays: int,
           rng: np.random.Generator) -> None:
     start = time.perf_counter()
-    bvh = build_scene_bvh(triangles)
+    bvh = build_bvh(triangles)
     build = time.perf_counter() - start
     start = time.perf_counter()
-    tracer.upload_scene(bvh)
+    tracer.upload_bvh(bvh)
     upload = time.perf_counter() - start
     origins = rng.uniform(-0.9, 0.9, (rays, 3))
     directions = rng.normal(size=(rays, 3))
@@ -64,7 +64,7 @@ def bench(name: str, triangles: np.ndarray, tracer: RayTracer, rays: int,
     any_hit = rays_per_second(lambda n: tracer.occluded(origins[:n], directions[:n], 0.5), rays)
     hits = (tracer.intersect(origins[:4096], directions[:4096]).triangle >= 0).mean()
     print(f"{name:>12} {len(triangles):>9} tris  build {build:6.2f} s  upload "
-          f"{upload:5.2f} s  nodes {len(bvh.nodes):>8}  depth {bvh.depth:>2}  "
+          f"{upload:5.2f} s  nodes {len(bvh.node_data):>8}  depth {bvh.depth:>2}  "
           f"closest {closest / 1e6:6.3f} Mrays/s  any-hit(t<0.5) {any_hit / 1e6:6.3f} Mrays/s"
           f"  hit rate {hits:.2f}")
 

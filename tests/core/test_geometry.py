@@ -92,36 +92,3 @@ def test_a_non_finite_point_drops_only_the_triangles_using_it(used):
         kept = flatten_instances(Scene([Instance(_soup(mesh), np.eye(4), _materials()[0])]), [])
         np.testing.assert_array_equal(geometry.positions, kept.positions)
         np.testing.assert_array_equal(geometry.albedo, kept.albedo)
-
-
-def _instanced_scene(rng: np.random.Generator, flat: np.ndarray) -> Scene:
-    """A mesh whose triangle uses a NaN point, in two instances (each drops a triangle, before
-    the others' triangles), a mesh with one instance, and a shared mesh with three (the middle
-    one of ``flat``'s matrix)."""
-    single, shared, broken = (_indexed_mesh(rng) for _ in range(3))
-    broken.positions[int(broken.position_index[0])] = np.nan
-    full = _materials()[0]
-    turned, mirrored = _transforms()[1:]
-    return Scene([Instance(broken, np.eye(4), full), Instance(single, turned, full),
-                  Instance(shared, np.eye(4), full), Instance(shared, flat, full),
-                  Instance(broken, turned, full), Instance(shared, mirrored, full)])
-
-
-@pytest.mark.parametrize("flat_scale", [1.0, 1e-6])
-def test_meshes_shared_by_well_conditioned_instances_are_traced_as_instances(flat_scale):
-    flat = np.diag([2.0, 1.0, flat_scale, 1.0])
-    flat[:3, 3] = (0.0, 5.0, 0.0)
-    geometry = flatten_instances(_instanced_scene(np.random.default_rng(4), flat), [])
-    triangles = geometry.positions.reshape(-1, 3, 3)
-    # the broken mesh drops a triangle per instance; only the shared one may be instanced
-    assert len(geometry.instanced) == (1 if flat_scale == 1.0 else 0)
-    covered = np.zeros(len(triangles), bool)
-    for mesh in geometry.instanced:
-        count = len(mesh.triangles)
-        for matrix, first in zip(mesh.matrices, mesh.first_ids, strict=True):
-            world = mesh.triangles @ matrix[:3, :3].T + matrix[:3, 3]
-            np.testing.assert_allclose(world, triangles[first:first + count], atol=1e-5)
-            covered[first:first + count] = True
-    world, ids = geometry.world_triangles()
-    np.testing.assert_array_equal(ids, np.flatnonzero(~covered))
-    np.testing.assert_array_equal(world, triangles[ids])

@@ -14,7 +14,6 @@ from addon.core.gpu.gl import (
     require_compute,
 )
 from addon.core.gpu.raytrace import BVH, RayTracer, build_bvh
-from addon.core.scene.geometry import InstancedMesh
 
 
 @pytest.fixture(scope="session")
@@ -349,44 +348,3 @@ def test_compute_needs_opengl_4_3():
     ("raytrace_comp.glsl", "local_size_x =", raytrace.LOCAL_SIZE)])
 def test_glsl_constants_match_python(file, name, value):
     assert f"{name} {value}" in (SHADER_DIR / file).read_text(encoding="utf-8")
-
-
-@pytest.mark.parametrize("with_world", [True, False])
-def test_instanced_meshes_give_the_hits_of_their_flattened_triangles(tracer, with_world):
-    """A mesh shared by 30 turned, scaled and mirrored instances, traced in its own space
-    (beside a soup in world space, or alone): the same triangles, distances and barycentrics
-    as the flattened list."""
-    rng = np.random.default_rng(7)
-    mesh = soup(60, rng, size=0.1) * np.float32(0.5)
-    matrices = np.tile(np.eye(4), (30, 1, 1))
-    for matrix in matrices:
-        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-        matrix[:3, :3] = q * rng.uniform(0.5, 2.0) * rng.choice([-1.0, 1.0], 3)
-        matrix[:3, 3] = rng.uniform(-1, 1, 3)
-    world = soup(200, rng) if with_world else np.zeros((0, 3, 3), np.float32)
-    flat = np.concatenate([world, *(mesh @ m[:3, :3].T + m[:3, 3] for m in matrices)]
-                          ).astype(np.float32)
-    origins, directions = random_rays(4000, rng)
-    tracer.upload(flat)
-    expected = tracer.intersect(origins, directions)
-    blocked = tracer.occluded(origins, directions, 1.0)
-    tracer.upload(world, None, [InstancedMesh(mesh, matrices,
-                                              len(world) + len(mesh) * np.arange(30))])
-    hits = tracer.intersect(origins, directions)
-    assert (hits.triangle >= len(world)).mean() > 0.1  # rays that hit instances
-    np.testing.assert_array_equal(hits.triangle, expected.triangle)
-    np.testing.assert_allclose(hits.distance, expected.distance, rtol=1e-4, atol=1e-5)
-    np.testing.assert_allclose(hits.barycentric, expected.barycentric, atol=1e-4)
-    np.testing.assert_array_equal(tracer.occluded(origins, directions, 1.0), blocked)
-
-
-def test_world_triangles_report_the_ids_given(tracer):
-    rng = np.random.default_rng(8)
-    tris = soup(100, rng)
-    ids = rng.permutation(1000)[:100].astype(np.int32)
-    origins, directions = random_rays(1000, rng)
-    tracer.upload(tris)
-    expected = tracer.intersect(origins, directions).triangle
-    tracer.upload(tris, ids)
-    got = tracer.intersect(origins, directions).triangle
-    np.testing.assert_array_equal(got, np.where(expected >= 0, ids[expected], -1))

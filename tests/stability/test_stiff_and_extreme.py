@@ -22,12 +22,7 @@ import pytest
 from hypothesis import strategies as st
 
 from addon.core.frame.renderer import RenderError
-from addon.core.frame.scene_size import (
-    POSITION_BYTES_PER_TRIANGLE,
-    SceneLimits,
-    check_scene_size,
-    physical_memory,
-)
+from addon.core.frame.scene_size import SceneLimits, check_scene_size, physical_memory
 from addon.core.scene.model import (
     AreaShape,
     Camera,
@@ -194,17 +189,15 @@ def scatter_scene(mesh: Mesh, instances: int) -> Scene:
 
 @pytest.mark.parametrize("limit", ["storage buffer", "memory"])
 def test_too_many_instanced_triangles_are_refused_before_flattening(renderer, record, limit):
-    """A scatter whose triangles after instancing exceed a storage buffer as the position
-    stream that ray hits are looked up in (3.7M triangles on llvmpipe) or, with no ray
-    tracing, this machine's memory (300 B a triangle) is refused with the limit named before
-    any triangle is flattened: in well under a second,
+    """A scatter whose triangles after instancing exceed the ray tracer's storage buffer
+    (2.8M on llvmpipe) or, with no ray tracing, this machine's memory (300 B a triangle) is
+    refused with the limit named before any triangle is flattened: in well under a second,
     where a million instances took 91 s and 20 GiB before (tools/bench_size_limits.py
     inst-1M)."""
     if limit == "storage buffer":
         ball = icosphere(0.05, 1)  # 80 triangles
         storage = int(renderer.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
-        per_instance = POSITION_BYTES_PER_TRIANGLE * ball.triangle_count
-        scene = scatter_scene(ball, storage // per_instance + 1000)
+        scene = scatter_scene(ball, storage // 48 // ball.triangle_count + 1000)
         settings = Settings(antialiasing=1, bounces=1, vpl_count=16)
     else:
         memory = physical_memory()

@@ -1,11 +1,9 @@
-"""Up-front limits on a scene's size. Instances are flattened into one triangle list for
-rasterising, so the triangle count after instancing must fit the machine's memory, the GPU's
-table of the triangles' materials (a texture) and, when the frame traces rays, the GPU's
-largest storage buffer twice: the ray tracer's triangles (a mesh shared by several instances
-once) and the position stream that hits are looked up in. They are checked from the
-instances' triangle counts before any triangle is flattened: a million-instance scatter is
-refused in a second, not after minutes and tens of GiB (tools/bench_size_limits.py, cases
-inst-*)."""
+"""Up-front limits on a scene's size. Instances are flattened into one triangle list, so the
+triangle count after instancing must fit the machine's memory, the GPU's table of the
+triangles' materials (a texture) and, when the frame traces rays, the GPU's largest storage
+buffer. They are checked from the instances' triangle counts before any triangle is
+flattened: a million-instance scatter is refused in a second, not after minutes and tens of
+GiB (tools/bench_size_limits.py, cases inst-*)."""
 
 from __future__ import annotations
 
@@ -34,20 +32,9 @@ class SceneLimits:
     memory_bytes: int | None  # the machine's physical memory (None: unknown, not checked)
 
 
-POSITION_BYTES_PER_TRIANGLE = 36
-"""The flattened position stream (3 float32 vertices a triangle), which surface_lib.glsl reads
-as a storage buffer where rays hit."""
-
-
 def flattened_triangles(scene: Scene) -> int:
     """Triangles after instancing: every instance's mesh counted once per instance."""
     return sum(inst.mesh.triangle_count for inst in scene.instances)
-
-
-def traced_triangles(scene: Scene) -> int:
-    """Triangles the ray tracer stores: a mesh with several instances once (it is traced
-    through their matrices), one with a single instance once too."""
-    return sum({id(inst.mesh): inst.mesh.triangle_count for inst in scene.instances}.values())
 
 
 def may_trace_rays(settings: Settings) -> bool:
@@ -84,13 +71,10 @@ def check_scene_size(scene: Scene, settings: Settings, limits: SceneLimits) -> N
         raise RenderError(f"{what}: their material table exceeds this GPU's texture size "
                           f"({limits.texture_size:,} texels a side), enough for {most:,} "
                           f"triangles; {advice}")
-    traced = traced_triangles(scene)
-    nbytes = max(traced * TRIANGLE_DTYPE.itemsize, triangles * POSITION_BYTES_PER_TRIANGLE)
+    nbytes = triangles * TRIANGLE_DTYPE.itemsize
     if limits.storage_bytes and may_trace_rays(settings) and nbytes > limits.storage_bytes:
-        most = limits.storage_bytes // POSITION_BYTES_PER_TRIANGLE
-        unique = limits.storage_bytes // TRIANGLE_DTYPE.itemsize
+        most = limits.storage_bytes // TRIANGLE_DTYPE.itemsize
         raise RenderError(f"{what}: ray tracing them needs {nbytes >> 20} MiB of storage "
                           f"buffer and this GPU allows {limits.storage_bytes >> 20} MiB, "
-                          f"enough for {most:,} triangles ({unique:,} of distinct meshes); "
-                          f"{advice}, or render with bounces 0 and direct shadows from "
-                          f"shadow maps")
+                          f"enough for {most:,} triangles; {advice}, or render with bounces "
+                          f"0 and direct shadows from shadow maps")

@@ -62,8 +62,7 @@ def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometr
         return tracer
     with stats.timed("ray tracing setup"):
         try:
-            triangles, ids = geometry.world_triangles()
-            tracer.upload(triangles, ids, geometry.instanced)
+            tracer.upload(geometry.positions.reshape(-1, 3, 3))
         except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
             raise RenderError(f"ray tracing: {exc}") from None
     kept.keep("bvh", key)

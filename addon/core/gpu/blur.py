@@ -21,7 +21,7 @@ class GeometryAwareBlur:
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache) -> None:
         self.ctx = ctx
         self.programs = programs
-        self._vao: dict[tuple[int, int], moderngl.VertexArray] = {}  # by (sources, program)
+        self._vao: dict[int, moderngl.VertexArray] = {}
 
     def apply(self, sources: Sequence[moderngl.Texture], position: moderngl.Texture,
               normal: moderngl.Texture, radius: int, normal_power: float = 32.0,
@@ -40,18 +40,17 @@ class GeometryAwareBlur:
         count = len(sources)
         program = self.programs.get("fullscreen_vert.glsl", "blur_frag.glsl",
                                     {"SOURCES": count})
-        key = (count, program.glo)  # a program compiled anew (other defines) needs its own
-        if key not in self._vao:
-            self._vao[key] = self.ctx.vertex_array(program, [])
+        if count not in self._vao:
+            self._vao[count] = self.ctx.vertex_array(program, [])
         position.use(0)
         normal.use(1)
         set_uniforms(program, u_position=0, u_normal=1, u_radius=radius,
                      u_normal_power=normal_power, u_plane_tolerance=plane_tolerance)
         program["u_source"].value = [2 + i for i in range(count)] if count > 1 else 2
         self.ctx.disable(moderngl.BLEND)
-        across = self._pass(self._vao[key], program, sources, AXES[0])
+        across = self._pass(self._vao[count], program, sources, AXES[0])
         try:
-            return self._pass(self._vao[key], program, across, AXES[1])
+            return self._pass(self._vao[count], program, across, AXES[1])
         finally:
             for texture in across:
                 texture.release()

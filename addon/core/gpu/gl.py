@@ -151,16 +151,12 @@ class ProgramCache:
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self._programs: dict[tuple, moderngl.Program | moderngl.ComputeShader] = {}
-        self.defines: dict[str, object] = {}
-        """Defines every program is compiled with: RayTracer sets RT_INSTANCES to its scene's
-        layout, so a scene without instanced meshes runs the one-level traversal."""
 
     def get(self, vertex: str, fragment: str, defines: dict[str, object] | None = None,
             version: int = 410) -> moderngl.Program:
         """The program of two ``gpu_shaders/`` files; ``version=430`` for shaders that include
         raytrace_lib.glsl (storage buffers)."""
-        defines = {**self.defines, **(defines or {})}
-        key = (vertex, fragment, tuple(sorted(defines.items())), version)
+        key = (vertex, fragment, tuple(sorted((defines or {}).items())), version)
         if key not in self._programs:
             self._programs[key] = self.ctx.program(
                 vertex_shader=load_source(vertex, defines, version),
@@ -170,8 +166,7 @@ class ProgramCache:
     def compute(self, name: str, defines: dict[str, object] | None = None
                 ) -> moderngl.ComputeShader:
         """The compute shader ``gpu_shaders/<name>``, compiled as GLSL 4.30."""
-        defines = {**self.defines, **(defines or {})}
-        key = ("compute", name, tuple(sorted(defines.items())))
+        key = ("compute", name, tuple(sorted((defines or {}).items())))
         if key not in self._programs:
             self._programs[key] = self.ctx.compute_shader(load_source(name, defines, 430))
         return self._programs[key]

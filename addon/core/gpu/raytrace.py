@@ -12,20 +12,17 @@ the distance along the normalised ray direction. The triangle test is watertight
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import moderngl
 import numpy as np
 
-from ..scene.geometry import InstancedMesh
 from .gl import ProgramCache, require_compute
 
 BINDING_NODES = 10  # RT_BINDING_NODES in raytrace_lib.glsl
 BINDING_TRIANGLES = 11  # RT_BINDING_TRIANGLES in raytrace_lib.glsl
 BINDING_RAYS = 12  # RT_BINDING_RAYS in raytrace_comp.glsl
 BINDING_RESULTS = 13  # RT_BINDING_RESULTS in raytrace_comp.glsl
-BINDING_INSTANCES = 14  # RT_BINDING_INSTANCES in raytrace_lib.glsl
 STACK_SIZE = 64  # RT_STACK_SIZE in raytrace_lib.glsl: the deepest tree the GPU can traverse
 LOCAL_SIZE = 64  # local_size_x of raytrace_comp.glsl
 MAX_BATCH = 1 << 20  # rays per dispatch
@@ -36,8 +33,6 @@ TRIANGLE_DTYPE = np.dtype([("v0", "<f4", 3), ("id", "<i4"), ("v1", "<f4", 3), ("
                            ("v2", "<f4", 3), ("pad2", "<f4")])
 RAY_DTYPE = np.dtype([("origin", "<f4", 3), ("t_min", "<f4"), ("dir", "<f4", 3),
                       ("t_max", "<f4")])
-INSTANCE_DTYPE = np.dtype([("rows", "<f4", (3, 4)), ("root", "<i4"), ("first_id", "<i4"),
-                           ("pad", "<i4", 2)])  # rows: world to the mesh's space
 RESULT_DTYPE = np.dtype([("t", "<f4"), ("triangle", "<i4"), ("uv", "<f4", 2)])
 
 
@@ -153,14 +148,29 @@ def _left_counts(key: np.ndarray, items: np.ndarray, counts: np.ndarray, depth: 
     return left
 
 
-def _build_tree(lo: np.ndarray, hi: np.ndarray, leaf_size: int, max_depth: int
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """Binned-SAH tree over boxes ``lo``, ``hi`` (3, N) float32, split by their centres: node
-    bounds (M, 3) low and high, node data (M, 2), the leaf order of the N items and the
-    depth (see build_bvh)."""
-    count = lo.shape[1]
+def build_bvh(triangles: np.ndarray, leaf_size: int = 4, max_depth: int = STACK_SIZE) -> BVH:
+    """Build a BVH over ``triangles`` (T, 3, 3) with leaves of at most ``leaf_size`` triangles.
+
+    Each tree level is one vectorised pass over all nodes still being split: their triangles
+    are binned by centroid along the longest axis of the node's centroid bounds and split at the
+    cheapest SAH plane of ``SAH_BINS`` bins. Small nodes, nodes whose centroids coincide, and
+    nodes so deep that SAH splits could push the tree past ``max_depth`` are split at the median
+    of the binned order instead, so the depth never exceeds ``max_depth``."""
+    tris = np.ascontiguousarray(triangles, dtype=np.float32).reshape(-1, 3, 3)
+    if leaf_size < 1:
+        raise ValueError(f"leaf_size must be at least 1, got {leaf_size}")
+    if not np.isfinite(tris).all():
+        raise ValueError("triangles must have finite coordinates")
+    count = len(tris)
+    if count == 0:
+        return BVH(np.zeros((1, 3), np.float32), np.zeros((1, 3), np.float32),
+                   np.zeros((1, 2), np.int32), tris, np.zeros(0, np.int32), 0)
     if int(_levels_needed(np.array([count]), leaf_size)[0]) > max_depth:
-        raise ValueError(f"{count} items need a tree deeper than {max_depth}")
+        raise ValueError(f"{count} triangles need a tree deeper than {max_depth}")
+
+    corners = tris.transpose(1, 2, 0)  # (vertex, xyz, triangle)
+    lo = np.minimum(np.minimum(corners[0], corners[1]), corners[2])
+    hi = np.maximum(np.maximum(corners[0], corners[1]), corners[2])
     centre = lo * 0.5 + hi * 0.5
     items = np.concatenate([lo, -hi, centre, -centre])
     tri = np.arange(count)
@@ -202,123 +212,8 @@ def _build_tree(lo: np.ndarray, hi: np.ndarray, leaf_size: int, max_depth: int
         depth += 1
 
     assert depth <= max_depth, (depth, max_depth)
-    return (node_box[:3, :next_id].T.copy(), -node_box[3:, :next_id].T, node_data[:next_id],
-            order, depth)
-
-
-def build_bvh(triangles: np.ndarray, leaf_size: int = 4, max_depth: int = STACK_SIZE) -> BVH:
-    """Build a BVH over ``triangles`` (T, 3, 3) with leaves of at most ``leaf_size`` triangles.
-
-    Each tree level is one vectorised pass over all nodes still being split: their triangles
-    are binned by centroid along the longest axis of the node's centroid bounds and split at the
-    cheapest SAH plane of ``SAH_BINS`` bins. Small nodes, nodes whose centroids coincide, and
-    nodes so deep that SAH splits could push the tree past ``max_depth`` are split at the median
-    of the binned order instead, so the depth never exceeds ``max_depth``."""
-    tris = np.ascontiguousarray(triangles, dtype=np.float32).reshape(-1, 3, 3)
-    if leaf_size < 1:
-        raise ValueError(f"leaf_size must be at least 1, got {leaf_size}")
-    if not np.isfinite(tris).all():
-        raise ValueError("triangles must have finite coordinates")
-    count = len(tris)
-    if count == 0:
-        return BVH(np.zeros((1, 3), np.float32), np.zeros((1, 3), np.float32),
-                   np.zeros((1, 2), np.int32), tris, np.zeros(0, np.int32), 0)
-    corners = tris.transpose(1, 2, 0)  # (vertex, xyz, triangle)
-    lo = np.minimum(np.minimum(corners[0], corners[1]), corners[2])
-    hi = np.maximum(np.maximum(corners[0], corners[1]), corners[2])
-    node_min, node_max, node_data, order, depth = _build_tree(lo, hi, leaf_size, max_depth)
-    return BVH(node_min, node_max, node_data, np.take(tris, order, axis=0),
-               order.astype(np.int32), depth)
-
-
-# -- Two levels: meshes shared by several instances ------------------------------------------
-
-@dataclass
-class SceneBVH:
-    """Packed GPU arrays of a scene. ``instanced``: a top-level tree whose leaves (``b == -2``)
-    are instances ``a``, above one bottom-level tree per mesh (child and triangle indices made
-    absolute), triangle ids relative to their instance's first_id; else one tree and an unused
-    instance. Node 0 is the root. ``depth``: the deepest path through both levels."""
-
-    nodes: np.ndarray  # NODE_DTYPE
-    triangles: np.ndarray  # TRIANGLE_DTYPE
-    instances: np.ndarray  # INSTANCE_DTYPE
-    depth: int
-    instanced: bool
-
-
-def _world_boxes(node_min: np.ndarray, node_max: np.ndarray, matrices: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Boxes (3, k) around a local box's 8 corners through each of ``matrices`` (k, 4, 4)."""
-    corners = np.array([[(node_max if (i >> a) & 1 else node_min)[a] for a in range(3)]
-                        for i in range(8)], np.float64)  # (8, 3)
-    world = np.einsum("kij,cj->kci", matrices[:, :3, :3], corners) + matrices[:, None, :3, 3]
-    return world.min(axis=1).T.astype(np.float32), world.max(axis=1).T.astype(np.float32)
-
-
-def build_scene_bvh(triangles: np.ndarray, triangle_ids: np.ndarray | None = None,
-                    meshes: Sequence[InstancedMesh] = (), leaf_size: int = 4) -> SceneBVH:
-    """The BVH of ``triangles`` (T, 3, 3) in world space, whose hits report ``triangle_ids``
-    (default 0..T-1), and of ``meshes`` traced in their own space through each instance's
-    matrix (one bottom-level tree per mesh, however many instances, under a top-level tree of
-    instances; without meshes, the world tree alone). Raises ValueError for non-finite input
-    or a tree deeper than the GPU traverses."""
-    parts = []
-    if len(triangles) or not meshes:
-        world = build_bvh(triangles, leaf_size)
-        if triangle_ids is not None:
-            world.triangle_ids = np.asarray(triangle_ids, np.int32)[world.triangle_ids]
-        if not meshes:
-            return SceneBVH(_packed_nodes(world.node_min, world.node_max, world.node_data),
-                            _packed_triangles(world), np.zeros(1, INSTANCE_DTYPE),
-                            world.depth, False)
-        parts.append((world, np.eye(4)[None], np.zeros(1, np.int64)))
-    parts += [(build_bvh(mesh.triangles, leaf_size), mesh.matrices, mesh.first_ids)
-              for mesh in meshes]
-    bottom_depth = max((bvh.depth for bvh, _, _ in parts), default=0)
-    boxes = [_world_boxes(bvh.node_min[0], bvh.node_max[0], matrices)
-             for bvh, matrices, _ in parts]
-    lo = np.concatenate([box[0] for box in boxes], axis=1)
-    hi = np.concatenate([box[1] for box in boxes], axis=1)
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-        raise ValueError("instances must have finite bounds")
-    top_min, top_max, top_data, order, top_depth = _build_tree(
-        lo, hi, 1, STACK_SIZE - bottom_depth - 1)
-    leaves = top_data[:, 1] >= 0
-    top_data[leaves, 0] = order[top_data[leaves, 0]]
-    top_data[leaves, 1] = -2
-    nodes, tris, roots = [_packed_nodes(top_min, top_max, top_data)], [], []
-    node_offset, triangle_offset = len(top_data), 0
-    for bvh, matrices, _ in parts:
-        data = bvh.node_data.astype(np.int64)
-        data[:, 0] += np.where(data[:, 1] >= 0, triangle_offset, node_offset)
-        nodes.append(_packed_nodes(bvh.node_min, bvh.node_max, data))
-        tris.append(_packed_triangles(bvh))
-        roots.append(np.full(len(matrices), node_offset))
-        node_offset += len(data)
-        triangle_offset += len(bvh.triangles)
-    instances = np.zeros(sum(len(r) for r in roots), INSTANCE_DTYPE)
-    instances["rows"] = np.concatenate([np.linalg.inv(matrices)[:, :3, :]
-                                        for _, matrices, _ in parts])
-    instances["root"] = np.concatenate(roots)
-    instances["first_id"] = np.concatenate([ids for _, _, ids in parts])
-    return SceneBVH(np.concatenate(nodes), np.concatenate(tris), instances,
-                    top_depth + 1 + bottom_depth, True)
-
-
-def _packed_nodes(node_min: np.ndarray, node_max: np.ndarray, node_data: np.ndarray
-                  ) -> np.ndarray:
-    nodes = np.zeros(len(node_data), NODE_DTYPE)
-    nodes["lo"], nodes["hi"] = node_min, node_max
-    nodes["a"], nodes["b"] = node_data[:, 0], node_data[:, 1]
-    return nodes
-
-
-def _packed_triangles(bvh: BVH) -> np.ndarray:
-    tris = np.zeros(len(bvh.triangles), TRIANGLE_DTYPE)
-    tris["v0"], tris["v1"], tris["v2"] = bvh.triangles.transpose(1, 0, 2)
-    tris["id"] = bvh.triangle_ids
-    return tris
+    return BVH(node_box[:3, :next_id].T.copy(), -node_box[3:, :next_id].T, node_data[:next_id],
+               np.take(tris, order, axis=0), order.astype(np.int32), depth)
 
 
 # -- GPU queries -----------------------------------------------------------------------------
@@ -352,21 +247,16 @@ class RayTracer:
         self.batch_size = MAX_BATCH
         self._nodes: moderngl.Buffer | None = None
         self._triangles: moderngl.Buffer | None = None
-        self._instances: moderngl.Buffer | None = None
         self._rays: moderngl.Buffer | None = None
         self._results: moderngl.Buffer | None = None
         self.upload(np.zeros((0, 3, 3), np.float32))
 
-    def upload(self, triangles: np.ndarray, triangle_ids: np.ndarray | None = None,
-               meshes: Sequence[InstancedMesh] = (), leaf_size: int = 4) -> None:
-        """Build the two-level BVH of world ``triangles`` (T, 3, 3; T = 0 and no meshes is an
-        empty scene), whose hits report ``triangle_ids`` (default 0..T-1), and of instanced
-        ``meshes``, and upload it. Raises ValueError before building when the triangles
-        cannot fit a storage buffer."""
-        count = len(np.asarray(triangles).reshape(-1, 3, 3)) + sum(
-            len(mesh.triangles) for mesh in meshes)
+    def upload(self, triangles: np.ndarray, leaf_size: int = 4) -> None:
+        """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene.
+        Raises ValueError before building when the triangles cannot fit a storage buffer."""
+        count = len(np.asarray(triangles).reshape(-1, 3, 3))
         self._check_size(count, count * TRIANGLE_DTYPE.itemsize)
-        self.upload_scene(build_scene_bvh(triangles, triangle_ids, meshes, leaf_size))
+        self.upload_bvh(build_bvh(triangles, leaf_size))
 
     def _check_size(self, triangles: int, nbytes: int) -> None:
         limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
@@ -374,23 +264,24 @@ class RayTracer:
             raise ValueError(f"{triangles} triangles need {nbytes >> 20} MiB of storage buffer; "
                              f"this GPU allows {limit >> 20} MiB")
 
-    def upload_scene(self, scene: SceneBVH) -> None:
-        """Upload a BVH from ``build_scene_bvh``, replacing the scene."""
-        self._check_size(len(scene.triangles), max(scene.nodes.nbytes, scene.triangles.nbytes,
-                                                   scene.instances.nbytes))
+    def upload_bvh(self, bvh: BVH) -> None:
+        """Upload a BVH from ``build_bvh``, replacing the scene."""
+        nodes = np.zeros(len(bvh.node_data), NODE_DTYPE)
+        nodes["lo"], nodes["hi"] = bvh.node_min, bvh.node_max
+        nodes["a"], nodes["b"] = bvh.node_data[:, 0], bvh.node_data[:, 1]
+        tris = np.zeros(max(1, len(bvh.triangles)), TRIANGLE_DTYPE)  # GL has no empty buffers
+        used = tris[:len(bvh.triangles)]
+        used["v0"], used["v1"], used["v2"] = bvh.triangles.transpose(1, 0, 2)
+        used["id"] = bvh.triangle_ids
+        self._check_size(len(bvh.triangles), max(nodes.nbytes, tris.nbytes))
         self._release_scene()
-        self._nodes = self.ctx.buffer(scene.nodes)
-        self._triangles = self.ctx.buffer(  # GL has no empty buffers
-            scene.triangles if len(scene.triangles) else np.zeros(1, TRIANGLE_DTYPE))
-        self._instances = self.ctx.buffer(scene.instances)
-        self.programs.defines["RT_INSTANCES"] = int(scene.instanced)  # the traversal compiled
+        self._nodes, self._triangles = self.ctx.buffer(nodes), self.ctx.buffer(tris)
 
     def bind(self) -> None:
-        """Bind the scene at RT_BINDING_NODES / _TRIANGLES / _INSTANCES for another program's
+        """Bind the scene at RT_BINDING_NODES / RT_BINDING_TRIANGLES for another program's
         dispatch or draw (again after each upload: it makes new buffers)."""
         self._nodes.bind_to_storage_buffer(BINDING_NODES)
         self._triangles.bind_to_storage_buffer(BINDING_TRIANGLES)
-        self._instances.bind_to_storage_buffer(BINDING_INSTANCES)
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray,
                   t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf) -> Hits:
@@ -413,10 +304,10 @@ class RayTracer:
         self._rays = self._results = None
 
     def _release_scene(self) -> None:
-        for buffer in (self._nodes, self._triangles, self._instances):
+        for buffer in (self._nodes, self._triangles):
             if buffer is not None:
                 buffer.release()
-        self._nodes = self._triangles = self._instances = None
+        self._nodes = self._triangles = None
 
     def _run(self, rays: np.ndarray, any_hit: int, out_dtype: np.dtype) -> np.ndarray:
         """Trace ``rays`` in batches of at most ``batch_size`` with raytrace_comp.glsl."""

@@ -22,23 +22,6 @@ NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 
 
-MAX_INSTANCE_CONDITION = 1e4
-"""Instances whose matrix is worse conditioned than this (nearly flat, or singular) are traced
-as world triangles, not through the matrix's inverse."""
-
-
-@dataclass(frozen=True)
-class InstancedMesh:
-    """A mesh shared by several instances, to be traced in its own space: its triangles
-    (T, 3, 3) float32, each instance's object-to-world matrix (k, 4, 4) float64, and the index
-    in the flattened list of each instance's first triangle (k,), after which its T triangles
-    follow in the mesh's order."""
-
-    triangles: np.ndarray
-    matrices: np.ndarray
-    first_ids: np.ndarray
-
-
 @dataclass
 class WorldGeometry:
     """Flattened triangles: 3 vertices per triangle (positions and normals, float32, each a
@@ -60,19 +43,6 @@ class WorldGeometry:
     materials: np.ndarray  # (M, MATERIAL_COLUMNS) float32
     uv: np.ndarray | None = None  # (V, 2) float32, only with textures
     textures: list[Texture] = field(default_factory=list)
-    instanced: tuple[InstancedMesh, ...] = ()  # meshes shared by instances, for the ray tracer
-
-    def world_triangles(self) -> tuple[np.ndarray, np.ndarray]:
-        """The triangles (T, 3, 3) not covered by ``instanced`` meshes and their indices."""
-        triangles = self.positions.reshape(-1, 3, 3)
-        if not self.instanced:
-            return triangles, np.arange(len(triangles), dtype=np.int32)
-        covered = np.zeros(len(triangles), bool)
-        for mesh in self.instanced:
-            local = np.arange(len(mesh.triangles))
-            covered[(mesh.first_ids[:, None] + local[None]).ravel()] = True
-        ids = np.flatnonzero(~covered).astype(np.int32)
-        return triangles[ids], ids
 
     @classmethod
     def from_triangles(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
@@ -437,38 +407,13 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
         positions, normals = positions[keep], normals[keep]
         uv = None if uv is None else uv[keep]
         triangle_material = triangle_material[keep[::3]]
-    kept = [size if mask is None else int(mask.sum()) // 3
-            for mask, size in zip(masks, sizes, strict=True)]
-    starts = np.cumsum([0, *kept])[:-1]
-    instanced = tuple(_instanced(group, int(first))
-                      for group, mask, first in zip(groups, masks, starts, strict=True)
-                      if mask is None and _traced_as_instances(group))
     textures = table.textures.textures
     if table.clamped and notes is not None:
         notes.append(f"glossy roughness below {principled.MIN_ROUGHNESS:g} is rendered at "
                      f"{principled.MIN_ROUGHNESS:g}: {len(table.clamped)} material(s), e.g. "
                      f"'{min(table.clamped)}'")
     return WorldGeometry(positions, normals, triangle_material, table.rows(),
-                         uv if textures else None, textures, instanced)
-
-
-def _traced_as_instances(group: _Group) -> bool:
-    """Whether the ray tracer may trace a group's mesh once, in its own space: several
-    instances, each matrix well conditioned."""
-    if len(group.matrices) < 2:
-        return False
-    linear = np.stack(group.matrices)[:, :3, :3].astype(np.float64)
-    singular = np.linalg.svd(linear, compute_uv=False)
-    return bool((singular[:, -1] * MAX_INSTANCE_CONDITION > singular[:, 0]).all())
-
-
-def _instanced(group: _Group, first: int) -> InstancedMesh:
-    """A group's mesh and instances for the ray tracer; ``first``: its first flattened
-    triangle."""
-    mesh = group.mesh
-    triangles = np.ascontiguousarray(mesh.corner_positions(), np.float32).reshape(-1, 3, 3)
-    ids = first + mesh.triangle_count * np.arange(len(group.matrices), dtype=np.int64)
-    return InstancedMesh(triangles, np.stack(group.matrices).astype(np.float64), ids)
+                         uv if textures else None, textures)
 
 
 def bounding_sphere(positions: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None
