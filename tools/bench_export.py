@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import resource
 import statistics
 import subprocess
@@ -162,8 +163,8 @@ def measure_cycles(name: str, repeat: int) -> dict[str, float]:
 
 
 def _seconds(value: float) -> str:
-    """A time column: '   over' where the tracer refused the scene (NaN)."""
-    return f"{'over':>8}" if value != value else f"{value:>7.3f}s"
+    """A time column: 'over' where the tracer refused the scene (NaN)."""
+    return f"{'over':>8}" if math.isnan(value) else f"{value:>7.3f}s"
 
 
 def run_part(part: str, name: str, repeat: int) -> dict[str, float]:
@@ -185,7 +186,7 @@ def main() -> None:
         measure = measure_ours if part == "ours" else measure_cycles
         print(json.dumps(measure(name, args.repeat)))
         return
-    header = (f"{'scene':>8} {'triangles':>10} {'export':>8} {'cached':>8} {'upload':>8} "
+    header = (f"{'scene':>8} {'triangles':>10} {'export':>8} {'cached':>9} {'upload':>8} "
               f"{'ours':>8} {'BVH':>8} {'Cycles':>8} {'ratio':>6} {'+BVH':>6} "
               f"{'RSS scene':>10} {'RSS ours':>9} {'RSS Cycles':>10}")
     print(header)
@@ -195,15 +196,15 @@ def main() -> None:
         cycles = run_part("cycles", name, args.repeat)
         ours, sync = row["export"] + row["upload"], cycles["cycles_sync"]
         print(f"{name:>8} {int(row['triangles']):>10,} {row['export']:>7.3f}s "
-              f"{row['export_cached']:>7.3f}s {row['upload']:>7.3f}s {ours:>7.3f}s "
+              f"{row['export_cached'] * 1e3:>7.2f}ms {row['upload']:>7.3f}s {ours:>7.3f}s "
               f"{_seconds(row['rays'])} {sync:>7.3f}s {ours / sync:>6.2f} "
               f"{(ours + row['rays']) / sync:>6.2f} {row['rss_scene']:>7.0f}MiB "
               f"{row['rss']:>6.0f}MiB {cycles['rss']:>7.0f}MiB", flush=True)
-    print("export/cached: export_scene cold / with a warm ExportCache; upload: "
+    print("export/cached: export_scene cold / with a warm ExportCache (which returns unchanged "
+          "meshes as they were: milliseconds); upload: "
           "flatten_instances + SceneBuffers; ours = export + upload; BVH: the ray tracer's "
           "build + upload (RayTracer.upload; over: beyond the GPU's storage-buffer limit, "
-          "which the "
-          "renderer refuses to trace); Cycles: 1-sample 8×8 render minus an empty "
+          "which the renderer refuses to trace); Cycles: 1-sample 8×8 render minus an empty "
           "scene's (its sync + BVH); ratio = ours / Cycles; +BVH = (ours + BVH) / Cycles; RSS: "
           "peak after building the scene, and peak of the process that ran ours / Cycles "
           "(separate processes)")

@@ -197,7 +197,6 @@ def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: Err
     return candidates
 
 
-
 # -- the error model ---------------------------------------------------------------------------
 
 def load_error_model(path: Path = ERROR_MODEL_FILE) -> ErrorModel:

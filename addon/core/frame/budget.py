@@ -98,7 +98,7 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         wall = time.perf_counter() - began
         if chooser.last is None:  # no indirect light: every pass alike
             later = replace(settings, auto_parameters="off")
-            paths.append(later.vpl_count)  # every pass alike
+            paths.append(later.vpl_count)
             return frame, stats
         chosen = chooser.last[2]
         paths.append(chosen.settings.vpl_count)
