@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from .result import Stats
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
+COMPOSED_PASSES = frozenset({"DiffDir", "DiffInd", "DiffCol", "Emit", "Normal", "GlossDir",
+                             "GlossInd", "GlossCol", "Depth"})
+"""The passes ``compose`` writes from the supersamples read back."""
 
 
 def downsample(image: np.ndarray, factor: int) -> np.ndarray:
@@ -27,7 +32,7 @@ def downsample(image: np.ndarray, factor: int) -> np.ndarray:
     return result
 
 
-def _glossy(gbuffer: dict[str, np.ndarray], direct: np.ndarray, indirect: np.ndarray
+def _glossy(gbuffer: Mapping[str, np.ndarray], direct: np.ndarray, indirect: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """GlossCol and the glossy radiance, direct and indirect (zeros without glossy layers)."""
     if direct.shape[-1] == 4:
@@ -44,35 +49,19 @@ def _per_colour(radiance: np.ndarray, color: np.ndarray) -> np.ndarray:
     return np.where(color > 0, radiance / safe, 0.0)
 
 
-def compose(output: dict[str, np.ndarray], gbuffer: dict[str, np.ndarray], direct: np.ndarray,
-            indirect: np.ndarray, background: np.ndarray | None, aa: int, x0: int, y0: int,
-            passes: frozenset[str]) -> None:
-    """Write one supersampled tile's ``passes`` into ``output`` at output resolution.
-    ``direct`` and ``indirect`` are (h, w, 4) diffuse light, or (h, w, 8) with glossy
-    radiance in channels 4-6; ``background``: the radiance of the rays that miss every surface
-    (environment.background), None with a transparent film."""
+def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray], direct: np.ndarray,
+            indirect: np.ndarray, aa: int, x0: int, y0: int, passes: frozenset[str]) -> None:
+    """Write one supersampled tile's ``passes`` (of COMPOSED_PASSES; Combined is composed on
+    the GPU, gpu/combined.py) into ``output`` at output resolution. ``direct`` and
+    ``indirect`` are (h, w, 4) diffuse light, or (h, w, 8) with glossy radiance in channels
+    4-6."""
     covered = gbuffer["normal"][..., 3:4]
     albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
     diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
     gloss_col, gloss_dir, gloss_ind = _glossy(gbuffer, direct, indirect)
-    # On whole RGBA texels (numpy runs several times faster over contiguous 4-channel data
-    # than over 3-channel views); alpha is set last.
-    combined = np.add(direct[..., :4], indirect[..., :4])
-    combined *= gbuffer["albedo"]
-    if direct.shape[-1] > 4:
-        combined += direct[..., 4:8]
-        combined += indirect[..., 4:8]
-    combined += gbuffer["emission"]
-    combined[..., 3:] = covered
-    if background is not None:
-        rows, cols = np.nonzero(covered[..., 0] < 1.0)  # most samples see a surface
-        uncovered = 1.0 - covered[rows, cols]
-        sky = np.broadcast_to(background, (*covered.shape[:2], 3))  # may be one colour
-        combined[rows, cols, :3] += uncovered * sky[rows, cols]
-        combined[rows, cols, 3:] += uncovered
     h, w = covered.shape[0] // aa, covered.shape[1] // aa
     region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
-    images = {"Combined": lambda: combined, "DiffDir": lambda: diff_dir,
+    images = {"DiffDir": lambda: diff_dir,
               "DiffInd": lambda: diff_ind, "DiffCol": lambda: albedo,
               "Emit": lambda: emission, "Normal": lambda: gbuffer["normal"][..., :3],
               "GlossDir": lambda: _per_colour(gloss_dir, gloss_col),

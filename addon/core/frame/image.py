@@ -4,20 +4,20 @@ light and the composition of Blender's passes."""
 
 from __future__ import annotations
 
-from contextlib import nullcontext
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import moderngl
 import numpy as np
 
+from ..gpu.combined import combined_pass
 from ..gpu.gl import read_textures
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.texture_array import upload as upload_textures
 from ..gpu.upsample import upsample
 from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
-from .compose import compose
+from .compose import COMPOSED_PASSES, compose
 from .denoise import DenoisingData
 from .gather import RAY_OFFSET, LightPass, gather, new_accumulator, read_accumulator
 from .gbuffer import GBuffer, Tile, render_gbuffer
@@ -32,7 +32,7 @@ from .stages import indirect_per_pixel
 from .state import FrameState, RenderError, Stage
 from .visibility import FrameMaps, ImperfectVisibility, RayTracedVisibility
 
-MAX_TILE = 2048  # supersampled pixels per image tile edge (each tile renders its own maps)
+MAX_TILE = 2048  # supersampled pixels per image tile edge (later tiles reuse the maps)
 
 
 @dataclass
@@ -57,8 +57,8 @@ class TileWork:
     direct: moderngl.Framebuffer | None = None
     soft: moderngl.Framebuffer | None = None  # interleaved soft direct light, to be blurred
     indirect: moderngl.Framebuffer | None = None
-    soft_light: np.ndarray | None = None  # after the blur
-    indirect_light: np.ndarray | None = None
+    soft_light: list[moderngl.Texture] = field(default_factory=list)  # after the blur
+    indirect_light: list[moderngl.Texture] = field(default_factory=list)
     background: np.ndarray | None = None  # what rays that miss see (None: transparent film)
 
 
@@ -226,10 +226,8 @@ class BlurStage(TileStage):
             lights[0] = self._upsampled(frame, work, lights[0])
         else:
             lights = self._blurred(frame, work, work.gbuffer, [work.indirect, *soft])
-        with frame.stats.timed(self.name) if frame.blur_radius else nullcontext():
-            work.indirect_light = read_textures(lights[0])
-            if soft:
-                work.soft_light = read_textures(lights[1])
+        work.indirect_light = lights[0]
+        work.soft_light = lights[1] if soft else []
 
     def _upsampled(self, frame: FrameState, work: TileWork,
                    textures: list[moderngl.Texture]) -> list[moderngl.Texture]:
@@ -263,16 +261,27 @@ class ComposeStage(TileStage):
     name = "compose"
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
+        """Combined on the GPU, read back per pixel; the other passes Blender asks for from
+        the supersamples read back."""
         with frame.stats.timed(self.name):
-            direct = read_accumulator(work.direct)
-            if work.soft_light is not None:
-                direct += work.soft_light
             aa, tile, scene = frame.settings.antialiasing, work.tile, frame.scene
             if not scene.film_transparent:  # through this pass's camera (sub-sample offset)
                 work.background = background(scene.world, frame.camera, aa, tile.x0, tile.y0,
                                              *tile.size)
-            compose(frame.output, work.gbuffer.images, direct, work.indirect_light,
-                    work.background, aa, tile.x0, tile.y0, frame.plan.passes)
+            combined = combined_pass(self.gpu.ctx, self.gpu.programs,
+                                     work.direct.color_attachments, work.indirect_light,
+                                     work.soft_light, work.gbuffer.textures, work.background,
+                                     aa)
+            h, w = combined.shape[:2]
+            x0, y0 = tile.x0 // aa, tile.y0 // aa
+            frame.output["Combined"][y0:y0 + h, x0:x0 + w] = combined
+            others = frame.plan.passes - {"Combined"}
+            if others & COMPOSED_PASSES:
+                direct = read_accumulator(work.direct)
+                if work.soft_light:
+                    direct += read_textures(work.soft_light)
+                compose(frame.output, work.gbuffer.images, direct,
+                        read_textures(work.indirect_light), aa, tile.x0, tile.y0, others)
 
 
 class RenderImage(Stage):
@@ -293,8 +302,7 @@ class RenderImage(Stage):
         tiles = tiles_of(camera.width * aa, camera.height * aa, aa)
         frame.output = {name: np.zeros((camera.height, camera.width, c), np.float32)
                         for name, c in PASS_CHANNELS.items()}
-        kept = KeptAtlases(self.kept.shadow_atlases, self.kept.versions.shape) \
-            if len(tiles) == 1 else None
+        kept = KeptAtlases(self.kept.shadow_atlases, self.kept.versions.shape)
         frame.steps, frame.steps_done = len(tiles) * max(1, len(frame.light_passes)), 0
         with GpuScope() as scope:
             geometry = frame.geometry
@@ -316,8 +324,10 @@ class RenderImage(Stage):
                             stage.run(frame, data, work)
             finally:
                 atlases.release()
-                self.kept.keep_shadow_atlases(kept.used if kept is not None else {})
-        if kept is not None and kept.hits:
-            frame.stats.skipped["shadow maps"] = (f"{kept.hits} atlas(es) of unchanged "
-                                                  f"lights and triangles kept from the last "
-                                                  f"frame")
+                self.kept.keep_shadow_atlases(kept.used)
+        reused = [f"{kept.hits} atlas(es) of unchanged lights and triangles kept from the "
+                  f"last frame"] if kept.hits else []
+        if kept.tile_hits:
+            reused.append(f"{kept.tile_hits} atlas(es) rendered for an earlier tile")
+        if reused:
+            frame.stats.skipped["shadow maps"] = "; ".join(reused)

@@ -1,5 +1,5 @@
-"""Triangle shadow maps of a batch of light samples, rendered into one atlas; atlases of a
-single-tile frame are kept for the next frame while their samples and triangles repeat."""
+"""Triangle shadow maps of a batch of light samples, rendered into one atlas; atlases are kept
+for the frame's later tiles and for the next frame while their samples and triangles repeat."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ FAR_DEPTH = 3.0e38  # an atlas texel no triangle covers
 
 
 class KeptAtlases:
-    """The atlases a frame takes from the last one and keeps for the next, within a budget of
-    twice one batch's texels."""
+    """The atlases a frame takes from the last one and keeps for its later tiles and the next
+    frame, within a budget of twice one batch's texels."""
 
     def __init__(self, previous: dict[tuple, list], shape_version: int) -> None:
         self.previous = previous
@@ -25,6 +25,7 @@ class KeptAtlases:
         self.used: dict[tuple, list] = {}
         self.texels = 0
         self.hits = 0  # atlases taken from the last frame
+        self.tile_hits = 0  # atlases a later tile of this frame took from an earlier one
 
     def key(self, batch: Batch, centre: np.ndarray, radius: float) -> tuple:
         s = batch.samples
@@ -63,6 +64,9 @@ class ShadowAtlases:
             return self._last[0]
         kept = self.kept
         key = kept.key(batch, centre, radius) if kept is not None else None
+        if key is not None and key in kept.used:
+            kept.tile_hits += 1
+            return kept.used[key][0]
         if key is not None and key in kept.previous:
             objects = kept.previous[key]
             kept.keep(key, objects, batch)

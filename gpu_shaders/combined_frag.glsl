@@ -1,0 +1,60 @@
+// Blender's Combined pass of one supersampled tile at pixel resolution (compose.py's pass
+// algebra on the GPU, so that only pixels are read back): each pixel is the mean of its
+// u_factor² supersamples' (direct + soft + indirect) × albedo + glossy + emission, alpha the
+// surface's coverage; with BACKGROUND (a colour) or BACKGROUND_IMAGE (one per supersample)
+// the uncovered part sees the background and alpha is 1. Defines: SOFT (blurred soft direct
+// light), GLOSSY (each light's glossy radiance, added without the albedo).
+
+uniform sampler2D u_direct;
+uniform sampler2D u_indirect;
+#ifdef SOFT
+uniform sampler2D u_soft;
+#endif
+#ifdef GLOSSY
+uniform sampler2D u_direct_glossy;
+uniform sampler2D u_indirect_glossy;
+#ifdef SOFT
+uniform sampler2D u_soft_glossy;
+#endif
+#endif
+uniform sampler2D u_albedo;
+uniform sampler2D u_emission;
+uniform sampler2D u_normal;           // w: the supersample's coverage
+#if defined(BACKGROUND_IMAGE)
+uniform sampler2D u_background;
+#elif defined(BACKGROUND)
+uniform vec3 u_background;
+#endif
+uniform int u_factor;                 // supersamples per pixel edge
+
+layout(location = 0) out vec4 out_combined;
+
+vec4 supersample(ivec2 s) {
+    vec4 light = texelFetch(u_direct, s, 0) + texelFetch(u_indirect, s, 0);
+#ifdef SOFT
+    light += texelFetch(u_soft, s, 0);
+#endif
+    vec4 c = light * texelFetch(u_albedo, s, 0) + texelFetch(u_emission, s, 0);
+#ifdef GLOSSY
+    c += texelFetch(u_direct_glossy, s, 0) + texelFetch(u_indirect_glossy, s, 0);
+#ifdef SOFT
+    c += texelFetch(u_soft_glossy, s, 0);
+#endif
+#endif
+    float covered = texelFetch(u_normal, s, 0).w;
+#if defined(BACKGROUND_IMAGE)
+    return vec4(c.rgb + (1.0 - covered) * texelFetch(u_background, s, 0).rgb, 1.0);
+#elif defined(BACKGROUND)
+    return vec4(c.rgb + (1.0 - covered) * u_background, 1.0);
+#else
+    return vec4(c.rgb, covered);
+#endif
+}
+
+void main() {
+    ivec2 pixel = ivec2(gl_FragCoord.xy);
+    vec4 sum = vec4(0.0);
+    for (int j = 0; j < u_factor; ++j)
+        for (int i = 0; i < u_factor; ++i) sum += supersample(pixel * u_factor + ivec2(i, j));
+    out_combined = sum / float(u_factor * u_factor);
+}
