@@ -5,7 +5,9 @@
 // distance, whose outgoing radiance (this batch's light, gathered at y) arrives with weight
 // 1 - d²/clamp².
 // With SHADOW_HINTS (ray-traced samples) each sample's visibility comes from the pixels' hints
-// where they agree (lights_lib.glsl), and from rays over the supersample's footprint elsewhere.
+// where they agree (lights_lib.glsl), and from rays over the supersample's footprint elsewhere;
+// with HINTS_ONLY as well, a supersample that needs a ray adds nothing and writes depth 0 for a
+// second draw, with rays, that runs only there (gather.py).
 // With GLOSSY a second target gets the glossy radiance towards the camera, summed over the
 // same samples with the pixel's lobe from the g-buffer (bias compensation adds no glossy
 // light). With VPL_GLOSSY, VPLs at glossy surfaces also emit through their lobe (lights_lib).
@@ -137,6 +139,15 @@ void main() {
     out_light = vec4(gather(world, normal.xyz, geometric, 1 << 30, lobe, glossy) / PI, 0.0);
 #ifdef GLOSSY
     out_glossy = vec4(glossy, 0.0);
+#endif
+#ifdef HINTS_ONLY
+    gl_FragDepth = g_needs_rays ? 0.0 : 1.0;  // 0: the draw with rays takes it whole
+    if (g_needs_rays) {
+        out_light = vec4(0.0);
+#ifdef GLOSSY
+        out_glossy = vec4(0.0);
+#endif
+    }
 #endif
 #endif
 }

@@ -274,6 +274,13 @@ float traced_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     return rt_occluded(origin, to_light / distance, 0.0, t_max) ? 0.0 : 1.0;
 }
 
+#ifdef HINTS_ONLY
+// The hints-only draw (gather.py) leaves a supersample that needs a ray to the draw after it,
+// whose shader has the rays: compiled in, even where no fragment runs them, ray code makes
+// every fragment of llvmpipe's gather several times slower.
+bool g_needs_rays = false;
+#endif
+
 // Ray-traced visibility of the sample from `world`, in [0, 1].
 float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     if (s.tile < 0) return 1.0;  // the light casts no shadow
@@ -282,6 +289,10 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
         if (((g_hints_agreed >> g_hint_bit) & 1u) != 0u) {
             return float((g_hints_lit >> g_hint_bit) & 1u);
         }
+#ifdef HINTS_ONLY
+        g_needs_rays = true;
+        return 0.0;
+#else
         if (!g_footprint_known) find_footprint(world, geometric_normal);
         float lit = 0.0;
         for (int k = 0; k < EDGE_RAYS; ++k) {
@@ -290,9 +301,15 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
             lit += traced_visibility(s, at, geometric_normal);
         }
         return lit / float(EDGE_RAYS);
+#endif
     }
 #endif
+#ifdef HINTS_ONLY
+    g_needs_rays = true;
+    return 0.0;
+#else
     return traced_visibility(s, world, geometric_normal);
+#endif
 }
 #elif defined(ISM_VISIBILITY)
 #include "ism_lib.glsl"

@@ -3,9 +3,11 @@ first, and at every supersample only where the pixels around disagree."""
 
 from __future__ import annotations
 
+import moderngl
 import numpy as np
 from scipy import ndimage
 
+from addon.core.frame import gather as gather_module
 from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import Settings
 from devtools import metrics
@@ -72,3 +74,29 @@ def test_antialiasing_one_and_the_setting_off_trace_every_ray(renderer):
     _, stats = renderer.render(blocked_scene(lights), Settings(bounces=0,
                                                                adaptive_shadows=False))
     assert "shadow hints" not in stats.timings
+
+
+class _OneDraw:
+    """The hinted gather as one draw of the full shader (gather.py's _HintedDraws splits it)."""
+
+    def __init__(self, *_args: object) -> None:
+        pass
+
+    def render(self, vao: moderngl.VertexArray, *_args: object) -> None:
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+
+def test_splitting_off_the_supersamples_that_need_rays_changes_no_pixel(renderer, monkeypatch):
+    """The hints-only draw and the draw with rays where it left supersamples give the image
+    of one draw of the shader with rays, bit for bit: hard edges (bits per light) and a sun's
+    interleaved angle samples."""
+    lights = [light(LightKind.POINT, translation(x, 0.5, 2.0), power=50.0) for x in (-1, 1)]
+    lights.append(light(LightKind.SUN, rotation_x(0.5), power=3.0, sun_angle=0.3))
+    scene = blocked_scene(lights)
+    settings = Settings(bounces=0, antialiasing=3, light_samples=16)
+    split, stats = renderer.render(scene, settings)
+    assert "shadow hints" in stats.timings
+    monkeypatch.setattr(gather_module, "_HintedDraws", _OneDraw)
+    whole, _ = renderer.render(scene, settings)
+    for name, image in whole.passes.items():
+        np.testing.assert_array_equal(split.passes[name], image, err_msg=name)

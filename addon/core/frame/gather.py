@@ -165,10 +165,55 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         vao = scope.own(ctx.vertex_array(program, []))
         chunk = samples_per_draw(visibility.rays_per_sample, compensation)
         shape = s.shape if "AREA_SHAPES" in defines else None
+        hinted = _HintedDraws(ctx, programs, defines, accumulator, scope) if hints else None
         for first, count in draws(len(s), shape, chunk):
             set_uniforms(program, u_first=first, u_count=count)
-            vao.render(moderngl.TRIANGLES, vertices=3)
+            if hinted is None:
+                vao.render(moderngl.TRIANGLES, vertices=3)
+            else:
+                hinted.render(vao, program)
         ctx.disable(moderngl.BLEND)
+
+
+class _HintedDraws:
+    """A hinted gather in two draws per chunk of samples: one without ray code, which adds
+    the light where the pixels' hints settle every sample and writes depth 0 where a
+    supersample needs rays (1 elsewhere; the background keeps the cleared 1), then the full
+    shader, which the depth test runs only there. On llvmpipe the ray code alone, compiled in
+    but run by few fragments, made the interior's sun pass 0.69 s instead of 0.15 s at
+    640×360."""
+
+    def __init__(self, ctx: moderngl.Context, programs: ProgramCache,
+                 defines: dict[str, object], accumulator: moderngl.Framebuffer,
+                 scope: GpuScope) -> None:
+        self.ctx = ctx
+        self.hints_only = programs.get("fullscreen_vert.glsl", "gather_frag.glsl",
+                                       {**defines, "HINTS_ONLY": 1}, version=430)
+        self.vao = scope.own(ctx.vertex_array(self.hints_only, []))
+        depth = scope.own(ctx.depth_renderbuffer(accumulator.size))
+        self.target = scope.own(ctx.framebuffer(accumulator.color_attachments, depth))
+        masks, off = self.target.color_mask, (False,) * 4
+        count = len(accumulator.color_attachments)
+        self.target.color_mask = off if count == 1 else [off] * count
+        self.target.clear(depth=1.0)  # the depth alone: 1 where no fragment writes it
+        self.target.color_mask = masks
+
+    def render(self, vao: moderngl.VertexArray, program: moderngl.Program) -> None:
+        """One chunk: ``program`` (the full shader, its uniforms set) and its ``vao``."""
+        ctx, target = self.ctx, self.target
+        for name in program:  # the same uniforms (the compiler may keep fewer)
+            if name in self.hints_only and isinstance(program[name], moderngl.Uniform):
+                self.hints_only[name].value = program[name].value
+        target.use()
+        target.depth_mask = True
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.depth_func = "1"  # every fragment writes its depth
+        self.vao.render(moderngl.TRIANGLES, vertices=3)
+        target.depth_mask = False
+        ctx.depth_func = ">"  # the full-screen triangle's 0.5 passes only where 0 was written
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        ctx.depth_func = "<"
+        ctx.disable(moderngl.DEPTH_TEST)
 
 
 def draws(count: int, shape: np.ndarray | None, chunk: int) -> list[tuple[int, int]]:
