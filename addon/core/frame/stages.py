@@ -11,10 +11,12 @@ import numpy as np
 from ..scene.bounds import robust_bounds
 from ..scene.geometry import bounding_sphere, flatten_instances, light_shapes
 from ..settings import Settings
+from ..transport.guidance import camera_points
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
+from ..transport.view_probe import reaches_view
 from .batches import shadow_map_batches
 from .compose import sanitize
-from .gather import Compensation, LightPass
+from .gather import RAY_OFFSET, Compensation, LightPass
 from .gpu_session import GpuSession
 from .ism_maps import ImperfectShadowMapFrame
 from .near_field import NearField
@@ -166,6 +168,10 @@ def indirect_interleave(settings: Settings) -> int:
     return 1 << max(0, math.ceil(math.log2(k / settings.antialiasing)))
 
 
+PROBE_POINTS = 4096  # camera points that test whether shadow-mapped samples reach the view
+PROBE_MIN_SAMPLES = 8  # fewer samples are mapped without the test (it costs more than it saves)
+
+
 def blur_radius(interleave: int, radius: int) -> int:
     """The blur radius, rounded up to a multiple of K/2 (0 without interleaving)."""
     if interleave == 1:
@@ -250,7 +256,7 @@ class PlanLightPasses(Stage):
             k = next((k for k in (1, 2, 4) if k * k >= len(sun_samples)), 8)
             passes += [LightPass("direct light", b, near, ray_traced, k)
                        for b in ray_traced.batches(sun_samples, settings, 0)]
-        mapped = samples.subset(np.flatnonzero(~traced))
+        mapped = self._reaching_view(frame, samples.subset(np.flatnonzero(~traced)))
         soft_ism = settings.soft_light_ism and mapped.kind.size > 0
         if soft_ism and self.gpu.ctx.version_code < 430:
             stats.warnings.append("soft lights use triangle shadow maps: imperfect shadow maps "
@@ -268,6 +274,25 @@ class PlanLightPasses(Stage):
                          for chosen, k, blurred in self._split_world(mapped, as_ism,
                                                                      settings.interleave)
                          for b in imperfect.batches(chosen, settings, 0)]
+
+    def _reaching_view(self, frame: FrameState, samples: LightSamples) -> LightSamples:
+        """The shadow-mapped samples that a ray from some point the camera sees reaches
+        (transport/view_probe.py), where the frame has the ray tracer anyway; the others are
+        counted as skipped. Not with incremental reuse (the viewport's first frames)."""
+        settings, stats = frame.settings, frame.stats
+        if len(samples) < PROBE_MIN_SAMPLES or not frame.plan.cull_to_view \
+                or settings.incremental or not self.kept.has("bvh", (self.kept.versions.shape,)):
+            return samples
+        with stats.timed("view probe"):
+            points = camera_points(frame.camera, frame.geometry, self.gpu.tracer, PROBE_POINTS,
+                                   settings.seed)
+            reached = reaches_view(samples, points, self.gpu.tracer, RAY_OFFSET * frame.radius)
+        left_out = len(samples) - int(reached.sum())
+        if not left_out or len(points) == 0:
+            return samples
+        stats.skipped[f"{left_out} of {len(samples)} shadow-mapped light samples"] = (
+            f"no ray from {len(points)} points the camera sees reaches them")
+        return samples.subset(np.flatnonzero(reached))
 
     @staticmethod
     def _sun_disc(samples: LightSamples) -> np.ndarray:

@@ -16,10 +16,15 @@ class RayHits(Protocol):
 
 
 class RayCaster(Protocol):
-    """Closest-hit queries against the frame's triangles."""
+    """Closest-hit and any-hit queries against the frame's triangles."""
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray,
                   t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf
                   ) -> RayHits:
         """Closest hit of each ray (R, 3) with ``t_min < t < t_max``."""
+        ...
+
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: float | np.ndarray,
+                 t_min: float | np.ndarray = 0.0) -> np.ndarray:
+        """Whether each ray (R, 3) hits anything with ``t_min < t < t_max``."""
         ...
