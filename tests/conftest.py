@@ -1,5 +1,5 @@
-"""Fixtures shared by the bpy-free test folders (core, stability): one GL context, program cache
-and Renderer per session."""
+"""Fixtures shared by the bpy-free test folders (core, stability): one GL context, program cache,
+ray tracer and Renderer per session."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import pytest
 
 from addon.core.frame.renderer import Renderer
 from addon.core.gpu.gl import ProgramCache, shared_context
+from addon.core.gpu.raytrace import RayTracer
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -23,6 +24,14 @@ def programs() -> ProgramCache:
     cache = ProgramCache(shared_context())
     yield cache
     cache.release()
+
+
+@pytest.fixture(scope="session")
+def tracer(programs: ProgramCache) -> RayTracer:
+    """A ray tracer of its own (the renderer's keeps its frame's triangles)."""
+    rt = RayTracer(programs.ctx, programs)
+    yield rt
+    rt.release()
 
 
 @pytest.fixture(scope="session")

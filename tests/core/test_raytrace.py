@@ -13,14 +13,7 @@ from addon.core.gpu.gl import (
     GLUnavailableError,
     require_compute,
 )
-from addon.core.gpu.raytrace import BVH, RayTracer, build_bvh
-
-
-@pytest.fixture(scope="session")
-def tracer(programs) -> RayTracer:
-    rt = RayTracer(programs.ctx, programs)
-    yield rt
-    rt.release()
+from addon.core.gpu.raytrace import BVH, build_bvh
 
 
 def soup(count: int, rng: np.random.Generator, size: float = 0.2) -> np.ndarray:

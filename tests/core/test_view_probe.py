@@ -5,10 +5,8 @@ and a frame without the left-out samples' maps against one with them."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from addon.core.frame import stages
-from addon.core.gpu.raytrace import RayTracer
 from addon.core.scene.model import Instance, Material, World
 from addon.core.settings import Settings
 from addon.core.transport.guidance import CameraPoints
@@ -20,13 +18,6 @@ from addon.core.transport.lights import (
 )
 from addon.core.transport.view_probe import reaches_view
 from tests.core.builders import floor_scene, quad, translation
-
-
-@pytest.fixture(scope="module")
-def tracer(programs) -> RayTracer:
-    rt = RayTracer(programs.ctx, programs)
-    yield rt
-    rt.release()
 
 
 def samples(rows: list[tuple[int, tuple, tuple, bool]]) -> LightSamples:
