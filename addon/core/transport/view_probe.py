@@ -1,7 +1,7 @@
 """Light samples that light no point the camera sees: rays from camera points to each sample
 (a few points first, then all of them for the samples none of the few reaches), so that a
 frame renders no shadow map for light the view cannot receive, such as the world's directions
-that a room's walls block (the interior sample scene: 48 of its 64)."""
+that a room's walls block (the interior sample scene: 49 of its 64)."""
 
 from __future__ import annotations
 
