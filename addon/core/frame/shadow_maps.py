@@ -47,7 +47,7 @@ class ShadowAtlases:
     one is rendered or ``release`` (kept atlases belong to KeptAtlases)."""
 
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache,
-                 scene: SceneBuffers | None, kept: KeptAtlases | None) -> None:
+                 scene: SceneBuffers | None, kept: KeptAtlases) -> None:
         self.ctx = ctx
         self.programs = programs
         self.scene = scene
@@ -63,17 +63,17 @@ class ShadowAtlases:
         if again and self._last is not None and self._last[1] is batch:
             return self._last[0]
         kept = self.kept
-        key = kept.key(batch, centre, radius) if kept is not None else None
-        if key is not None and key in kept.used:
+        key = kept.key(batch, centre, radius)
+        if key in kept.used:
             kept.tile_hits += 1
             return kept.used[key][0]
-        if key is not None and key in kept.previous:
+        if key in kept.previous:
             objects = kept.previous[key]
             kept.keep(key, objects, batch)
             kept.hits += 1
             return objects[0]
         self._current.release()
-        keeping = key is not None and kept.room_for(batch)
+        keeping = kept.room_for(batch)
         objects: list = []
         own = objects.append if keeping else self._current.own
         res = batch.resolution
