@@ -8,6 +8,7 @@ import numpy as np
 from scipy import ndimage
 
 from addon.core.frame import gather as gather_module
+from addon.core.gpu.gl import ProgramCache
 from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import Settings
 from devtools import metrics
@@ -79,10 +80,12 @@ def test_antialiasing_one_and_the_setting_off_trace_every_ray(renderer):
 class _OneDraw:
     """The hinted gather as one draw of the full shader (gather.py's _HintedDraws splits it)."""
 
-    def __init__(self, *_args: object) -> None:
-        pass
+    def __init__(self, _ctx: object, programs: ProgramCache, defines: dict[str, object],
+                 *_args: object) -> None:
+        self.hints_only = programs.get("fullscreen_vert.glsl", "gather_frag.glsl", defines,
+                                       version=430)  # the full shader: its uniforms set twice
 
-    def render(self, vao: moderngl.VertexArray, *_args: object) -> None:
+    def render(self, vao: moderngl.VertexArray) -> None:
         vao.render(moderngl.TRIANGLES, vertices=3)
 
 

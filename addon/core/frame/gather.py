@@ -150,12 +150,15 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         needs_430 = visibility.rays_per_sample > 0 or compensation is not None
         program = programs.get("fullscreen_vert.glsl", "gather_frag.glsl", defines,
                                version=430 if needs_430 else 410)
-        set_uniforms(program, u_position=0, u_normal=1, u_geometric=2, u_light_table=3,
-                     u_shadow_atlas=4, u_atlas_columns=batch.columns,
-                     u_interleave=light_pass.interleave, u_ism_bias=ISM_BIAS_TEXELS,
-                     u_scene_centre=tuple(centre), u_scene_radius=radius, u_shadow_bias=bias,
-                     u_min_distance2=light_pass.min_distance**2, u_ray_offset=RAY_OFFSET * radius,
-                     **uniforms)
+        hinted = _HintedDraws(ctx, programs, defines, accumulator, scope) if hints else None
+        shaders = [program] if hinted is None else [program, hinted.hints_only]
+        for shader in shaders:
+            set_uniforms(shader, u_position=0, u_normal=1, u_geometric=2, u_light_table=3,
+                         u_shadow_atlas=4, u_atlas_columns=batch.columns,
+                         u_interleave=light_pass.interleave, u_ism_bias=ISM_BIAS_TEXELS,
+                         u_scene_centre=tuple(centre), u_scene_radius=radius,
+                         u_shadow_bias=bias, u_min_distance2=light_pass.min_distance**2,
+                         u_ray_offset=RAY_OFFSET * radius, **uniforms)
         if compensation is not None:  # the surfaces rays reach: positions and materials
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
             scene.bind_materials(program)
@@ -165,13 +168,13 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         vao = scope.own(ctx.vertex_array(program, []))
         chunk = samples_per_draw(visibility.rays_per_sample, compensation)
         shape = s.shape if "AREA_SHAPES" in defines else None
-        hinted = _HintedDraws(ctx, programs, defines, accumulator, scope) if hints else None
         for first, count in draws(len(s), shape, chunk):
-            set_uniforms(program, u_first=first, u_count=count)
+            for shader in shaders:
+                set_uniforms(shader, u_first=first, u_count=count)
             if hinted is None:
                 vao.render(moderngl.TRIANGLES, vertices=3)
             else:
-                hinted.render(vao, program)
+                hinted.render(vao)
         ctx.disable(moderngl.BLEND)
 
 
@@ -198,12 +201,10 @@ class _HintedDraws:
         self.target.clear(depth=1.0)  # the depth alone: 1 where no fragment writes it
         self.target.color_mask = masks
 
-    def render(self, vao: moderngl.VertexArray, program: moderngl.Program) -> None:
-        """One chunk: ``program`` (the full shader, its uniforms set) and its ``vao``."""
+    def render(self, vao: moderngl.VertexArray) -> None:
+        """One chunk, both programs' uniforms set: the hints-only draw, then ``vao`` (the full
+        shader's)."""
         ctx, target = self.ctx, self.target
-        for name in program:  # the same uniforms (the compiler may keep fewer)
-            if name in self.hints_only and isinstance(program[name], moderngl.Uniform):
-                self.hints_only[name].value = program[name].value
         target.use()
         target.depth_mask = True
         ctx.enable(moderngl.DEPTH_TEST)
