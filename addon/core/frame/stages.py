@@ -31,7 +31,7 @@ from .visibility import (
     RayTracedVisibility,
     ShadowMapVisibility,
 )
-from .vpl_stage import cull, upload_triangles
+from .vpl_stage import cull, has_triangles, upload_triangles
 
 MAX_FRAME_SAMPLES = 1 << 27  # supersampled pixels per frame: the passes alone take 80 B each
 
@@ -281,7 +281,7 @@ class PlanLightPasses(Stage):
         counted as skipped. Not with incremental reuse (the viewport's first frames)."""
         settings, stats = frame.settings, frame.stats
         if len(samples) < PROBE_MIN_SAMPLES or not frame.plan.cull_to_view \
-                or settings.incremental or not self.kept.has("bvh", (self.kept.versions.shape,)):
+                or settings.incremental or not has_triangles(self.kept):
             return samples
         with stats.timed("view probe"):
             points = camera_points(frame.camera, frame.geometry, self.gpu.tracer, PROBE_POINTS,

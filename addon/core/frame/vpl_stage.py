@@ -51,12 +51,21 @@ def may_guide(settings: Settings) -> bool:
         and not settings.incremental
 
 
+def has_triangles(kept: KeptProducts) -> bool:
+    """Whether the ray tracer holds this frame's triangles already."""
+    return kept.has("bvh", _triangles_key(kept))
+
+
+def _triangles_key(kept: KeptProducts) -> tuple:
+    """The BVH's key: the triangle positions' version."""
+    return (kept.versions.shape,)
+
+
 def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometry,
                      stats: Stats) -> RayTracer:
     """The ray tracer with this frame's triangles (its BVH built unless it has them)."""
     tracer = gpu.tracer
-    key = (kept.versions.shape,)
-    if kept.has("bvh", key):
+    if has_triangles(kept):
         if "ray tracing setup" not in stats.timings:  # not done earlier in this frame
             stats.skipped["ray tracing setup"] = "triangle positions unchanged"
         return tracer
@@ -65,7 +74,7 @@ def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometr
             tracer.upload(geometry.positions.reshape(-1, 3, 3))
         except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
             raise RenderError(f"ray tracing: {exc}") from None
-    kept.keep("bvh", key)
+    kept.keep("bvh", _triangles_key(kept))
     return tracer
 
 
