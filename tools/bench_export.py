@@ -109,7 +109,7 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
     build_scene(bpy, name)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     row: dict[str, float] = {"rss_scene": peak_rss_mib()}
-    exports, cached, uploads, traced = [], [], [], []
+    exports, cached, uploads, bvhs = [], [], [], []
     ctx = create_context()
     programs = ProgramCache(ctx)
     tracer = RayTracer(ctx, programs)
@@ -126,9 +126,9 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
         try:
             tracer.upload(geometry.positions.reshape(-1, 3, 3))
             ctx.finish()
-            traced.append(time.perf_counter() - start)
+            bvhs.append(time.perf_counter() - start)
         except ValueError:  # over the storage-buffer limit: the renderer refuses to trace it
-            traced.append(float("nan"))
+            bvhs.append(float("nan"))
         buffers.release()
         del exported, geometry
         cache = ExportCache()
@@ -141,7 +141,7 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
     ctx.release()
     row.update(triangles=sum(i.mesh.triangle_count for i in export_scene(depsgraph).instances),
                export=statistics.median(exports), export_cached=statistics.median(cached),
-               upload=statistics.median(uploads), rays=statistics.median(traced),
+               upload=statistics.median(uploads), bvh=statistics.median(bvhs),
                rss=peak_rss_mib())
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return row
@@ -197,8 +197,8 @@ def main() -> None:
         ours, sync = row["export"] + row["upload"], cycles["cycles_sync"]
         print(f"{name:>8} {int(row['triangles']):>10,} {row['export']:>7.3f}s "
               f"{row['export_cached'] * 1e3:>7.2f}ms {row['upload']:>7.3f}s {ours:>7.3f}s "
-              f"{_seconds(row['rays'])} {sync:>7.3f}s {ours / sync:>6.2f} "
-              f"{(ours + row['rays']) / sync:>6.2f} {row['rss_scene']:>7.0f}MiB "
+              f"{_seconds(row['bvh'])} {sync:>7.3f}s {ours / sync:>6.2f} "
+              f"{(ours + row['bvh']) / sync:>6.2f} {row['rss_scene']:>7.0f}MiB "
               f"{row['rss']:>6.0f}MiB {cycles['rss']:>7.0f}MiB", flush=True)
     print("export/cached: export_scene cold / with a warm ExportCache (which returns unchanged "
           "meshes as they were: milliseconds); upload: "
