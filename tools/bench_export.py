@@ -2,15 +2,14 @@
 
 For each scene (a tessellated grid of N triangles under a sun — "1Mngon" with one hexagon, so
 that its mesh takes the n-gon path — or 10k instances of a small mesh scattered by geometry
-nodes) it prints: our export time (cold, and again with a warm
-ExportCache), our upload time (core.geometry.flatten_instances plus
-core.scene_buffers.SceneBuffers: the vertex buffer and material tables the renderer uploads),
-our ray-tracing set-up (the BVH over the flattened triangles built and uploaded, as a frame
-that traces rays does it), Cycles' time to its first
-sample (a 1-sample 8×8 render minus the same render of an empty scene: its sync and BVH,
-median of --repeat), both ratios (without and with our BVH), and peak RSS after building the
-scene and of our export + upload and of Cycles, each measured in its own process (so each peak
-is its own).
+nodes) it prints: our export time (cold, and again with a warm ExportCache), our upload time
+(core.geometry.flatten_instances plus core.scene_buffers.SceneBuffers: the vertex buffer and
+material tables the renderer uploads), our ray-tracing set-up (the BVH built and uploaded as a
+frame that traces rays does it: a shared mesh's tree built once and refitted to each copy,
+core.gpu.instanced_bvh), Cycles' time to its first sample (a 1-sample 8×8 render minus the
+same render of an empty scene: its sync and BVH, median of --repeat), both ratios (without
+and with our BVH), and peak RSS after building the scene and of our export + upload and of
+Cycles, each measured in its own process (so each peak is its own).
 
     .venv/bin/python tools/bench_export.py [--scenes 100k 1M 1Mngon 5M inst10k] [--repeat 5]
 """
@@ -124,7 +123,7 @@ def measure_ours(name: str, repeat: int) -> dict[str, float]:
         uploads.append(time.perf_counter() - start)
         start = time.perf_counter()
         try:
-            tracer.upload(geometry.positions.reshape(-1, 3, 3))
+            tracer.upload(geometry.positions.reshape(-1, 3, 3), instanced=geometry.instanced)
             ctx.finish()
             bvhs.append(time.perf_counter() - start)
         except ValueError:  # over the storage-buffer limit: the renderer refuses to trace it

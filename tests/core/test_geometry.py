@@ -92,3 +92,21 @@ def test_a_non_finite_point_drops_only_the_triangles_using_it(used):
         kept = flatten_instances(Scene([Instance(_soup(mesh), np.eye(4), _materials()[0])]), [])
         np.testing.assert_array_equal(geometry.positions, kept.positions)
         np.testing.assert_array_equal(geometry.albedo, kept.albedo)
+
+
+def test_runs_of_shared_meshes_are_listed_after_dropped_triangles():
+    rng = np.random.default_rng(4)
+    single, shared, broken = (_indexed_mesh(rng, triangles=n) for n in (7, 11, 5))
+    broken.positions[int(broken.position_index[0])] = np.nan  # its copies lose triangles
+    materials = _materials()[0]
+    scene = Scene([Instance(mesh, matrix, materials) for mesh, matrix in [
+        (broken, np.eye(4)), (shared, np.eye(4)), (single, np.eye(4)), (broken, np.eye(4)),
+        *[(shared, matrix) for matrix in _transforms()]]])
+    geometry = flatten_instances(scene, [])
+    kept = broken.triangle_count - int(
+        (broken.position_index.reshape(-1, 3) == broken.position_index[0]).any(axis=1).sum())
+    assert geometry.instanced.tolist() == [[2 * kept, 4, 11]]  # by each mesh's first instance
+    first = 3 * 2 * kept
+    copies = geometry.positions[first:first + 3 * 4 * 11].reshape(4, 11 * 3, 3)
+    np.testing.assert_array_equal(copies[0], shared.corner_positions())
+    assert geometry.triangle_count == 2 * kept + 4 * 11 + 7

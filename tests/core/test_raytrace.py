@@ -7,13 +7,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from addon.core.gpu import raytrace
+from addon.core.gpu import instanced_bvh, raytrace
+from addon.core.gpu.bvh import BVH, STACK_SIZE, build_bvh
 from addon.core.gpu.gl import (
     SHADER_DIR,
     GLUnavailableError,
     require_compute,
 )
-from addon.core.gpu.raytrace import BVH, build_bvh
+from addon.core.gpu.instanced_bvh import build_instanced_bvh
 
 
 def soup(count: int, rng: np.random.Generator, size: float = 0.2) -> np.ndarray:
@@ -57,7 +58,7 @@ def assert_same_hits(hits, t: np.ndarray, u: np.ndarray, v: np.ndarray,
     distance, triangle = closest(t, t_min, t_max)
     rows = np.arange(len(t))
     np.testing.assert_array_equal(hits.triangle >= 0, triangle >= 0)
-    np.testing.assert_allclose(hits.distance, distance, rtol=1e-4)
+    np.testing.assert_allclose(hits.distance, distance, rtol=1e-4, atol=2e-6)  # float32
     differ = hits.triangle != triangle  # only exact ties may differ
     np.testing.assert_allclose(t[differ, hits.triangle[differ]], distance[differ], rtol=1e-6)
     same = (triangle >= 0) & ~differ
@@ -89,7 +90,7 @@ def assert_valid_bvh(bvh: BVH, tris: np.ndarray, leaf_size: int) -> None:
     for node in np.flatnonzero(leaf & (size > 0)):
         t = bvh.triangles[first[node]:first[node] + size[node]]
         assert (t >= bvh.node_min[node]).all() and (t <= bvh.node_max[node]).all()
-    assert bvh.depth <= raytrace.STACK_SIZE
+    assert bvh.depth <= STACK_SIZE
 
 
 @pytest.mark.parametrize("leaf_size", [1, 4, 7])
@@ -169,6 +170,56 @@ def test_t_min_and_t_max_per_ray(tracer):
     window = tracer.intersect(origins, directions, 0.3, per_ray)
     np.testing.assert_array_equal(tracer.occluded(origins, directions, per_ray, t_min=0.3),
                                   window.triangle >= 0)
+
+
+def instanced_scene(rng: np.random.Generator, singles: int, meshes: list[tuple[int, int]]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """``singles`` soup triangles, then per (triangles, copies) a soup mesh's copies, each
+    turned, scaled and moved: the triangles and their runs (first, copies, triangles each)."""
+    parts, runs, first = [soup(singles, rng)], [], singles
+    for count, copies in meshes:
+        mesh = soup(count, rng, 0.3) * 0.6
+        turn = np.linalg.qr(rng.normal(size=(copies, 3, 3)))[0]
+        turn *= rng.uniform(0.5, 2, (copies, 1, 1))
+        moved = np.einsum("kij,tvj->ktvi", turn, mesh) + rng.uniform(-1, 1, (copies, 1, 1, 3))
+        parts.append(moved.reshape(-1, 3, 3).astype(np.float32))
+        runs.append((first, copies, count))
+        first += copies * count
+    return np.concatenate(parts), np.array(runs, np.int64).reshape(-1, 3)
+
+
+@pytest.mark.parametrize("singles, meshes", [
+    (200, [(30, 12), (3, 40)]),  # a 3-triangle mesh's tree is one leaf
+    (0, [(25, 20)]),  # nothing but copies
+    (1, [(2, 3)])])
+def test_an_instanced_bvh_is_valid_and_traced_like_brute_force(tracer, singles, meshes):
+    rng = np.random.default_rng(len(meshes) + singles)
+    tris, runs = instanced_scene(rng, singles, meshes)
+    bvh = build_instanced_bvh(tris, runs)
+    assert_valid_bvh(bvh, tris, 4)
+    origins, directions = random_rays(3000, rng)
+    tracer.upload(tris, instanced=runs)
+    hits = tracer.intersect(origins, directions)
+    assert (hits.triangle >= 0).sum() >= 20
+    t, u, v = reference_t(tris, origins, directions)
+    assert_same_hits(hits, t, u, v)
+    np.testing.assert_array_equal(tracer.occluded(origins, directions, 1.0), closest(t)[0] < 1.0)
+
+
+def test_an_instanced_bvh_builds_each_mesh_once_and_falls_back_when_too_deep(monkeypatch):
+    rng = np.random.default_rng(7)
+    tris, runs = instanced_scene(rng, 50, [(40, 30)])
+    built = []
+    real_build = instanced_bvh.build_bvh
+    monkeypatch.setattr(instanced_bvh, "build_bvh", lambda t, *a: built.append(len(t)) or
+                        real_build(t, *a))
+    build_instanced_bvh(tris, runs)
+    assert built == [50, 40]  # the single triangles, then the shared mesh's first copy
+    built.clear()
+    monkeypatch.setattr(instanced_bvh, "STACK_SIZE", build_bvh(tris[:50]).depth + 2)
+    bvh = build_instanced_bvh(tris, runs)  # 31 subtrees need 5 levels above them: too deep
+    assert built[-1] == len(tris)
+    assert_valid_bvh(bvh, tris, 4)
 
 
 def planes(heights: list[float]) -> np.ndarray:
@@ -335,7 +386,7 @@ def test_compute_needs_opengl_4_3():
 @pytest.mark.parametrize("file, name, value", [
     ("raytrace_lib.glsl", "RT_BINDING_NODES", raytrace.BINDING_NODES),
     ("raytrace_lib.glsl", "RT_BINDING_TRIANGLES", raytrace.BINDING_TRIANGLES),
-    ("raytrace_lib.glsl", "RT_STACK_SIZE", raytrace.STACK_SIZE),
+    ("raytrace_lib.glsl", "RT_STACK_SIZE", STACK_SIZE),
     ("raytrace_comp.glsl", "RT_BINDING_RAYS", raytrace.BINDING_RAYS),
     ("raytrace_comp.glsl", "RT_BINDING_RESULTS", raytrace.BINDING_RESULTS),
     ("raytrace_comp.glsl", "local_size_x =", raytrace.LOCAL_SIZE)])

@@ -43,6 +43,8 @@ class WorldGeometry:
     materials: np.ndarray  # (M, MATERIAL_COLUMNS) float32
     uv: np.ndarray | None = None  # (V, 2) float32, only with textures
     textures: list[Texture] = field(default_factory=list)
+    instanced: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
+    """Runs of one mesh's copies: rows (first triangle, instances, triangles each)."""
 
     @classmethod
     def from_triangles(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
@@ -407,13 +409,19 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
         positions, normals = positions[keep], normals[keep]
         uv = None if uv is None else uv[keep]
         triangle_material = triangle_material[keep[::3]]
+    kept = [size if mask is None else int(mask.sum()) // 3
+            for mask, size in zip(masks, sizes, strict=True)]
+    firsts = np.cumsum([0, *kept])[:-1]
+    instanced = np.array([(first, len(group.matrices), group.mesh.triangle_count)
+                          for first, group, mask in zip(firsts, groups, masks, strict=True)
+                          if mask is None and len(group.matrices) > 1], np.int64).reshape(-1, 3)
     textures = table.textures.textures
     if table.clamped and notes is not None:
         notes.append(f"glossy roughness below {principled.MIN_ROUGHNESS:g} is rendered at "
                      f"{principled.MIN_ROUGHNESS:g}: {len(table.clamped)} material(s), e.g. "
                      f"'{min(table.clamped)}'")
     return WorldGeometry(positions, normals, triangle_material, table.rows(),
-                         uv if textures else None, textures)
+                         uv if textures else None, textures, instanced)
 
 
 def bounding_sphere(positions: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None
