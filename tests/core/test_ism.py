@@ -342,6 +342,19 @@ def test_empty_scene_and_vpl_facing_nothing_are_all_lit(maps):
     assert (maps.read_atlas() == np.float32(ism.FAR)).all()
 
 
+def test_a_new_splat_image_starts_empty_when_filled_in_strips(programs, monkeypatch):
+    monkeypatch.setattr(ism, "EMPTY_STRIP_TEXELS", 3 * 64 + 5)  # 3 rows of the 64² atlas
+    m = ImperfectShadowMaps(programs.ctx, programs)
+    try:
+        tris = np.zeros((0, 3, 3), np.float32)
+        m.prepare(tris, 64, seed=2)
+        m.render(tris, np.zeros((3, 3)), np.tile([0.0, 0.0, 1.0], (3, 1)), 32, 0)
+        assert m.read_atlas().shape == (64, 64)
+        assert (m.read_atlas() == np.float32(ism.FAR)).all()  # raw splats: no pull-push
+    finally:
+        m.release()
+
+
 def test_render_checks_its_inputs(programs):
     m = ImperfectShadowMaps(programs.ctx, programs)
     try:

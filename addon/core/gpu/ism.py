@@ -74,6 +74,7 @@ SPLAT_POINTS_PER_DISPATCH = 1 << 20  # a splat dispatch's points (VPLs × points
 # 0.15 s on llvmpipe, which holds Python's lock for a whole dispatch (Ctrl-C waits for it)
 FAR = float(np.float32(3.0e38))  # ISM_FAR in ism_lib.glsl: the depth of texels left empty
 EMPTY_BITS = 0xFFFFFFFF  # ISM_EMPTY_BITS: an empty splat texel, above every float's bits
+EMPTY_STRIP_TEXELS = 1 << 20  # texels per upload that fills a new splat image with EMPTY_BITS
 BEHIND = 1.25  # ISM_BEHIND: a splat this many times as far as the surface around is a hole
 FOOTPRINT_SCALE = 1.1  # the footprint disc's radius / that of the point's share of the
 # surface; 0: one texel. Measured with elliptic footprints at 1.0 / 1.1 / 1.25: the interior
@@ -347,8 +348,12 @@ class ImperfectShadowMaps:
             return
         self._release_images()
         self._layout = (width, height, resolution, tuple(sizes))
-        empty = np.full(width * height, EMPTY_BITS, np.uint32).tobytes()
-        self._splat = self.ctx.texture((width, height), 1, empty, dtype="u4")
+        self._splat = self.ctx.texture((width, height), 1, dtype="u4")
+        rows = max(1, EMPTY_STRIP_TEXELS // width)  # a strip at a time: no atlas-sized array
+        strip = np.full(width * rows, EMPTY_BITS, np.uint32)
+        for y in range(0, height, rows):
+            count = min(rows, height - y)
+            self._splat.write(strip[:width * count], viewport=(0, y, width, count))
         self._atlas = self.ctx.texture((width, height), 1, dtype="f4")
         self._atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
         tiles = (width // resolution, height // resolution)
