@@ -10,19 +10,15 @@
 // the camera does not see is written out as a surface sample (position, normal facing x, and
 // albedo(y) · weight / rays) whose light (direct, and with more than one bounce the VPLs')
 // the renderer gathers and adds afterwards (near_field.py). Output in pass units
-// (irradiance / pi), added to the indirect light before its blur. The rays start from the
-// indirect light's samples (u_origin_*: one per pixel or per supersample); hits are looked
-// up in the supersamples' g-buffer and direct light, and in the indirect light at its own
-// resolution.
+// (irradiance / pi), added to the indirect light before its blur. The rays start from every
+// supersample; hits are looked up in the supersamples' g-buffer and direct light, and in the
+// indirect light at its own resolution (per pixel or per supersample).
 #include "common_lib.glsl"
 #include "raytrace_lib.glsl"
 #include "compensation_lib.glsl"
 
 in vec2 v_uv;
 
-uniform sampler2D u_origin_position;   // the rays' origins: xyz world
-uniform sampler2D u_origin_normal;     //   shading normal, w = 1 on surfaces
-uniform sampler2D u_origin_geometric;  //   geometric normal, facing the camera
 uniform sampler2D u_position;   // the supersamples': xyz world, w view depth
 uniform sampler2D u_normal;     //   shading normal, w = 1 on surfaces
 uniform sampler2D u_geometric;  //   geometric normal, facing the camera
@@ -79,10 +75,10 @@ void main() {
     out_light = vec4(0.0);
     out_hit_position = out_hit_normal = out_hit_factor = vec4(0.0);
     gl_FragDepth = 0.0;  // the depth test keeps the gather at unseen hits to those (1.0)
-    vec4 normal = texelFetch(u_origin_normal, px, 0);
+    vec4 normal = texelFetch(u_normal, px, 0);
     if (normal.w == 0.0) return;
-    vec3 origin = texelFetch(u_origin_position, px, 0).xyz
-                  + texelFetch(u_origin_geometric, px, 0).xyz * u_ray_offset;
+    vec3 origin = texelFetch(u_position, px, 0).xyz
+                  + texelFetch(u_geometric, px, 0).xyz * u_ray_offset;
     vec3 dir = cosine_direction(normal.xyz, random2(uvec2(px), uint(u_ray)));
     float t;
     int triangle;

@@ -6,13 +6,17 @@
 // relative to its view depth, exp(-(|(x_p - x_s)·n_s| / (depth_s · u_plane_tolerance))²).
 // Where none of the four lies on the surface (a silhouette thinner than a pixel), the best
 // match of the 4×4 pixels around it is taken whole. Background supersamples get 0. SOURCES
-// light textures (default 1) are upsampled at once with the same weights.
+// light textures (default 1) are upsampled at once with the same weights. ADDED: each gets
+// its u_added texture (light gathered per supersample) added.
 
 #ifndef SOURCES
 #define SOURCES 1
 #endif
 
 uniform sampler2D u_source[SOURCES];  // RGBA32F light, one sample per pixel
+#ifdef ADDED
+uniform sampler2D u_added[SOURCES];   // RGBA32F light, one sample per supersample
+#endif
 uniform sampler2D u_pixel_position;   // the pixel samples' g-buffer: xyz world, w view depth
 uniform sampler2D u_pixel_normal;     //   xyz shading normal, w 1 on surfaces
 uniform sampler2D u_position;         // the supersamples' g-buffer, the same layers
@@ -29,6 +33,14 @@ float match(vec4 position, vec3 normal, float plane_scale, ivec2 q) {
     float plane = dot(texelFetch(u_pixel_position, q, 0).xyz - position.xyz, normal)
                   * plane_scale;
     return pow(max(dot(normal, n_q.xyz), 0.0), u_normal_power) * exp(-plane * plane);
+}
+
+vec4 added(int k, ivec2 s) {
+#ifdef ADDED
+    return texelFetch(u_added[k], s, 0);
+#else
+    return vec4(0.0);
+#endif
 }
 
 void main() {
@@ -54,7 +66,7 @@ void main() {
         total += weight;
     }
     if (total > 1e-3) {
-        for (int k = 0; k < SOURCES; ++k) out_light[k] = sum[k] / total;
+        for (int k = 0; k < SOURCES; ++k) out_light[k] = sum[k] / total + added(k, s);
         return;
     }
     float best = 0.0;
@@ -67,5 +79,7 @@ void main() {
             chosen = q;
         }
     }
-    for (int k = 0; k < SOURCES; ++k) out_light[k] = texelFetch(u_source[k], chosen, 0);
+    for (int k = 0; k < SOURCES; ++k) {
+        out_light[k] = texelFetch(u_source[k], chosen, 0) + added(k, s);
+    }
 }

@@ -322,10 +322,11 @@ class Settings:
         low=1, high=32, applies=unless("interleave", 1))
     indirect_resolution: str = setting(
         "supersample", "Indirect Resolution", "interleaving",
-        "Where the light of VPLs and its bias compensation are gathered",
+        "Where the light of VPLs is gathered",
         choices=(Choice("pixel", "Pixel", "once per pixel, then brought to every supersample "
                         "along the g-buffer's geometry: indirect light varies slowly, so direct "
-                        "light, colours and edges keep the supersampling"),
+                        "light, colours, edges and the bias compensation (sharp next to "
+                        "contacts and sunlit patches) keep the supersampling"),
                  Choice("supersample", "Supersample", "at every supersample (antialiasing² "
                         "times the work)")),
         applies=unless("antialiasing", 1))

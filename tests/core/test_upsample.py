@@ -31,17 +31,19 @@ def layers(height, normal, count: int, spacing: float) -> tuple[np.ndarray, np.n
             np.concatenate([n, np.ones_like(z)[..., None]], axis=-1))
 
 
-def run(programs, light: np.ndarray, height, normal) -> np.ndarray:
+def run(programs, light: np.ndarray, height, normal, added: np.ndarray | None = None
+        ) -> np.ndarray:
     """Light (PIXELS², 4) at the pixel samples, upsampled to the supersamples of the same
-    surface; returns (PIXELS·FACTOR)² × 4."""
+    surface, plus ``added`` light at the supersamples; returns (PIXELS·FACTOR)² × 4."""
     ctx = programs.ctx
     coarse = layers(height, normal, PIXELS, SPACING)
     fine = layers(height, normal, PIXELS * FACTOR, SPACING / FACTOR)
+    arrays = (light, *coarse, *fine) + (() if added is None else (added,))
     textures = [ctx.texture(a.shape[1::-1], 4, np.ascontiguousarray(a, np.float32).tobytes(),
-                            dtype="f4") for a in (light, *coarse, *fine)]
+                            dtype="f4") for a in arrays]
     try:
         out = upsample(ctx, programs, textures[:1], (textures[1], textures[2]),
-                       (textures[3], textures[4]), FACTOR)[0]
+                       (textures[3], textures[4]), FACTOR, textures[5:] or None)[0]
         n = PIXELS * FACTOR
         result = np.frombuffer(out.read(), np.float32).reshape(n, n, 4)
         out.release()
@@ -129,3 +131,18 @@ def test_background_gets_nothing_and_bad_sizes_are_refused(programs):
     finally:
         for texture in (small, large, odd):
             texture.release()
+
+
+def test_light_gathered_per_supersample_is_added(programs):
+    """The bias compensation, gathered at every supersample, joins the upsampled light, on
+    the plane and on a ridge one supersample wide (which takes its best-matching pixel)."""
+    rng = np.random.default_rng(5)
+    light = rgba(rng.random((PIXELS, PIXELS)))
+    added = rgba(rng.random((PIXELS * FACTOR, PIXELS * FACTOR)))
+
+    def ridge(x, y):  # no pixel centre lies on it
+        return np.where(np.abs(x - 0.1) < SPACING / 6, 0.3, 0.0)
+
+    plain, summed = run(programs, light, ridge, flat_normal), \
+        run(programs, light, ridge, flat_normal, added)
+    np.testing.assert_allclose(summed, plain + added, atol=1e-6)

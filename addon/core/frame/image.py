@@ -57,6 +57,8 @@ class TileWork:
     direct: moderngl.Framebuffer | None = None
     soft: moderngl.Framebuffer | None = None  # interleaved soft direct light, to be blurred
     indirect: moderngl.Framebuffer | None = None
+    near: moderngl.Framebuffer | None = None  # bias compensation per supersample, where the
+    # indirect light is gathered per pixel
     soft_light: list[moderngl.Texture] = field(default_factory=list)  # after the blur
     indirect_light: list[moderngl.Texture] = field(default_factory=list)
     background: np.ndarray | None = None  # what rays that miss see (None: transparent film)
@@ -116,6 +118,8 @@ class GBufferStage(TileStage):
             "position"].size, work.scope, glossy)
         if any(p.blurred for p in frame.light_passes):
             work.soft = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
+        if per_pixel and frame.near_field is not None:
+            work.near = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
 
     def _render(self, data: FrameGpu, frame: FrameState, work: TileWork, tile: Tile
                 ) -> GBuffer:
@@ -171,7 +175,8 @@ class GatherStage(TileStage):
 class NearFieldStage(TileStage):
     """Bias compensation from the image: the near surfaces' light, read from what the gather
     put in the direct and indirect accumulators, added to the indirect light before its
-    blur."""
+    blur; at every supersample even where the VPLs' light is gathered per pixel (its detail
+    next to contacts and sunlit patches is finer than the VPLs')."""
 
     name = "bias compensation"
 
@@ -182,9 +187,9 @@ class NearFieldStage(TileStage):
         with frame.stats.timed(self.name):
             self.gpu.tracer.bind()
             compensate_from_image(self.gpu.ctx, self.gpu.programs, frame.near_field,
-                                  work.gbuffer, work.indirect_gbuffer, (work.direct, work.soft),
-                                  work.indirect, RAY_OFFSET * frame.radius, data.scene,
-                                  partial(self._light_at, frame, data))
+                                  work.gbuffer, (work.direct, work.soft), work.indirect,
+                                  work.near or work.indirect, RAY_OFFSET * frame.radius,
+                                  data.scene, partial(self._light_at, frame, data))
             self.gpu.ctx.finish()
 
     def _light_at(self, frame: FrameState, data: FrameGpu, samples: GBuffer,
@@ -204,10 +209,12 @@ class NearFieldStage(TileStage):
                 gather(self.gpu.ctx, self.gpu.programs, replace(light_pass, visibility=traced),
                        data.maps.shadow_atlases.placeholder(), samples, target, data.scene,
                        frame.centre, frame.radius, frame.settings.shadow_bias)
-            elif with_vpls:
+            elif with_vpls:  # the hits are supersamples: the supersamples' pattern
                 atlas = light_pass.visibility.maps(light_pass.batch, data.maps)
-                gather(self.gpu.ctx, self.gpu.programs, light_pass, atlas, samples, target,
-                       data.scene, frame.centre, frame.radius, frame.settings.shadow_bias)
+                gather(self.gpu.ctx, self.gpu.programs,
+                       replace(light_pass, interleave=frame.settings.interleave), atlas,
+                       samples, target, data.scene, frame.centre, frame.radius,
+                       frame.settings.shadow_bias)
 
 
 class BlurStage(TileStage):
@@ -221,24 +228,28 @@ class BlurStage(TileStage):
         per_pixel = work.indirect_gbuffer is not work.gbuffer
         soft = [work.soft] if work.soft is not None else []
         if per_pixel:
+            near = [work.near] if work.near is not None else []
             lights = self._blurred(frame, work, work.indirect_gbuffer, [work.indirect])
-            lights += self._blurred(frame, work, work.gbuffer, soft) if soft else []
-            lights[0] = self._upsampled(frame, work, lights[0])
+            if soft or near:
+                lights += self._blurred(frame, work, work.gbuffer, soft + near)
+            added = lights.pop() if near else None
+            lights[0] = self._upsampled(frame, work, lights[0], added)
         else:
             lights = self._blurred(frame, work, work.gbuffer, [work.indirect, *soft])
         work.indirect_light = lights[0]
         work.soft_light = lights[1] if soft else []
 
-    def _upsampled(self, frame: FrameState, work: TileWork,
-                   textures: list[moderngl.Texture]) -> list[moderngl.Texture]:
-        """Light textures of the pixels' g-buffer brought to every supersample."""
+    def _upsampled(self, frame: FrameState, work: TileWork, textures: list[moderngl.Texture],
+                   added: list[moderngl.Texture] | None) -> list[moderngl.Texture]:
+        """Light textures of the pixels' g-buffer brought to every supersample, plus
+        ``added`` (supersample light textures, one per texture) where given."""
         with frame.stats.timed("upsample"):
             pixels, supersamples = work.pixels.textures, work.gbuffer.textures
             result = [work.scope.own(t) for t in upsample(
                 self.gpu.ctx, self.gpu.programs, textures,
                 (pixels["position"], pixels["normal"]),
                 (supersamples["position"], supersamples["normal"]),
-                frame.settings.antialiasing)]
+                frame.settings.antialiasing, added)]
             self.gpu.ctx.finish()
         return result
 

@@ -37,40 +37,38 @@ class NearField:
 
 
 def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: NearField,
-                          gbuffer: GBuffer, indirect_gbuffer: GBuffer,
+                          gbuffer: GBuffer,
                           direct: tuple[moderngl.Framebuffer, moderngl.Framebuffer | None],
-                          indirect: moderngl.Framebuffer, ray_offset: float,
-                          scene: SceneBuffers, gather_at: GatherAt) -> None:
-    """Add the near-field light to ``indirect`` (additive blending), with rays from the
-    samples of ``indirect_gbuffer`` (the indirect light's: per pixel or, like ``gbuffer``, per
-    supersample), one ray per draw. ``direct``: the direct light's accumulators (``gbuffer``'s
-    size), hard and (when soft lights are interleaved) soft. Hits the camera does not see get
-    their light from ``gather_at``. The ray tracer's scene (``scene``'s triangles) must
-    be bound."""
+                          indirect: moderngl.Framebuffer, target: moderngl.Framebuffer,
+                          ray_offset: float, scene: SceneBuffers, gather_at: GatherAt) -> None:
+    """Add the near-field light to ``target`` (additive blending), with rays from the
+    supersamples of ``gbuffer``, one ray per draw. ``direct``: the direct light's accumulators
+    (``gbuffer``'s size), hard and (when soft lights are interleaved) soft; ``indirect``: the
+    indirect light (per pixel or per supersample), which may be ``target`` itself. Hits the
+    camera does not see get their light from ``gather_at``. The ray tracer's scene
+    (``scene``'s triangles) must be bound."""
     with GpuScope() as scope:
-        size = indirect.size
-        clamped = scope.own(ctx.texture(size, 4, dtype="f4"))  # the indirect light read back
+        size = target.size
+        clamped = scope.own(ctx.texture(indirect.size, 4, dtype="f4"))  # read back
         ctx.copy_framebuffer(clamped, indirect)
-        textures, origins = gbuffer.textures, indirect_gbuffer.textures
-        units = {"u_origin_position": origins["position"], "u_origin_normal": origins["normal"],
-                 "u_origin_geometric": origins["geometric"],
-                 "u_position": textures["position"], "u_normal": textures["normal"],
+        textures = gbuffer.textures
+        units = {"u_position": textures["position"], "u_normal": textures["normal"],
                  "u_geometric": textures["geometric"], "u_albedo": textures["albedo"],
                  "u_direct": direct[0].color_attachments[0], "u_indirect": clamped}
-        defines: dict[str, object] = {"GLOSSY": 1} if len(indirect.color_attachments) > 1 \
+        defines: dict[str, object] = {"GLOSSY": 1} if len(target.color_attachments) > 1 \
             else {}
         if near.indirect_at_hits:
             defines["INDIRECT_AT_HITS"] = 1
         if direct[1] is not None:
             units["u_soft_direct"] = direct[1].color_attachments[0]
             defines["SOFT_DIRECT"] = 1
-        first_hit = len(indirect.color_attachments)
+        first_hit = len(target.color_attachments)
         defines.update(HIT_POSITION_LOCATION=first_hit, HIT_NORMAL_LOCATION=first_hit + 1,
                        HIT_FACTOR_LOCATION=first_hit + 2,
                        SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
         hits = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in range(3)]
         unseen = scope.own(ctx.depth_renderbuffer(size))  # 1 at unseen hits, 0 elsewhere
-        target = scope.own(ctx.framebuffer([*indirect.color_attachments, *hits], unseen))
+        draw = scope.own(ctx.framebuffer([*target.color_attachments, *hits], unseen))
         hit_targets = scope.own(ctx.framebuffer(hits))
         program = programs.get("fullscreen_vert.glsl", "near_field_frag.glsl", defines,
                                version=430)
@@ -86,14 +84,14 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
             scene.bind_materials(program)
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
             hit_targets.clear(0.0, 0.0, 0.0, 0.0)
-            target.use()
+            draw.use()
             ctx.enable(moderngl.BLEND | moderngl.DEPTH_TEST)
             ctx.depth_func = "1"  # every fragment writes its depth
             ctx.blend_func = moderngl.ONE, moderngl.ONE
             vao.render(moderngl.TRIANGLES, vertices=3)
             ctx.depth_func = "<"
             ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
-            _add_offscreen(ctx, programs, hits, unseen, indirect, gather_at, indirect_gbuffer)
+            _add_offscreen(ctx, programs, hits, unseen, target, gather_at, gbuffer)
 
 
 def _add_offscreen(ctx: moderngl.Context, programs: ProgramCache, hits: list[moderngl.Texture],
