@@ -184,12 +184,13 @@ class NearFieldStage(TileStage):
         if frame.near_field is None or data.scene is None:
             return
         frame.check_cancelled()
+        target = work.indirect if work.near is None else work.near
         with frame.stats.timed(self.name):
             self.gpu.tracer.bind()
             compensate_from_image(self.gpu.ctx, self.gpu.programs, frame.near_field,
                                   work.gbuffer, (work.direct, work.soft), work.indirect,
-                                  work.near or work.indirect, RAY_OFFSET * frame.radius,
-                                  data.scene, partial(self._light_at, frame, data))
+                                  target, RAY_OFFSET * frame.radius, data.scene,
+                                  partial(self._light_at, frame, data))
             self.gpu.ctx.finish()
 
     def _light_at(self, frame: FrameState, data: FrameGpu, samples: GBuffer,

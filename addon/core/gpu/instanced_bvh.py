@@ -10,6 +10,8 @@ build costs one mesh build per shared mesh, where flattening would build over ev
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .bvh import BVH, STACK_SIZE, Tree, build_bvh, build_tree
@@ -46,14 +48,17 @@ def build_instanced_bvh(triangles: np.ndarray, instanced: np.ndarray, leaf_size:
     return _join(top, subtrees)
 
 
+@dataclass
 class _Subtrees:
-    """k subtrees of one shape: boxes (k, M, 3), the shape's node data (M, 2), and each copy's
-    triangle ids (k, n) and triangles (k, n, 3, 3) in leaf order."""
+    """k subtrees of one shape: boxes, the shape's node data, and each copy's triangle ids
+    and triangles in leaf order."""
 
-    def __init__(self, node_min: np.ndarray, node_max: np.ndarray, node_data: np.ndarray,
-                 triangle_ids: np.ndarray, triangles: np.ndarray, depth: int) -> None:
-        self.node_min, self.node_max, self.node_data = node_min, node_max, node_data
-        self.triangle_ids, self.triangles, self.depth = triangle_ids, triangles, depth
+    node_min: np.ndarray  # (k, M, 3) float32
+    node_max: np.ndarray  # (k, M, 3) float32
+    node_data: np.ndarray  # (M, 2) int32
+    triangle_ids: np.ndarray  # (k, n)
+    triangles: np.ndarray  # (k, n, 3, 3) float32
+    depth: int
 
     @property
     def copies(self) -> int:
