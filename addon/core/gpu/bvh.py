@@ -125,12 +125,17 @@ def build_bvh(triangles: np.ndarray, leaf_size: int = 4, max_depth: int = STACK_
         raise ValueError(f"leaf_size must be at least 1, got {leaf_size}")
     if not np.isfinite(tris).all():
         raise ValueError("triangles must have finite coordinates")
-    corners = tris.transpose(1, 2, 0)  # (vertex, xyz, triangle)
-    lo = np.minimum(np.minimum(corners[0], corners[1]), corners[2])
-    hi = np.maximum(np.maximum(corners[0], corners[1]), corners[2])
+    lo, hi = triangle_bounds(tris.transpose(1, 2, 0))
     tree = build_tree(lo, hi, leaf_size, max_depth)
     return BVH(tree.node_min, tree.node_max, tree.node_data, np.take(tris, tree.order, axis=0),
                tree.order.astype(np.int32), tree.depth)
+
+
+def triangle_bounds(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle's box corners (lo, hi) from its vertices along the first axis."""
+    lo = np.minimum(np.minimum(vertices[0], vertices[1]), vertices[2])
+    hi = np.maximum(np.maximum(vertices[0], vertices[1]), vertices[2])
+    return lo, hi
 
 
 @dataclass

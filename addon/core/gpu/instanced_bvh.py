@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bvh import BVH, STACK_SIZE, Tree, build_bvh, build_tree
+from .bvh import BVH, STACK_SIZE, Tree, build_bvh, build_tree, triangle_bounds
 
 
 def build_instanced_bvh(triangles: np.ndarray, instanced: np.ndarray, leaf_size: int = 4
@@ -22,7 +22,8 @@ def build_instanced_bvh(triangles: np.ndarray, instanced: np.ndarray, leaf_size:
     """The BVH of world ``triangles`` (T, 3, 3), where ``instanced`` rows (first triangle,
     instances, triangles per instance) mark runs of one mesh's copies (instance i holds
     triangles first + i·n .. first + (i+1)·n - 1, in the mesh's order); all other triangles
-    are single. Falls back to ``build_bvh`` where the joined tree would be too deep."""
+    are single. Without runs, or where the joined tree would be too deep, it is
+    ``build_bvh``'s."""
     tris = np.ascontiguousarray(triangles, dtype=np.float32).reshape(-1, 3, 3)
     runs = np.asarray(instanced, np.int64).reshape(-1, 3)
     if not len(runs) or not np.isfinite(tris).all():
@@ -71,8 +72,7 @@ def _copies(tris: np.ndarray, first: int, copies: int, count: int, leaf_size: in
     shape = build_bvh(tris[first:first + count], leaf_size)
     ids = first + np.arange(copies)[:, None] * count + shape.triangle_ids[None]
     world = tris[ids]  # (k, n, 3, 3) in leaf order
-    lo = np.minimum(np.minimum(world[:, :, 0], world[:, :, 1]), world[:, :, 2])
-    hi = np.maximum(np.maximum(world[:, :, 0], world[:, :, 1]), world[:, :, 2])
+    lo, hi = triangle_bounds(world.transpose(2, 0, 1, 3))  # (k, n, 3) each
     node_min = np.empty((copies, len(shape.node_data), 3), np.float32)
     node_max = np.empty_like(node_min)
     start, size = shape.node_data[:, 0], shape.node_data[:, 1]
@@ -104,37 +104,33 @@ def _node_depths(node_data: np.ndarray) -> np.ndarray:
 def _join(top: Tree, subtrees: list[_Subtrees]) -> BVH:
     """The top tree with each leaf (one subtree root each) replaced by its subtree: subtree
     nodes but the root follow the top's nodes, their triangles follow one another."""
-    counts = [s.copies for s in subtrees]
-    shape_of = np.repeat(np.arange(len(subtrees)), counts)  # item -> subtree shape
-    node_bases, tri_bases, node_next, tri_next = [], [], len(top.node_data), 0
-    for s in subtrees:  # copies of one shape: consecutive blocks of M - 1 nodes and n triangles
-        node_bases.append(node_next + (len(s.node_data) - 1) * np.arange(s.copies))
-        tri_bases.append(tri_next + s.triangle_ids.shape[1] * np.arange(s.copies))
-        node_next += (len(s.node_data) - 1) * s.copies
-        tri_next += s.triangle_ids.size
-    node_min = np.empty((node_next, 3), np.float32)
-    node_max = np.empty_like(node_min)
-    node_data = np.empty((node_next, 2), np.int32)
-    triangle_ids = np.concatenate([s.triangle_ids.ravel() for s in subtrees])
     top_count = len(top.node_data)
+    total = top_count + sum((len(s.node_data) - 1) * s.copies for s in subtrees)
+    node_min = np.empty((total, 3), np.float32)
+    node_max = np.empty_like(node_min)
+    node_data = np.empty((total, 2), np.int32)
     node_min[:top_count], node_max[:top_count] = top.node_min, top.node_max
     node_data[:top_count] = top.node_data
-    root_rows = []
-    for index, s in enumerate(subtrees):
-        rows = _remap(s.node_data, node_bases[index], tri_bases[index])  # (k, M, 2)
-        block = slice(node_bases[index][0], node_bases[index][0] + s.copies * (len(rows[0]) - 1))
+    roots, node_next, tri_next = [], top_count, 0
+    for s in subtrees:  # copies of one shape: consecutive blocks of M - 1 nodes and n triangles
+        inner = len(s.node_data) - 1
+        rows = _remap(s.node_data, node_next + inner * np.arange(s.copies),
+                      tri_next + s.triangle_ids.shape[1] * np.arange(s.copies))  # (k, M, 2)
+        block = slice(node_next, node_next + inner * s.copies)
         node_min[block] = s.node_min[:, 1:].reshape(-1, 3)
         node_max[block] = s.node_max[:, 1:].reshape(-1, 3)
         node_data[block] = rows[:, 1:].reshape(-1, 2)
-        root_rows.append(rows[:, 0])
+        roots.append(rows[:, 0])
+        node_next, tri_next = block.stop, tri_next + s.triangle_ids.size
     top_leaves = np.flatnonzero(top.node_data[:, 1] >= 0)
-    items = top.order[top.node_data[top_leaves, 0]]
-    node_data[top_leaves] = np.concatenate(root_rows)[items]
-    depths = _node_depths(top.node_data)[top_leaves] + \
-        np.array([s.depth for s in subtrees])[shape_of[items]]
+    items = top.order[top.node_data[top_leaves, 0]]  # the subtree at each top leaf
+    node_data[top_leaves] = np.concatenate(roots)[items]
+    item_depth = np.repeat([s.depth for s in subtrees], [s.copies for s in subtrees])
+    depth = _node_depths(top.node_data)[top_leaves] + item_depth[items]
+    triangle_ids = np.concatenate([s.triangle_ids.ravel() for s in subtrees])
     triangles = np.concatenate([s.triangles.reshape(-1, 3, 3) for s in subtrees])
     return BVH(node_min, node_max, node_data, triangles, triangle_ids.astype(np.int32),
-               int(depths.max()))
+               int(depth.max()))
 
 
 def _remap(node_data: np.ndarray, node_bases: np.ndarray, tri_bases: np.ndarray) -> np.ndarray:

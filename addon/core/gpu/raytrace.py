@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from .bvh import BVH, build_bvh
+from .bvh import BVH
 from .gl import ProgramCache, require_compute
 from .instanced_bvh import build_instanced_bvh
 
@@ -79,17 +79,14 @@ class RayTracer:
         self.upload(np.zeros((0, 3, 3), np.float32))
 
     def upload(self, triangles: np.ndarray, leaf_size: int = 4,
-               instanced: np.ndarray | None = None) -> None:
+               instanced: np.ndarray | tuple = ()) -> None:
         """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene.
         ``instanced`` rows (first triangle, instances, triangles each) mark runs of one mesh's
         copies, whose tree is built once (``instanced_bvh``). Raises ValueError before building
         when the triangles cannot fit a storage buffer."""
         count = len(np.asarray(triangles).reshape(-1, 3, 3))
         self._check_size(count, count * TRIANGLE_DTYPE.itemsize)
-        if instanced is None or not len(instanced):
-            self.upload_bvh(build_bvh(triangles, leaf_size))
-        else:
-            self.upload_bvh(build_instanced_bvh(triangles, instanced, leaf_size))
+        self.upload_bvh(build_instanced_bvh(triangles, instanced, leaf_size))
 
     def _check_size(self, triangles: int, nbytes: int) -> None:
         limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
