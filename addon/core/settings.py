@@ -284,7 +284,7 @@ class Settings:
         "Texels per cube-face edge of each VPL's shadow map",
         low=16, high=2048, soft_high=1024, applies=when("visibility", "classic"))
     clamp_distance: float = setting(
-        0.05, "Clamp Distance", "clamping",
+        0.1, "Clamp Distance", "clamping",
         "VPL distances below this fraction of the scene's radius are clamped: bounds the 1/d² "
         "spikes next to VPLs at the cost of some energy (0 = no clamp)",
         low=0.0, high=1.0, subtype="FACTOR")
