@@ -193,7 +193,7 @@ float shadow_taps(int tile, float resolution, vec2 texel, float receiver, float 
     return lit;
 }
 
-uniform float u_ray_offset;  // ray-origin offset along the normal, scene-relative
+uniform float u_ray_offset;  // how far rays start off the surface, scene-relative
 
 #ifdef EXACT_VISIBILITY
 #include "raytrace_lib.glsl"
@@ -261,17 +261,23 @@ void read_shadow_hints(ivec2 supersample) {
 #endif
 
 
+// Share of u_ray_offset a shadow ray starts off the surface along its normal; it skips the
+// rest along itself (t_min). An offset along the normal alone moves every shadow edge by
+// offset / tan(elevation): the interior's sun-patch edges lay 0.13 px into the shadow.
+const float SHADOW_RAY_NORMAL_SHARE = 0.1;
+
 // One ray: 1 if nothing blocks the segment from `world` to the sample (or its direction).
 float traced_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
-    vec3 origin = world + geometric_normal * u_ray_offset;
+    vec3 origin = world + geometric_normal * (u_ray_offset * SHADOW_RAY_NORMAL_SHARE);
+    float t_min = u_ray_offset;
     if (s.kind == KIND_DIRECTIONAL) {
-        return rt_occluded(origin, -s.axis, 0.0, 3.0e38) ? 0.0 : 1.0;
+        return rt_occluded(origin, -s.axis, t_min, 3.0e38) ? 0.0 : 1.0;
     }
     vec3 to_light = s.position - origin;
     float distance = length(to_light);
     float t_max = distance * (1.0 - 1e-4) - u_ray_offset;
-    if (t_max <= 0.0) return 1.0;
-    return rt_occluded(origin, to_light / distance, 0.0, t_max) ? 0.0 : 1.0;
+    if (t_max <= t_min) return 1.0;
+    return rt_occluded(origin, to_light / distance, t_min, t_max) ? 0.0 : 1.0;
 }
 
 #ifdef HINTS_ONLY

@@ -14,7 +14,7 @@ import pytest
 from addon.core.frame import batches
 from addon.core.frame import image as image_stage
 from addon.core.scene.geometry import flatten_instances
-from addon.core.scene.model import AreaShape, Instance, LightKind, Material, World
+from addon.core.scene.model import AreaShape, Instance, LightKind, Material, Mesh, World
 from addon.core.settings import Settings
 from addon.core.transport.lights import build_light_samples
 from tests.core.builders import (
@@ -160,6 +160,31 @@ def test_point_light_shadow_of_an_occluder(renderer):
     assert umbra.sum() > 20 and np.all(e[umbra] == 0.0)
     np.testing.assert_allclose(e[lit], expected[lit], rtol=2e-3)
 
+
+
+def test_a_sun_shadow_edge_lies_where_the_occluder_puts_it(renderer):
+    """A wall 1.5 m tall, a sun 20° high behind it: the shadow edge on the floor lies where the
+    rays grazing the wall's top meet it, to a tenth of a pixel (the view spans 0.32 m: a pixel
+    is 5 mm). Shadow rays that started 0.7 mm (1e-4 of the scene's radius) off the floor along
+    its normal put the edge 0.39 px into the shadow; they now skip most of that along themselves.
+    The edge's position is read from the lit area of each pixel column (8 × 8 supersamples)."""
+    elevation, top, size, extent = np.radians(20.0), 1.5, 64, 0.32
+    edge = 0.0123  # world y of the analytic shadow edge, off the pixel grid
+    wall_y = edge - top / np.tan(elevation)
+    corners = np.array([[-5, wall_y, 0], [5, wall_y, 0], [5, wall_y, top],
+                        [-5, wall_y, 0], [5, wall_y, top], [-5, wall_y, top]], np.float32)
+    wall = Mesh("wall", corners, np.tile(np.float32([0, -1, 0]), (6, 1)),
+                np.zeros(2, np.int32))
+    sun = light(LightKind.SUN, rotation_x(np.pi / 2 - elevation), power=3.0)  # towards +y
+    scene = floor_scene([sun], extra=[Instance(wall, np.eye(4), [Material("wall")])])
+    scene.camera = top_down_camera(size, extent)
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=8))
+    lit = irradiance(frame) / (3.0 * np.sin(elevation))  # 1 where lit, 0 in the shadow
+    pixel = extent / size
+    assert np.allclose(lit[:, 0], lit[:, size // 2], atol=1e-3)  # the edge runs along x
+    rows = lit[:, size // 2]  # row 0 at y = -extent / 2
+    measured = extent / 2 - rows.sum() * pixel  # the lit part starts here
+    assert abs(measured - edge) < 0.1 * pixel, (measured - edge) / pixel
 
 @pytest.mark.parametrize("aa", [2, 3])
 def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch, aa):
