@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 import moderngl
 
-from .gl import ProgramCache, draw_into_new_textures, set_uniforms
+from .gl import ProgramCache, draw_into_new_textures, set_sampler_array, set_uniforms
 
 AXES = ((1, 0), (0, 1))
 MAX_SOURCES = 4  # light textures per draw (every OpenGL 3.3 context has 8 draw buffers)
@@ -46,7 +46,7 @@ class GeometryAwareBlur:
         normal.use(1)
         set_uniforms(program, u_position=0, u_normal=1, u_radius=radius,
                      u_normal_power=normal_power, u_plane_tolerance=plane_tolerance)
-        program["u_source"].value = [2 + i for i in range(count)] if count > 1 else 2
+        set_sampler_array(program, "u_source", 2, count)
         self.ctx.disable(moderngl.BLEND)
         across = self._pass(self._vao[count], program, sources, AXES[0])
         try:

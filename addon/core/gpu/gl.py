@@ -184,6 +184,12 @@ def set_uniforms(program: moderngl.Program, **values: object) -> None:
             program[name].value = value
 
 
+def set_sampler_array(program: moderngl.Program, name: str, first: int, count: int) -> None:
+    """Point the sampler array ``name`` at texture units ``first`` .. ``first + count - 1``
+    (an array of one takes a plain unit)."""
+    program[name].value = list(range(first, first + count)) if count > 1 else first
+
+
 def draw_into_new_textures(ctx: moderngl.Context, vao: moderngl.VertexArray,
                            size: tuple[int, int], count: int) -> list[moderngl.Texture]:
     """Draw ``vao``'s full-screen triangle (fullscreen_vert.glsl), without blending, into

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import moderngl
 
 from .blur import MAX_SOURCES
-from .gl import ProgramCache, draw_into_new_textures, set_uniforms
+from .gl import ProgramCache, draw_into_new_textures, set_sampler_array, set_uniforms
 
 
 def upsample(ctx: moderngl.Context, programs: ProgramCache, sources: Sequence[moderngl.Texture],
@@ -39,11 +39,9 @@ def upsample(ctx: moderngl.Context, programs: ProgramCache, sources: Sequence[mo
     set_uniforms(program, u_pixel_position=0, u_pixel_normal=1, u_position=2, u_normal=3,
                  u_factor=factor, u_normal_power=normal_power,
                  u_plane_tolerance=plane_tolerance)
-    units = [4 + i for i in range(len(sources))]
-    program["u_source"].value = units if len(units) > 1 else units[0]
+    set_sampler_array(program, "u_source", 4, len(sources))
     if added:
-        units = [4 + len(sources) + i for i in range(len(added))]
-        program["u_added"].value = units if len(units) > 1 else units[0]
+        set_sampler_array(program, "u_added", 4 + len(sources), len(added))
     vao = ctx.vertex_array(program, [])
     try:
         return draw_into_new_textures(ctx, vao, size, len(sources))
