@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 
 from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import Settings
-from addon.core.transport.guidance import MIN_ACCEPTANCE, acceptance
+from addon.core.transport.guidance import (
+    MIN_ACCEPTANCE,
+    CameraPoints,
+    acceptance,
+    contributions,
+    refined_contributions,
+)
+from addon.core.transport.vpl import LUMINANCE, VPLs
 from devtools import metrics
 from tests.core.builders import floor_scene, light, quad, rotation_x, translation
 
@@ -43,6 +51,72 @@ def test_guided_vpls_light_the_view_with_less_error_and_the_same_energy(renderer
     assert guided["vpls_in_view_pct"] >= 70 > guided["candidates_in_view_pct"] + 40, guided
     assert error["camera"] < 0.75 * error["off"], error
     assert abs(energy["camera"]) < 0.05, energy
+
+
+class BlockingTracer:
+    """A stand-in ray caster: the rays whose index is in ``blocked`` hit something."""
+
+    def __init__(self, blocked: set[int] = frozenset()) -> None:
+        self.blocked = blocked
+
+    def intersect(self, origin, direction, t_min, t_max):
+        hit = np.array([i in self.blocked for i in range(len(origin))])
+        return SimpleNamespace(triangle=np.where(hit, 0, -1), distance=np.where(hit, 1.0, np.inf))
+
+
+def random_unit(rng: np.random.Generator, count: int) -> np.ndarray:
+    vectors = rng.normal(size=(count, 3))
+    return vectors / np.linalg.norm(vectors, axis=1, keepdims=True)
+
+
+def test_contributions_follow_the_point_to_point_formula_far_from_the_origin() -> None:
+    """Intensity × both cosines / distance² × albedo / π summed over the points, zero for
+    pairs facing away or whose ray is blocked; computed from products of positions, so it is
+    checked 1e4 from the origin, where cancellation would show."""
+    rng = np.random.default_rng(4)
+    far = np.array([1e4, -2e4, 5e3])
+    vpls = VPLs(far + rng.normal(size=(30, 3)), random_unit(rng, 30), rng.random((30, 3)),
+                np.ones(30, int), np.arange(30))
+    points = CameraPoints(far + rng.normal(size=(40, 3)), random_unit(rng, 40),
+                          rng.random((40, 3)))
+    expected = np.zeros((30, 40))
+    for i in range(30):
+        for j in range(40):
+            offset = points.position[j] - vpls.position[i]
+            distance = np.linalg.norm(offset)
+            cos_vpl = max(0.0, offset @ vpls.normal[i] / distance)
+            cos_point = max(0.0, -offset @ points.normal[j] / distance)
+            expected[i, j] = (vpls.intensity[i] @ LUMINANCE) * cos_vpl * cos_point \
+                / distance**2 * (points.albedo[j] @ LUMINANCE) / np.pi
+    assert np.allclose(contributions(vpls, points, BlockingTracer(), 1e-9),
+                       expected.sum(axis=1), rtol=1e-9, atol=0)
+    pairs = np.argwhere(expected > 0)  # the rays, in the order the caster gets them
+    blocked = {0, 5, len(pairs) - 1}
+    for k in blocked:
+        expected[tuple(pairs[k])] = 0.0
+    assert np.allclose(contributions(vpls, points, BlockingTracer(blocked), 1e-9),
+                       expected.sum(axis=1), rtol=1e-9, atol=0)
+
+
+def test_candidates_the_first_points_miss_are_estimated_at_more_points() -> None:
+    """A VPL that lights none of the first points but lights the view between them gets the
+    further points' estimate (scaled to the first points' count), not zero (which would keep
+    it at MIN_ACCEPTANCE and weight it twentyfold); one that lights the first points keeps
+    their estimate."""
+    up, down = np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, -1.0]])
+    vpls = VPLs(np.array([[0.0, 0.0, 1.0], [5.0, 0.0, 1.0]]), np.array([down[0], [1, 0, 0]]),
+                np.ones((2, 3)), np.ones(2, int), np.arange(2))
+    first = CameraPoints(np.array([[0.0, 0.0, 0.0], [0.0, 0.5, 0.0]]), np.repeat(up, 2, 0),
+                         np.full((2, 3), 0.5))  # under the first VPL, behind the second
+    more = CameraPoints(np.array([[7.0, 0.0, 0.0], [7.0, 1.0, 0.0], [0.0, 0.0, 0.0],
+                                  [3.0, 0.0, 0.0]]), np.repeat(up, 4, 0), np.full((4, 3), 0.5))
+    value = refined_contributions(vpls, first, more, BlockingTracer(), 1e-6)
+    assert value[0] == contributions(vpls, first, BlockingTracer(), 1e-6)[0] > 0
+    only_second = VPLs(vpls.position[1:], vpls.normal[1:], vpls.intensity[1:],
+                       vpls.generation[1:], vpls.rank[1:])
+    assert contributions(only_second, first, BlockingTracer(), 1e-6)[0] == 0
+    again = contributions(only_second, more, BlockingTracer(), 1e-6)[0]
+    assert value[1] == again * 2 / 4 > 0
 
 
 def test_acceptance_spends_the_budget_on_contribution() -> None:

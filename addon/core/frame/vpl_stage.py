@@ -21,6 +21,7 @@ from ..transport.guidance import (
     guide,
     kept_per_candidate,
     merge,
+    refined_contributions,
 )
 from ..transport.lights import LightSamples
 from ..transport.sequences import scrambled_halton
@@ -36,6 +37,10 @@ VPL_FIELDS = ("vpl_count", "bounces", "seed", "termination", "vpl_source", "rsm_
 """Settings VPL generation reads (with the lights, the world, the geometry version and, with
 camera guidance, the camera)."""
 GUIDE_POINTS = 64  # camera points a candidate VPL's contribution is estimated at
+MORE_GUIDE_POINTS = 448
+"""Further camera points for the candidates that light none of the first GUIDE_POINTS: on
+Sponza a third of the VPLs that do light the view were missed by 64 points, kept at
+MIN_ACCEPTANCE and weighted by its inverse (six seeds: mean error 36.5 → 33.0 %)."""
 FIRST_ROUND = 4  # candidate paths per kept path's worth of VPLs in the first round
 DECISION_PATHS = 128
 """Light paths of the probe that decides whether guidance is worth it (the share of their VPLs
@@ -164,6 +169,8 @@ class MakeVPLs(Stage):
                                  frame.centre, frame.radius)
 
         points = camera_points(frame.camera, frame.geometry, tracer, GUIDE_POINTS, settings.seed)
+        more = camera_points(frame.camera, frame.geometry, tracer, MORE_GUIDE_POINTS,
+                             settings.seed + 1)
         first_paths = candidate_paths(settings.vpl_count,
                                       min(FIRST_ROUND, settings.guidance_candidates))
         probe = candidates(min(DECISION_PATHS, first_paths), 2)
@@ -175,7 +182,7 @@ class MakeVPLs(Stage):
             return generate_vpls(frame.scene, frame.geometry, settings, tracer, frame.centre,
                                  frame.radius)
         first = candidates(first_paths, 0)
-        first_contribution = contributions(first, points, tracer, epsilon)
+        first_contribution = refined_contributions(first, points, more, tracer, epsilon)
         wanted = len(first) * settings.vpl_count / first_paths  # VPLs of vpl_count paths
         rounds, contribution = [(first, first_paths)], [first_contribution]
         needed = wanted / kept_per_candidate(first_contribution) * first_paths / max(len(first), 1)
@@ -184,7 +191,7 @@ class MakeVPLs(Stage):
         if extra > 0:
             second = candidates(extra, 1)
             rounds.append((second, extra))
-            contribution.append(contributions(second, points, tracer, epsilon))
+            contribution.append(refined_contributions(second, points, more, tracer, epsilon))
         total = first_paths + max(extra, 0)
         merged = merge(rounds)
         weights = np.concatenate([c * (p / total) for c, (_, p) in

@@ -82,20 +82,37 @@ def contributions(vpls: VPLs, points: CameraPoints, tracer: RayCaster, epsilon: 
     both cosines / distance² × albedo / π, where a ray finds the pair mutually visible."""
     if len(vpls) == 0 or len(points) == 0:
         return np.zeros(len(vpls))
-    offset = points.position[None] - vpls.position[:, None]  # (c, s, 3)
-    distance = np.maximum(np.linalg.norm(offset, axis=2), epsilon)
-    towards = offset / distance[..., None]
-    cos_vpl = np.maximum(0.0, (towards * vpls.normal[:, None]).sum(axis=2))
-    cos_point = np.maximum(0.0, -(towards * points.normal[None]).sum(axis=2))
-    value = (vpls.intensity @ LUMINANCE)[:, None] * cos_vpl * cos_point / distance**2 \
-        * (points.albedo @ LUMINANCE)[None] / np.pi
+    centre = points.position.mean(axis=0)  # centred: the products lose little to cancellation
+    x, p = vpls.position - centre, points.position - centre
+    squared = (x * x).sum(axis=1)[:, None] + (p * p).sum(axis=1)[None] - 2.0 * (x @ p.T)
+    distance = np.maximum(np.sqrt(np.maximum(squared, 0.0)), epsilon)  # (c, s)
+    along_vpl = vpls.normal @ p.T - (x * vpls.normal).sum(axis=1)[:, None]  # offset · n_vpl
+    along_point = x @ points.normal.T - (p * points.normal).sum(axis=1)[None]  # -offset · n
+    value = np.maximum(along_vpl, 0.0) * np.maximum(along_point, 0.0) / distance**4
+    value *= (vpls.intensity @ LUMINANCE)[:, None]
+    value *= (points.albedo @ LUMINANCE)[None] / np.pi
     vpl, point = np.nonzero(value > 0)
     if len(vpl):
+        pair_distance = distance[vpl, point]
+        towards = (p[point] - x[vpl]) / pair_distance[:, None]
         origin = vpls.position[vpl] + vpls.normal[vpl] * epsilon
-        hits = tracer.intersect(origin, towards[vpl, point], 0.0,
-                                distance[vpl, point] * (1 - 1e-4) - epsilon)
+        hits = tracer.intersect(origin, towards, 0.0, pair_distance * (1 - 1e-4) - epsilon)
         value[vpl[hits.triangle >= 0], point[hits.triangle >= 0]] = 0.0
     return value.sum(axis=1)
+
+
+def refined_contributions(vpls: VPLs, points: CameraPoints, more_points: CameraPoints,
+                          tracer: RayCaster, epsilon: float) -> np.ndarray:
+    """``contributions`` at ``points``; those that light none of them estimated again at
+    ``more_points`` (scaled to as many points as ``points``). A VPL that lights the view
+    between the few points would otherwise be kept at MIN_ACCEPTANCE and weighted by its
+    inverse (twentyfold): on Sponza two such VPLs made the brightest blotch of a seed."""
+    value = contributions(vpls, points, tracer, epsilon)
+    unlit = np.flatnonzero(value == 0)
+    if len(unlit) and len(more_points):
+        again = contributions(vpls.scaled(unlit, 1.0), more_points, tracer, epsilon)
+        value[unlit] = again * (len(points) / len(more_points))
+    return value
 
 
 def acceptance(contribution: np.ndarray, kept: float) -> np.ndarray:
