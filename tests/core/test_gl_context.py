@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 import pytest
 
 from addon.core.gpu.gl import (
     GPU_VARIABLE,
     GLUnavailableError,
+    copy_into_texture,
     create_context,
     explain_failure,
     list_devices,
@@ -55,3 +57,21 @@ def test_missing_egl_library_names_the_packages(monkeypatch):
 def test_a_driver_without_core_contexts_is_told_what_to_do():
     message = explain_failure(["eglCreateContext failed (0x3009)"] * 2, None)
     assert "older OpenGL" in message and "--gpu N" in message and "0x3009" in message
+
+
+def test_a_copied_float_texture_keeps_its_precision_and_range(programs) -> None:
+    """copy_into_texture keeps a float texture float: moderngl's copy_framebuffer into a
+    texture would store 8 bits a channel clamped to [0, 1] (the bias compensation read its
+    indirect light that way)."""
+    ctx = programs.ctx
+    values = np.array([0.123456789, 3.7, 1e-4, 250.0], np.float32)
+    source = ctx.texture((8, 4), 4, np.tile(values, 32).tobytes(), dtype="f4")
+    framebuffer = ctx.framebuffer([source])
+    copy = ctx.texture((8, 4), 4, dtype="f4")
+    try:
+        copy_into_texture(ctx, copy, framebuffer)
+        assert np.array_equal(np.frombuffer(copy.read(), np.float32).reshape(-1, 4),
+                              np.tile(values, (32, 1)))
+    finally:
+        for obj in (copy, framebuffer, source):
+            obj.release()

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import moderngl
 
-from ..gpu.gl import ProgramCache, set_uniforms
+from ..gpu.gl import ProgramCache, copy_into_texture, set_uniforms
 from ..gpu.scene_buffers import GGX_TABLES_UNIT, MATERIAL_UNITS, SceneBuffers
 from .gather import SURFACE_VERTICES_BINDING
 from .gbuffer import GBuffer
@@ -50,7 +50,7 @@ def compensate_from_image(ctx: moderngl.Context, programs: ProgramCache, near: N
     with GpuScope() as scope:
         size = target.size
         clamped = scope.own(ctx.texture(indirect.size, 4, dtype="f4"))  # read back
-        ctx.copy_framebuffer(clamped, indirect)
+        copy_into_texture(ctx, clamped, indirect)
         textures = gbuffer.textures
         units = {"u_position": textures["position"], "u_normal": textures["normal"],
                  "u_geometric": textures["geometric"], "u_albedo": textures["albedo"],

@@ -190,6 +190,18 @@ def set_sampler_array(program: moderngl.Program, name: str, first: int, count: i
     program[name].value = list(range(first, first + count)) if count > 1 else first
 
 
+def copy_into_texture(ctx: moderngl.Context, texture: moderngl.Texture,
+                      source: moderngl.Framebuffer) -> None:
+    """Copy ``source``'s colour into ``texture``, which keeps its format. (moderngl's
+    ``copy_framebuffer`` into a texture re-specifies it as unsized RGBA: 8 bits a channel,
+    clamped to [0, 1], on llvmpipe; framebuffer to framebuffer it is a blit.)"""
+    target = ctx.framebuffer([texture])
+    try:
+        ctx.copy_framebuffer(target, source)
+    finally:
+        target.release()
+
+
 def draw_into_new_textures(ctx: moderngl.Context, vao: moderngl.VertexArray,
                            size: tuple[int, int], count: int) -> list[moderngl.Texture]:
     """Draw ``vao``'s full-screen triangle (fullscreen_vert.glsl), without blending, into
