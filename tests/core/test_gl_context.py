@@ -62,16 +62,21 @@ def test_a_driver_without_core_contexts_is_told_what_to_do():
 def test_a_copied_float_texture_keeps_its_precision_and_range(programs) -> None:
     """copy_into_texture keeps a float texture float: moderngl's copy_framebuffer into a
     texture would store 8 bits a channel clamped to [0, 1] (the bias compensation read its
-    indirect light that way)."""
+    indirect light that way). From an accumulator with a glossy target too, the first (the
+    diffuse light) is copied."""
     ctx = programs.ctx
     values = np.array([0.123456789, 3.7, 1e-4, 250.0], np.float32)
     source = ctx.texture((8, 4), 4, np.tile(values, 32).tobytes(), dtype="f4")
-    framebuffer = ctx.framebuffer([source])
+    glossy = ctx.texture((8, 4), 4, np.full(128, 9.0, np.float32).tobytes(), dtype="f4")
     copy = ctx.texture((8, 4), 4, dtype="f4")
+    made = [copy, glossy, source]
     try:
-        copy_into_texture(ctx, copy, framebuffer)
-        assert np.array_equal(np.frombuffer(copy.read(), np.float32).reshape(-1, 4),
-                              np.tile(values, (32, 1)))
+        for attachments in ([source], [source, glossy]):
+            framebuffer = ctx.framebuffer(attachments)
+            made.append(framebuffer)
+            copy_into_texture(ctx, copy, framebuffer)
+            assert np.array_equal(np.frombuffer(copy.read(), np.float32).reshape(-1, 4),
+                                  np.tile(values, (32, 1)))
     finally:
-        for obj in (copy, framebuffer, source):
+        for obj in made:
             obj.release()

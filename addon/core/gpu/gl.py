@@ -192,14 +192,17 @@ def set_sampler_array(program: moderngl.Program, name: str, first: int, count: i
 
 def copy_into_texture(ctx: moderngl.Context, texture: moderngl.Texture,
                       source: moderngl.Framebuffer) -> None:
-    """Copy ``source``'s colour into ``texture``, which keeps its format. (moderngl's
-    ``copy_framebuffer`` into a texture re-specifies it as unsized RGBA: 8 bits a channel,
-    clamped to [0, 1], on llvmpipe; framebuffer to framebuffer it is a blit.)"""
+    """Copy the first colour attachment of ``source`` into ``texture``, which keeps its
+    format. (moderngl's ``copy_framebuffer`` into a texture re-specifies it as unsized RGBA: 8
+    bits a channel, clamped to [0, 1], on llvmpipe; framebuffer to framebuffer it is a blit,
+    which needs as many attachments on both sides.)"""
+    first = ctx.framebuffer(source.color_attachments[:1])
     target = ctx.framebuffer([texture])
     try:
-        ctx.copy_framebuffer(target, source)
+        ctx.copy_framebuffer(target, first)
     finally:
         target.release()
+        first.release()
 
 
 def draw_into_new_textures(ctx: moderngl.Context, vao: moderngl.VertexArray,
