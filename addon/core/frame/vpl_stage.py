@@ -38,9 +38,9 @@ VPL_FIELDS = ("vpl_count", "bounces", "seed", "termination", "vpl_source", "rsm_
 camera guidance, the camera)."""
 GUIDE_POINTS = 64  # camera points a candidate VPL's contribution is estimated at
 MORE_GUIDE_POINTS = 448
-"""Further camera points for the candidates that light none of the first GUIDE_POINTS: on
-Sponza a third of the VPLs that do light the view were missed by 64 points, kept at
-MIN_ACCEPTANCE and weighted by its inverse (six seeds: mean error 36.5 → 33.0 %)."""
+"""Further camera points for the candidates that light none of the first GUIDE_POINTS (on
+Sponza two VPLs the 64 points missed made the worst seed's brightest patch; six seeds: mean
+error 36.5 → 33.0 %, docs/measurements.md)."""
 FIRST_ROUND = 4  # candidate paths per kept path's worth of VPLs in the first round
 DECISION_PATHS = 128
 """Light paths of the probe that decides whether guidance is worth it (the share of their VPLs
@@ -169,8 +169,6 @@ class MakeVPLs(Stage):
                                  frame.centre, frame.radius)
 
         points = camera_points(frame.camera, frame.geometry, tracer, GUIDE_POINTS, settings.seed)
-        more = camera_points(frame.camera, frame.geometry, tracer, MORE_GUIDE_POINTS,
-                             settings.seed + 1)
         first_paths = candidate_paths(settings.vpl_count,
                                       min(FIRST_ROUND, settings.guidance_candidates))
         probe = candidates(min(DECISION_PATHS, first_paths), 2)
@@ -181,6 +179,8 @@ class MakeVPLs(Stage):
                                              "view: selecting among them would add noise")
             return generate_vpls(frame.scene, frame.geometry, settings, tracer, frame.centre,
                                  frame.radius)
+        more = camera_points(frame.camera, frame.geometry, tracer, MORE_GUIDE_POINTS,
+                             settings.seed + 1)
         first = candidates(first_paths, 0)
         first_contribution = refined_contributions(first, points, more, tracer, epsilon)
         wanted = len(first) * settings.vpl_count / first_paths  # VPLs of vpl_count paths
