@@ -161,7 +161,6 @@ def test_point_light_shadow_of_an_occluder(renderer):
     np.testing.assert_allclose(e[lit], expected[lit], rtol=2e-3)
 
 
-
 def test_a_sun_shadow_edge_lies_where_the_occluder_puts_it(renderer):
     """A wall 1.5 m tall, a sun 20° high behind it: the shadow edge on the floor lies where the
     rays grazing the wall's top meet it, to a tenth of a pixel (the view spans 0.32 m: a pixel
@@ -185,6 +184,7 @@ def test_a_sun_shadow_edge_lies_where_the_occluder_puts_it(renderer):
     rows = lit[:, size // 2]  # row 0 at y = -extent / 2
     measured = extent / 2 - rows.sum() * pixel  # the lit part starts here
     assert abs(measured - edge) < 0.1 * pixel, (measured - edge) / pixel
+
 
 @pytest.mark.parametrize("aa", [2, 3])
 def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch, aa):

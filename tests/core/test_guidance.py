@@ -8,6 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from addon.core.scene.model import Instance, LightKind, Material
+from addon.core.scene.vectors import unit
 from addon.core.settings import Settings
 from addon.core.transport.guidance import (
     MIN_ACCEPTANCE,
@@ -64,20 +65,15 @@ class BlockingTracer:
         return SimpleNamespace(triangle=np.where(hit, 0, -1), distance=np.where(hit, 1.0, np.inf))
 
 
-def random_unit(rng: np.random.Generator, count: int) -> np.ndarray:
-    vectors = rng.normal(size=(count, 3))
-    return vectors / np.linalg.norm(vectors, axis=1, keepdims=True)
-
-
 def test_contributions_follow_the_point_to_point_formula_far_from_the_origin() -> None:
     """Intensity × both cosines / distance² × albedo / π summed over the points, zero for
     pairs facing away or whose ray is blocked; computed from products of positions, so it is
     checked 1e4 from the origin, where cancellation would show."""
     rng = np.random.default_rng(4)
     far = np.array([1e4, -2e4, 5e3])
-    vpls = VPLs(far + rng.normal(size=(30, 3)), random_unit(rng, 30), rng.random((30, 3)),
+    vpls = VPLs(far + rng.normal(size=(30, 3)), unit(rng.normal(size=(30, 3))), rng.random((30, 3)),
                 np.ones(30, int), np.arange(30))
-    points = CameraPoints(far + rng.normal(size=(40, 3)), random_unit(rng, 40),
+    points = CameraPoints(far + rng.normal(size=(40, 3)), unit(rng.normal(size=(40, 3))),
                           rng.random((40, 3)))
     expected = np.zeros((30, 40))
     for i in range(30):
