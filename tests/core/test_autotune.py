@@ -73,6 +73,7 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
     built = []  # the ISM area table is built by the first render only
 
     def render(s: Settings) -> dict[str, float | int]:
+        assert s.indirect_resolution == "supersample"  # the model's gather is per supersample
         vpls, pixels = 2.0 * s.vpl_count, 128 * 128 * s.antialiasing**2
         table = {} if built else {"ism points": COST.pool * 4800}
         built.append(1)
@@ -86,7 +87,7 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
                 "bias compensation": 0.5 * (COST.frame + COST.pixels * pixels),
                 "direct light maps": COST.maps * 6 * 4800}
 
-    fitted = autotune.calibrate(render, "test GL", Settings())
+    fitted = autotune.calibrate(render, "test GL", Settings(indirect_resolution="pixel"))
     for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool",
                  "frame"):
         assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
@@ -200,3 +201,15 @@ def test_a_budget_is_split_into_passes_only_where_the_cheapest_useful_frame_fits
     assert planned(1.9 * fastest).passes == 1
     assert planned(1.9 * fastest).seconds <= 1.9 * fastest  # for all of it
     assert planned(2 * fastest, split=1).passes == 1
+
+
+def test_vpls_gathered_per_pixel_are_costed_at_the_pixels_and_their_pattern():
+    """With indirect light per pixel (antialiasing 3) the gather and blur run over a ninth of
+    the supersamples, with the 4-pixel pattern that interleave 8 becomes there."""
+    per_pixel = replace(WORK, gather_antialiasing=3)
+    vpls = 512 * WORK.vpls_per_path
+    saved = (COST.gather * WORK.pixels * vpls / 8**2 + COST.blur * WORK.pixels * 4) \
+        - (COST.gather * WORK.pixels / 9 * vpls / 4**2 + COST.blur * WORK.pixels / 9 * 4)
+    assert saved > 0
+    assert autotune.chosen_seconds(COST, per_pixel, 512, 8, 1024, 64, 4) == pytest.approx(
+        autotune.chosen_seconds(COST, WORK, 512, 8, 1024, 64, 4) - saved)

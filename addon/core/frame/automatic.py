@@ -16,6 +16,7 @@ from .gpu_session import GpuSession
 from .planner import reaches_bounds
 from .result import Frame, Stats
 from .reuse import KeptProducts
+from .stages import indirect_per_pixel
 from .state import FrameState, Stage
 from .vpl_stage import may_guide, upload_triangles
 
@@ -102,6 +103,7 @@ class ChooseParameters(Stage):
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
                 **self._vpls_per_path(frame),
                 bounces=settings.bounces,
+                gather_antialiasing=settings.antialiasing if indirect_per_pixel(settings) else 1,
                 area_table=self._ism_area_table(frame.geometry.vertex_count // 3))
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)

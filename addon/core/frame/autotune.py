@@ -31,7 +31,7 @@ import numpy as np
 
 from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene
 from ..settings import Settings
-from .stages import blur_radius
+from .stages import blur_radius, pixel_interleave
 
 COST_MODEL_VERSION = 7  # 7: clamp distance 0.1 (longer bias-compensation rays)
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
@@ -99,6 +99,8 @@ class Workload:
     area_table: bool = False  # the ISM area table of these triangles is built already
     gathered_per_path: float | None = None  # VPLs gathered per light path, when camera
     # guidance keeps more of them in view than the paths leave there (None: vpls_per_path)
+    gather_antialiasing: int = 1  # supersamples per pixel edge the VPLs are gathered once for
+    # (indirect light per pixel: the antialiasing), else 1
     fixed: float | None = None  # measured seconds of the work not chosen here (None: modelled)
     scale: float = 1.0  # measured / modelled seconds of the chosen work (the machine's load)
     # (applied to the ISM area table's modelled time too)
@@ -146,10 +148,13 @@ def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int,
                    resolution: int, blur_radius: int) -> float:
     """Predicted seconds of the stages these parameters set (not the ISM area table)."""
     vpls = paths * (work.gathered_per_path or work.vpls_per_path)
+    aa = work.gather_antialiasing
+    pixels = work.pixels / aa**2
+    k = pixel_interleave(interleave, aa)
     return (cost.paths * paths * max(1, work.bounces)
             + cost.splat * vpls * points + cost.texels * vpls * resolution**2
-            + cost.gather * work.pixels * vpls / interleave**2
-            + (cost.blur * work.pixels * blur_radius if interleave > 1 else 0.0))
+            + cost.gather * pixels * vpls / k**2
+            + (cost.blur * pixels * blur_radius if k > 1 else 0.0))
 
 
 def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel,
@@ -232,7 +237,7 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     for paths, k, points, resolution, aa in CALIBRATION:
         settings = replace(base, vpl_count=paths, interleave=k, ism_points=points,
                            ism_resolution=resolution, antialiasing=aa, visibility="ism",
-                           auto_parameters="off")
+                           indirect_resolution="supersample", auto_parameters="off")
         first = render(settings)  # builds the ISM area table (if new), compiles shaders
         rows.append((settings, {**render(settings), "ism points": first.get("ism points")}))
 

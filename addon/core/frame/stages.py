@@ -153,19 +153,25 @@ class PlanGather(Stage):
 
 
 def indirect_per_pixel(settings: Settings) -> bool:
-    """Whether VPLs and their bias compensation are gathered once per pixel (the pixel-centre
-    g-buffer) rather than per supersample: with antialiasing only."""
+    """Whether VPLs are gathered once per pixel (the pixel-centre g-buffer) rather than per
+    supersample: with antialiasing only."""
     return settings.indirect_resolution == "pixel" and settings.antialiasing > 1
 
 
 def indirect_interleave(settings: Settings) -> int:
     """The indirect light's interleaving pattern: ``interleave`` supersamples, or, gathered per
-    pixel, the power of two at or above interleave / antialiasing pixels, so that a pattern
-    covers at least the same part of the image (8 supersamples at antialiasing 3: 4 pixels)."""
-    k = settings.interleave
+    pixel, ``pixel_interleave`` pixels."""
     if not indirect_per_pixel(settings):
-        return k
-    return 1 << max(0, math.ceil(math.log2(k / settings.antialiasing)))
+        return settings.interleave
+    return pixel_interleave(settings.interleave, settings.antialiasing)
+
+
+def pixel_interleave(interleave: int, antialiasing: int) -> int:
+    """The pattern of VPLs gathered once per pixel: the power of two at or above interleave /
+    antialiasing pixels, so that it covers at least the part of the image that ``interleave``
+    supersamples do (8 supersamples at antialiasing 3: 4 pixels); ``interleave`` itself at
+    antialiasing 1."""
+    return 1 << max(0, math.ceil(math.log2(interleave / antialiasing)))
 
 
 PROBE_POINTS = 4096  # camera points that test whether shadow-mapped samples reach the view
