@@ -186,6 +186,40 @@ def test_a_sun_shadow_edge_lies_where_the_occluder_puts_it(renderer):
     assert abs(measured - edge) < 0.1 * pixel, (measured - edge) / pixel
 
 
+def test_a_shadow_mapped_edge_at_a_grazing_angle_lies_where_the_occluder_puts_it(renderer):
+    """A point light 20° above the floor behind a 1.5 m wall, shadow-mapped (1024² faces; a
+    texel spans 9 px of the floor across the edge): the shadow edge lies within 0.4 texel of
+    where the ray over the wall's top meets the floor (measured: 0.17). The receiver's offset
+    now goes towards the light, growing with the slope, and only a tenth of it along the
+    normal, which leaves the edge in place; all of it along the floor's normal lifted the
+    receiver over the wall's shadow and moved the edge 1.09 texels out of it (on the Cornell
+    box's red wall, whose normal points at the tall box, the same offset made the penumbra
+    27-31 % too dark). The lit fraction is the frame over the same frame without the wall,
+    read as in the sun's test."""
+    elevation, top, size, extent, reach = np.radians(20.0), 1.5, 64, 0.32, 8.0
+    edge = 0.0123
+    wall_y = edge - top / np.tan(elevation)
+    corners = np.array([[-5, wall_y, 0], [5, wall_y, 0], [5, wall_y, top],
+                        [-5, wall_y, 0], [5, wall_y, top], [-5, wall_y, top]], np.float32)
+    wall = Instance(Mesh("wall", corners, np.tile(np.float32([0, -1, 0]), (6, 1)),
+                         np.zeros(2, np.int32)), np.eye(4), [Material("wall")])
+    at = translation(0, edge - reach * np.cos(elevation), reach * np.sin(elevation))
+    settings = Settings(bounces=0, antialiasing=8, direct_shadows="shadow_maps",
+                        shadow_resolution=1024)
+    images = []
+    for extra in ([wall], []):
+        scene = floor_scene([light(LightKind.POINT, at, power=500.0)], extra=extra)
+        scene.camera = top_down_camera(size, extent)
+        frame, _ = renderer.render(scene, settings)
+        images.append(irradiance(frame))
+    lit = images[0] / images[1]
+    pixel = extent / size
+    texel = 2 * reach / 1024 / np.sin(elevation)  # on the floor, across the edge
+    assert np.allclose(lit[:, 0], lit[:, size // 2], atol=1e-2)  # the edge runs along x
+    measured = extent / 2 - lit[:, size // 2].sum() * pixel
+    assert abs(measured - edge) < 0.4 * texel, (measured - edge) / texel
+
+
 @pytest.mark.parametrize("aa", [2, 3])
 def test_tiles_and_light_batches_do_not_change_the_image(renderer, monkeypatch, aa):
     lights = [light(LightKind.POINT, translation(x, 0.5, 2.0), power=50.0) for x in (-1, 0, 1)]
