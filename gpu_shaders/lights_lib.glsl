@@ -174,7 +174,7 @@ uniform vec3 u_scene_centre;
 uniform float u_scene_radius;
 uniform float u_shadow_bias;   // receiver offset in texels
 // A point sample's receiver moves u_shadow_bias texels towards the light, times 1 + tan of
-// the light's angle to the surface (the depth a texel's footprint spans; at most
+// the light's angle of incidence (the depth a texel's footprint spans; at most
 // SHADOW_MAX_SLOPE_FACTOR times), and a tenth of u_shadow_bias texels along its normal:
 // along the light's ray the shadow edge stays where the occluder puts it, where an offset
 // all along the normal moved it by offset / tan(elevation) (tests/core/test_direct_light.py).
