@@ -201,11 +201,11 @@ class Settings:
         "samples", low=16, high=4096, soft_high=1024, applies=_SHADOW_MAPS)
     shadow_bias: float = setting(
         1.5, "Shadow Bias", "shadows",
-        "Receiver offset in shadow-map texels (scale independent): towards the light, more "
-        "at grazing angles, in the cube maps of point, spot, area and sphere lights, "
-        "emission and VPLs (so shadow edges stay in place); along the normal in the maps of "
-        "suns and the world; raise it against shadow acne, lower it against light leaking "
-        "at contacts",
+        "Receiver offset in shadow-map texels (scale independent): in the cube maps of "
+        "point, spot, area and sphere lights, emission and VPLs half of it along the normal "
+        "and a quarter towards the light (grazing shadow edges stay nearer their place), in "
+        "the maps of suns and the world all along the normal; raise it against shadow acne, "
+        "lower it against light leaking at contacts",
         low=0.0, high=64.0, soft_high=8.0,
         applies=_SHADOW_MAPS | when("visibility", "classic"))
     antialiasing: int = setting(

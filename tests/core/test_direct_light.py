@@ -188,14 +188,13 @@ def test_a_sun_shadow_edge_lies_where_the_occluder_puts_it(renderer):
 
 def test_a_shadow_mapped_edge_at_a_grazing_angle_lies_where_the_occluder_puts_it(renderer):
     """A point light 20° above the floor behind a 1.5 m wall, shadow-mapped (1024² faces; a
-    texel spans 9 px of the floor across the edge): the shadow edge lies within 0.4 texel of
-    where the ray over the wall's top meets the floor (measured: 0.17). The receiver's offset
-    now goes towards the light, growing with the slope, and only a tenth of it along the
-    normal, which leaves the edge in place; all of it along the floor's normal lifted the
-    receiver over the wall's shadow and moved the edge 1.09 texels out of it (on the Cornell
-    box's red wall, whose normal points at the tall box, the same offset made the penumbra
-    27-31 % too dark). The lit fraction is the frame over the same frame without the wall,
-    read as in the sun's test."""
+    texel spans 9 px of the floor across the edge): the shadow edge lies within 0.6 texel of
+    where the ray over the wall's top meets the floor (measured: 0.39). Half the receiver's
+    offset goes along its normal and a quarter towards the light, which leaves the edge in
+    place; all of it along the floor's normal lifted the receiver over the wall's shadow and
+    moved the edge 1.09 texels out of it (on the Cornell box's red wall, whose normal points
+    at the tall box, the same offset made the penumbra 27-31 % too dark). The lit fraction is
+    the frame over the same frame without the wall, read as in the sun's test."""
     elevation, top, size, extent, reach = np.radians(20.0), 1.5, 64, 0.32, 8.0
     edge = 0.0123
     wall_y = edge - top / np.tan(elevation)
@@ -217,7 +216,7 @@ def test_a_shadow_mapped_edge_at_a_grazing_angle_lies_where_the_occluder_puts_it
     texel = 2 * reach / 1024 / np.sin(elevation)  # on the floor, across the edge
     assert np.allclose(lit[:, 0], lit[:, size // 2], atol=1e-2)  # the edge runs along x
     measured = extent / 2 - lit[:, size // 2].sum() * pixel
-    assert abs(measured - edge) < 0.4 * texel, (measured - edge) / texel
+    assert abs(measured - edge) < 0.6 * texel, (measured - edge) / texel
 
 
 @pytest.mark.parametrize("aa", [2, 3])
