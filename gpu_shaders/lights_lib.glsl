@@ -180,8 +180,8 @@ uniform float u_shadow_bias;   // receiver offset in texels
 // penumbra on the red wall 27-31 % dark); towards the light it leaves the edge in place but
 // crosses zero-thickness walls next to their joints (1 + tan of the incidence angle times
 // u_shadow_bias let 10 % of a closed cube's outside light in). The shares keep the grazing
-// edge within 0.6 texel and the cube's leak near the normal offset's
-// (tests/core/test_direct_light.py). Directional maps, whose texels span the whole scene,
+// edge within 0.6 texel (tests/core/test_direct_light.py) and the cube's leak near the
+// normal offset's (tests/stability/test_bad_input.py). Directional maps, whose texels span the whole scene,
 // keep the offset along the normal.
 const float SHADOW_NORMAL_SHARE = 0.5;
 const float SHADOW_LIGHT_SHARE = 0.25;

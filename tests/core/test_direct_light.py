@@ -161,6 +161,17 @@ def test_point_light_shadow_of_an_occluder(renderer):
     np.testing.assert_allclose(e[lit], expected[lit], rtol=2e-3)
 
 
+def shadowing_wall(edge: float, elevation: float, top: float) -> Instance:
+    """A wall ``top`` m tall across x, facing -y, placed so that light arriving ``elevation``
+    above the horizon towards +y over its top meets the floor at y = ``edge``."""
+    wall_y = edge - top / np.tan(elevation)
+    corners = np.array([[-5, wall_y, 0], [5, wall_y, 0], [5, wall_y, top],
+                        [-5, wall_y, 0], [5, wall_y, top], [-5, wall_y, top]], np.float32)
+    mesh = Mesh("wall", corners, np.tile(np.float32([0, -1, 0]), (6, 1)),
+                np.zeros(2, np.int32))
+    return Instance(mesh, np.eye(4), [Material("wall")])
+
+
 def test_a_sun_shadow_edge_lies_where_the_occluder_puts_it(renderer):
     """A wall 1.5 m tall, a sun 20° high behind it: the shadow edge on the floor lies where the
     rays grazing the wall's top meet it, to a tenth of a pixel (the view spans 0.32 m: a pixel
@@ -169,13 +180,8 @@ def test_a_sun_shadow_edge_lies_where_the_occluder_puts_it(renderer):
     The edge's position is read from the lit area of each pixel column (8 × 8 supersamples)."""
     elevation, top, size, extent = np.radians(20.0), 1.5, 64, 0.32
     edge = 0.0123  # world y of the analytic shadow edge, off the pixel grid
-    wall_y = edge - top / np.tan(elevation)
-    corners = np.array([[-5, wall_y, 0], [5, wall_y, 0], [5, wall_y, top],
-                        [-5, wall_y, 0], [5, wall_y, top], [-5, wall_y, top]], np.float32)
-    wall = Mesh("wall", corners, np.tile(np.float32([0, -1, 0]), (6, 1)),
-                np.zeros(2, np.int32))
     sun = light(LightKind.SUN, rotation_x(np.pi / 2 - elevation), power=3.0)  # towards +y
-    scene = floor_scene([sun], extra=[Instance(wall, np.eye(4), [Material("wall")])])
+    scene = floor_scene([sun], extra=[shadowing_wall(edge, elevation, top)])
     scene.camera = top_down_camera(size, extent)
     frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=8))
     lit = irradiance(frame) / (3.0 * np.sin(elevation))  # 1 where lit, 0 in the shadow
@@ -197,11 +203,7 @@ def test_a_shadow_mapped_edge_at_a_grazing_angle_lies_where_the_occluder_puts_it
     the frame over the same frame without the wall, read as in the sun's test."""
     elevation, top, size, extent, reach = np.radians(20.0), 1.5, 64, 0.32, 8.0
     edge = 0.0123
-    wall_y = edge - top / np.tan(elevation)
-    corners = np.array([[-5, wall_y, 0], [5, wall_y, 0], [5, wall_y, top],
-                        [-5, wall_y, 0], [5, wall_y, top], [-5, wall_y, top]], np.float32)
-    wall = Instance(Mesh("wall", corners, np.tile(np.float32([0, -1, 0]), (6, 1)),
-                         np.zeros(2, np.int32)), np.eye(4), [Material("wall")])
+    wall = shadowing_wall(edge, elevation, top)
     at = translation(0, edge - reach * np.cos(elevation), reach * np.sin(elevation))
     settings = Settings(bounces=0, antialiasing=8, direct_shadows="shadow_maps",
                         shadow_resolution=1024)
