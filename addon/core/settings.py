@@ -324,14 +324,17 @@ class Settings:
         "of K/2 so the pattern cancels exactly on flat surfaces",
         low=1, high=32, applies=unless("interleave", 1))
     indirect_resolution: str = setting(
-        "supersample", "Indirect Resolution", "interleaving",
+        "auto", "Indirect Resolution", "interleaving",
         "Where the light of VPLs is gathered",
         choices=(Choice("pixel", "Pixel", "once per pixel, then brought to every supersample "
                         "along the g-buffer's geometry: indirect light varies slowly, so direct "
                         "light, colours, edges and the bias compensation (sharp next to "
-                        "contacts and sunlit patches) keep the supersampling"),
+                        "contacts and sunlit patches) keep the supersampling; surfaces "
+                        "thinner than the interleaving pattern gather every VPL"),
                  Choice("supersample", "Supersample", "at every supersample (antialiasing² "
-                        "times the work)")),
+                        "times the work)"),
+                 Choice("auto", "Automatic", "per pixel where no material is glossy, else "
+                        "per supersample (glossy indirect light is sharper than a pixel)")),
         applies=unless("antialiasing", 1))
     denoiser: str = setting(
         "blur", "Denoiser", "sampling",

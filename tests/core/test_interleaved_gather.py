@@ -28,7 +28,8 @@ def smooth_scene():
 @pytest.mark.parametrize("interleave", [2, 4])
 def test_interleaved_gather_matches_the_full_gather(renderer, interleave):
     common = {"antialiasing": 2, "vpl_count": 256, "bounces": 1, "clamp_distance": 0.1,
-              "vpl_shadow_resolution": 64, "bias_compensation": "off"}
+              "vpl_shadow_resolution": 64, "bias_compensation": "off",
+              "indirect_resolution": "supersample"}
     full, _ = renderer.render(smooth_scene(), Settings(interleave=1, **common))
     fast, stats = renderer.render(smooth_scene(), Settings(interleave=interleave, **common))
     reference, image = full.passes["DiffInd"], fast.passes["DiffInd"]
@@ -67,9 +68,15 @@ def test_per_pixel_indirect_light_keeps_the_pattern_s_extent_in_the_image(
     """Gathered per pixel, the indirect light's K×K pattern is the power of two at or above
     K / antialiasing pixels (a cell of K supersamples' extent: 8 at antialiasing 3 → 4 pixels;
     per pixel with K = 8 each pixel held a 64th of the VPLs, and the interior's error rose
-    from 8.8 to 11.8 %, 11.0 % with K = 4). Per supersample it stays K."""
-    settings = Settings(interleave=interleave, antialiasing=antialiasing,
-                        indirect_resolution="pixel")
-    assert indirect_interleave(settings) == pattern
-    assert indirect_interleave(Settings(interleave=interleave, antialiasing=antialiasing)) \
-        == interleave
+    from 8.8 to 11.8 %, 11.0 % with K = 4). Per supersample it stays K; ``auto`` (the
+    default) gathers per pixel unless a material is glossy."""
+    def pattern_of(resolution: str, glossy: bool) -> int:
+        settings = Settings(interleave=interleave, antialiasing=antialiasing,
+                            indirect_resolution=resolution)
+        return indirect_interleave(settings, glossy)
+
+    assert pattern_of("pixel", False) == pattern_of("pixel", True) == pattern
+    assert pattern_of("supersample", False) == pattern_of("supersample", True) == interleave
+    assert pattern_of("auto", False) == pattern
+    assert pattern_of("auto", True) == interleave
+    assert Settings().indirect_resolution == "auto"

@@ -103,7 +103,8 @@ class ChooseParameters(Stage):
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
                 **self._vpls_per_path(frame),
                 bounces=settings.bounces,
-                gather_antialiasing=settings.antialiasing if indirect_per_pixel(settings) else 1,
+                gather_antialiasing=settings.antialiasing
+                if indirect_per_pixel(settings, frame.geometry.has_specular) else 1,
                 area_table=self._ism_area_table(frame.geometry.vertex_count // 3))
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)

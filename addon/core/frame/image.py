@@ -30,6 +30,7 @@ from .shadow_hints import render_hints, takes_hints
 from .shadow_maps import KeptAtlases, ShadowAtlases
 from .stages import indirect_per_pixel
 from .state import FrameState, RenderError, Stage
+from .thin_surfaces import gather_with_mask, thin_surface_mask
 from .visibility import FrameMaps, ImperfectVisibility, RayTracedVisibility
 
 MAX_TILE = 2048  # supersampled pixels per image tile edge (later tiles reuse the maps)
@@ -61,6 +62,7 @@ class TileWork:
     # indirect light is gathered per pixel
     soft_light: list[moderngl.Texture] = field(default_factory=list)  # after the blur
     indirect_light: list[moderngl.Texture] = field(default_factory=list)
+    thin: moderngl.Renderbuffer | None = None  # pixels that gather every VPL (thin_surfaces)
     background: np.ndarray | None = None  # what rays that miss see (None: transparent film)
 
 
@@ -105,7 +107,8 @@ class GBufferStage(TileStage):
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
         aa, settings = frame.settings.antialiasing, frame.settings
-        per_pixel = indirect_per_pixel(settings) and any(p.indirect for p in frame.light_passes)
+        per_pixel = indirect_per_pixel(settings, frame.geometry.has_specular) \
+            and any(p.indirect for p in frame.light_passes)
         hinted = settings.adaptive_shadows and any(map(takes_hints, frame.light_passes))
         with frame.stats.timed(self.name):
             work.gbuffer = self._render(data, frame, work, work.tile)
@@ -142,12 +145,17 @@ class GatherStage(TileStage):
                 atlas = light_pass.visibility.maps(light_pass.batch, data.maps)
                 ctx.finish()
             hints = self._hints(frame, work, light_pass)
+            thin = self._thin(frame, work, light_pass)
             with stats.timed(light_pass.name):
                 target = work.indirect if light_pass.indirect else \
                     work.soft if light_pass.blurred else work.direct
                 gbuffer = work.indirect_gbuffer if light_pass.indirect else work.gbuffer
-                gather(ctx, self.gpu.programs, light_pass, atlas, gbuffer, target,
-                       data.scene, centre, radius, bias, hints=hints)
+                if thin is None:
+                    gather(ctx, self.gpu.programs, light_pass, atlas, gbuffer, target,
+                           data.scene, centre, radius, bias, hints=hints)
+                else:
+                    gather_with_mask(ctx, self.gpu.programs, light_pass, atlas, gbuffer,
+                                     target, thin, data.scene, centre, radius, bias)
                 ctx.finish()
             if frame.compensation is not None:
                 with stats.timed("bias compensation"):
@@ -157,6 +165,23 @@ class GatherStage(TileStage):
             frame.steps_done += 1
             frame.report(frame.steps_done / frame.steps,
                          f"{light_pass.name} {frame.steps_done}/{frame.steps}")
+
+    def _thin(self, frame: FrameState, work: TileWork, light_pass: LightPass
+              ) -> moderngl.Renderbuffer | None:
+        """Where VPLs gathered once per pixel are gathered in full (thin_surfaces.py): the
+        tile's mask, made at its first interleaved indirect pass; None per supersample."""
+        if not light_pass.indirect or light_pass.interleave == 1 or not frame.blur_radius \
+                or work.indirect_gbuffer is work.gbuffer:
+            return None
+        if work.thin is None:
+            with frame.stats.timed("thin surfaces"):
+                textures = work.indirect_gbuffer.textures
+                work.thin = thin_surface_mask(self.gpu.ctx, self.gpu.programs,
+                                              textures["position"], textures["normal"],
+                                              light_pass.interleave, frame.blur_radius,
+                                              work.scope)
+                self.gpu.ctx.finish()
+        return work.thin
 
     def _hints(self, frame: FrameState, work: TileWork, light_pass: LightPass
                ) -> tuple[moderngl.Texture, int] | None:

@@ -152,16 +152,17 @@ class PlanGather(Stage):
         frame.settings = replace(frame.settings, pull_push_levels=levels)
 
 
-def indirect_per_pixel(settings: Settings) -> bool:
+def indirect_per_pixel(settings: Settings, glossy: bool) -> bool:
     """Whether VPLs are gathered once per pixel (the pixel-centre g-buffer) rather than per
-    supersample: with antialiasing only."""
-    return settings.indirect_resolution == "pixel" and settings.antialiasing > 1
+    supersample: with antialiasing only, and with ``auto`` where no material is ``glossy``."""
+    chosen = settings.indirect_resolution
+    return settings.antialiasing > 1 and (chosen == "pixel" or (chosen == "auto" and not glossy))
 
 
-def indirect_interleave(settings: Settings) -> int:
+def indirect_interleave(settings: Settings, glossy: bool) -> int:
     """The indirect light's interleaving pattern: ``interleave`` supersamples, or, gathered per
     pixel, ``pixel_interleave`` pixels."""
-    if not indirect_per_pixel(settings):
+    if not indirect_per_pixel(settings, glossy):
         return settings.interleave
     return pixel_interleave(settings.interleave, settings.antialiasing)
 
@@ -204,8 +205,8 @@ class PlanLightPasses(Stage):
         vpl_batches = mode.batches(vpl_samples, settings, self.gpu.max_texture)
         passes = self._direct_passes(frame)
         clamp = max(settings.clamp_distance * radius, radius * 1e-6)
-        passes += [LightPass("indirect light", b, clamp, mode, indirect_interleave(settings))
-                   for b in vpl_batches]
+        pattern = indirect_interleave(settings, frame.geometry.has_specular)
+        passes += [LightPass("indirect light", b, clamp, mode, pattern) for b in vpl_batches]
         frame.blur_radius = blur_radius(settings.interleave, settings.blur_radius) \
             if any(p.interleave > 1 and (p.indirect or p.blurred) for p in passes) else 0
         if settings.bias_compensation != "off" and len(frame.vpls) and settings.clamp_distance:

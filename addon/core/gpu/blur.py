@@ -11,6 +11,8 @@ from .gl import ProgramCache, draw_into_new_textures, set_sampler_array, set_uni
 
 AXES = ((1, 0), (0, 1))
 MAX_SOURCES = 4  # light textures per draw (every OpenGL 3.3 context has 8 draw buffers)
+NORMAL_POWER = 32.0  # the normal weight: pow(n_p · n_q, NORMAL_POWER)
+PLANE_TOLERANCE = 0.01  # tangent-plane distance, relative to view depth, of weight 1/e
 
 
 class GeometryAwareBlur:
@@ -24,8 +26,8 @@ class GeometryAwareBlur:
         self._vao: dict[int, moderngl.VertexArray] = {}
 
     def apply(self, sources: Sequence[moderngl.Texture], position: moderngl.Texture,
-              normal: moderngl.Texture, radius: int, normal_power: float = 32.0,
-              plane_tolerance: float = 0.01) -> list[moderngl.Texture]:
+              normal: moderngl.Texture, radius: int, normal_power: float = NORMAL_POWER,
+              plane_tolerance: float = PLANE_TOLERANCE) -> list[moderngl.Texture]:
         """New RGBA32F textures (the caller releases them), one per source, each blurred over
         2·radius pixels per axis; with interleave size K dividing 2·radius the K×K pattern
         cancels on flat surfaces. ``normal_power`` sharpens the normal weight,

@@ -7,15 +7,16 @@ from collections.abc import Sequence
 
 import moderngl
 
-from .blur import MAX_SOURCES
+from .blur import MAX_SOURCES, NORMAL_POWER, PLANE_TOLERANCE
 from .gl import ProgramCache, draw_into_new_textures, set_sampler_array, set_uniforms
 
 
 def upsample(ctx: moderngl.Context, programs: ProgramCache, sources: Sequence[moderngl.Texture],
              pixels: tuple[moderngl.Texture, moderngl.Texture],
              supersamples: tuple[moderngl.Texture, moderngl.Texture], factor: int,
-             added: Sequence[moderngl.Texture] | None = None, normal_power: float = 32.0,
-             plane_tolerance: float = 0.01) -> list[moderngl.Texture]:
+             added: Sequence[moderngl.Texture] | None = None,
+             normal_power: float = NORMAL_POWER, plane_tolerance: float = PLANE_TOLERANCE
+             ) -> list[moderngl.Texture]:
     """New RGBA32F textures (the caller releases them) of the supersamples' size, one per
     source, each plus its ``added`` texture (supersample light) where given. ``pixels`` and
     ``supersamples``: the (position, normal) g-buffer layers of the sources' samples and of
