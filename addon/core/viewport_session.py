@@ -12,10 +12,12 @@ What an edit costs follows from the Renderer's reuse between frames: geometry th
 change keeps its ray-tracing upload, VPLs are regenerated only when lights, world, geometry or
 their settings changed (and then incrementally, reusing the VPLs the lights still reach), and
 the imperfect shadow maps only when the VPLs or the geometry changed. A camera-only edit
-therefore runs the g-buffer and shading alone. An edit that must make every VPL afresh
-(geometry, world or settings changed) renders its quick first frame with fewer light paths.
-``records`` keeps, per edit, its kind, the
-latency to its first frame and which stages ran or were skipped.
+therefore runs the g-buffer and shading alone. An edit that redraws every shadow map (lights
+moved, or geometry, world or settings changed) renders its quick first frame with a quarter of
+the lights' samples, and one that must make every VPL afresh also with fewer world and emission
+samples and light paths.
+``records`` keeps, per edit, its kind, the latency to its first frame and which stages ran or
+were skipped.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ DISPLAY_MODES = (
 DISPLAY_PASSES = {"direct": frozenset({"DiffDir", "DiffCol", "Emit"}),
                   "indirect": frozenset({"DiffInd", "DiffCol"})}
 """Passes a display mode reads besides Combined."""
+QUICK_MIN_SAMPLES = 4  # a quick first frame's least count of each kind of direct-light sample
 MAX_LEVEL_DIVISOR = 8  # the coarsest level's resolution divisor, at most
 START_PIXELS = 64 * 64
 """The first level is the coarsest at most this many pixels, as Cycles' viewport starts (its
@@ -148,11 +151,24 @@ def view_camera(view_matrix: np.ndarray, window_matrix: np.ndarray, width: int, 
                   max(1, int(width)), max(1, int(height)), is_orthographic=not is_perspective)
 
 
-def quick_settings(settings: Settings) -> Settings:
-    """The first frame's settings after an edit that regenerates every VPL: an eighth of the
-    light paths (at least 64) and a quarter of the ISM points, so it comes quickly."""
-    return replace(settings, vpl_count=min(settings.vpl_count, max(64, settings.vpl_count // 8)),
-                   ism_points=max(16, settings.ism_points // 4))
+def quick_settings(settings: Settings, changes: Changes) -> Settings:
+    """The first frame's settings after an edit, so that it comes quickly: a quarter of the
+    samples of area, sphere and angled sun lights (at least QUICK_MIN_SAMPLES) where lights
+    moved or every shadow map is redrawn; where the edit regenerates every VPL and shadow map,
+    also a quarter of the emission and world samples, an eighth of the light paths (at least
+    64) and a quarter of the ISM points. (A light edit keeps the world's and emission's
+    samples: their shadow maps are kept.)"""
+    def quarter(samples: int) -> int:
+        return min(samples, max(QUICK_MIN_SAMPLES, samples // 4))
+
+    if changes.regenerates:
+        settings = replace(settings, ism_points=max(16, settings.ism_points // 4),
+                           vpl_count=min(settings.vpl_count, max(64, settings.vpl_count // 8)),
+                           emission_samples=quarter(settings.emission_samples),
+                           world_samples=quarter(settings.world_samples))
+    if changes.regenerates or changes.lights:
+        settings = replace(settings, light_samples=quarter(settings.light_samples))
+    return settings
 
 
 def scaled_camera(camera: Camera, divisor: int) -> Camera:
@@ -378,8 +394,7 @@ class ViewportSession:
         # own size) would make the VPLs afresh at every level.
         view_settings = replace(settings, antialiasing=1, incremental=True,
                                 auto_parameters="off")
-        quick = quick_settings(view_settings) if changes.regenerates and len(levels) > 1 \
-            else view_settings
+        quick = quick_settings(view_settings, changes) if len(levels) > 1 else view_settings
         record = self.records[edit - 1]
         full = Accumulator()
         for level, divisor in enumerate(levels):

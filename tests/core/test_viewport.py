@@ -180,6 +180,26 @@ def test_an_edit_that_regenerates_starts_with_fewer_paths(session):
     assert light_move.counts["vpls_reused"] > 0  # full count from its first frame: reused
 
 
+def test_edits_that_redraw_shadow_maps_start_with_fewer_light_samples(session):
+    """A regenerating edit's or a light edit's first frame draws a quarter of an area light's
+    samples (each a shadow map), the later levels all of them; an edit that keeps the maps
+    keeps all samples."""
+    lit = floor_scene([light(LightKind.AREA, translation(0, 0, 2), power=100.0, size_x=0.5)],
+                      size=192)
+    settings = replace(SETTINGS, light_samples=16)
+    first, frame = run(session, Changes(settings=True), scene=lit, camera=lit.camera,
+                       settings=settings)
+    assert (first.counts["light_samples"], frame.stats.counts["light_samples"]) == (4, 16)
+    assert np.isfinite(frame.image).all() and frame.image[..., :3].mean() > 0
+    moved = floor_scene([light(LightKind.AREA, translation(0.05, 0, 2), power=100.0,
+                               size_x=0.5)], size=192)
+    light_move, frame = run(session, Changes(lights=True), scene=moved)
+    assert (light_move.counts["light_samples"], frame.stats.counts["light_samples"]) == (4, 16)
+    assert light_move.counts["vpls_reused"] > 0  # the VPLs do not read the light samples
+    recolour, _ = run(session, Changes(materials=True), scene=moved)
+    assert recolour.counts["light_samples"] == 16  # its shadow maps are kept: all samples
+
+
 def test_idle_passes_converge_and_an_edit_starts_over(renderer):
     """While nothing changes the viewport adds passes with their own VPLs and shows their
     average: its error against a many-VPL reference falls; an edit starts at one pass again."""
