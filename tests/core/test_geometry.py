@@ -110,3 +110,27 @@ def test_runs_of_shared_meshes_are_listed_after_dropped_triangles():
     copies = geometry.positions[first:first + 3 * 4 * 11].reshape(4, 11 * 3, 3)
     np.testing.assert_array_equal(copies[0], shared.corner_positions())
     assert geometry.triangle_count == 2 * kept + 4 * 11 + 7
+
+
+def test_normals_are_unit_and_face_the_same_way_through_any_transform():
+    """Similarities (turned, uniformly scaled, mirrored: their normals are not normalised
+    again) and general maps (sheared, squashed) give each triangle's unit normal, on the side
+    its normal was on (a mirror reverses the winding, not the side)."""
+    rng = np.random.default_rng(5)
+    turn = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    linears = {"turned and scaled": 3.0 * turn, "mirrored and scaled": 0.01 * turn @ np.diag(
+        [-1.0, 1.0, 1.0]), "sheared": np.array([[1.0, 0.7, 0.0], [0.0, 1.0, 0.0], [0, 0, 2]]),
+               "squashed": np.diag([1.0, 1.0, 1e-3])}
+    points = rng.normal(size=(3, 3)).astype(np.float32)
+    face = np.cross(points[1] - points[0], points[2] - points[0])
+    mesh = Mesh("one", points, (face / np.linalg.norm(face))[None].astype(np.float32),
+                np.zeros(1, np.int32), None, None, np.zeros(3, np.int32), None)
+    for name, linear in linears.items():
+        matrix = np.eye(4)
+        matrix[:3, :3] = linear
+        geometry = flatten_instances(Scene([Instance(mesh, matrix, [])] * 2), [])
+        world = geometry.positions[:3].astype(np.float64)
+        winding = np.cross(world[1] - world[0], world[2] - world[0])
+        expected = np.sign(np.linalg.det(linear)) * winding / np.linalg.norm(winding)
+        np.testing.assert_allclose(geometry.normals[:6], np.tile(expected, (6, 1)), atol=2e-5,
+                                   err_msg=name)

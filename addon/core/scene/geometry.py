@@ -14,6 +14,7 @@ from .model import DEFAULT_MATERIAL, Light, LightKind, Material, Mesh, Scene, Te
 
 DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
+UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
 MATERIAL_COLUMNS = 20  # albedo, 0, emission, 0, texture attribute, 0, specular: five texels
@@ -290,10 +291,30 @@ class _MaterialTable:
         return np.concatenate(self.blocks)
 
 
-def _apply(rows: np.ndarray, linear: np.ndarray) -> np.ndarray:
-    """(R, 3) rows through (k, 3, 3) linear maps in float32, as a C-contiguous (k, R, 3)."""
-    return np.matmul(np.asarray(rows, np.float32)[None],
-                     linear.astype(np.float32).transpose(0, 2, 1))
+def _apply(rows: np.ndarray, maps: np.ndarray) -> np.ndarray:
+    """(R, n) rows through (k, 3, n) maps in float32 (n = 4: affine maps of points given
+    without their homogeneous 1), as a C-contiguous (k, R, 3)."""
+    rows = np.asarray(rows, np.float32)
+    if maps.shape[2] == 4:
+        rows = np.concatenate([rows, np.ones((len(rows), 1), np.float32)], axis=1)
+    return np.matmul(rows[None], np.ascontiguousarray(maps.transpose(0, 2, 1), np.float32))
+
+
+def _unit_rows(rows: np.ndarray) -> bool:
+    """Whether every (R, 3) row is of unit length (within float32 rounding) or zero."""
+    length = np.sqrt(np.einsum("ij,ij->i", rows, rows))
+    return bool(np.all((np.abs(length - 1) < UNIT_TOLERANCE) | (length == 0)))
+
+
+def _similarity_scales(linear: np.ndarray) -> np.ndarray | None:
+    """Each (k, 3, 3) map's squared scale s² where all are similarities (Lᵀ L = s² I: a rotation
+    or mirror times a uniform scale), else None."""
+    gram = np.matmul(linear.transpose(0, 2, 1), linear)
+    scale = np.trace(gram, axis1=1, axis2=2) / 3
+    off = np.abs(gram - scale[:, None, None] * np.eye(3)).max(axis=(1, 2))
+    if not np.all((off <= UNIT_TOLERANCE * scale) & (scale > 0)):
+        return None
+    return scale
 
 
 def _gather_rows(values: np.ndarray, index: np.ndarray | None, out: np.ndarray) -> None:
@@ -329,23 +350,30 @@ def _flatten_group(group: _Group, warnings: list[str], positions_out: np.ndarray
     mesh = group.mesh
     k, triangles = len(group.matrices), mesh.triangle_count
     corners = 3 * triangles
-    matrices = np.stack(group.matrices).astype(np.float64)
+    matrices = np.concatenate(group.matrices).reshape(k, 4, 4).astype(np.float64, copy=False)
     identity = k == 1 and np.array_equal(matrices[0], np.eye(4))
     normals = mesh.normals if np.isfinite(mesh.normals).all() else np.nan_to_num(mesh.normals)
     normals = normals[None]
+    scales = None  # the maps' squared scales where all are similarities of unit normals
     with np.errstate(all="ignore"):
         if identity:  # the identity's normal matrix is the identity too
             world = mesh.positions[None]
         else:
-            world = _apply(mesh.positions, matrices[:, :3, :3])
-            world += matrices[:, None, :3, 3].astype(np.float32)
-            normals = _apply(normals[0], _normal_matrices(np.nan_to_num(matrices[:, :3, :3])))
-        x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
-        length = np.sqrt(x * x + y * y + z * z)  # np.linalg.norm's sums, without its reduce
-        normals = normals / length[..., None]
-        positive = length > 0
-        if not positive.all():
-            normals[~positive] = 0.0
+            world = _apply(mesh.positions, matrices[:, :3, :])
+            linear = np.nan_to_num(matrices[:, :3, :3])
+            cofactors = _normal_matrices(linear)
+            if _unit_rows(normals[0]):
+                scales = _similarity_scales(linear)
+            if scales is not None:  # a similarity's cofactor over s² is a rotation
+                cofactors /= scales[:, None, None]
+            normals = _apply(normals[0], cofactors)
+        if scales is None:
+            x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
+            length = np.sqrt(x * x + y * y + z * z)  # np.linalg.norm's sums, without its reduce
+            normals = normals / length[..., None]
+            positive = length > 0
+            if not positive.all():
+                normals[~positive] = 0.0
     _gather_rows(world, mesh.position_index, positions_out)
     _gather_rows(normals, mesh.normal_index, normals_out)
     keep = None
@@ -361,10 +389,14 @@ def _flatten_group(group: _Group, warnings: list[str], positions_out: np.ndarray
     if uv_out is not None:
         uvs = mesh.corner_uvs()
         uv_out.reshape(k, corners, 2)[:] = 0.0 if uvs is None else uvs
-    first, count = np.array(group.rows, np.int64).reshape(-1, 2).T
     slots = np.clip(mesh.material_slots, 0, None)
-    rows = first[:, None] + np.minimum(slots[None], count[:, None] - 1)
-    material_out.reshape(k, triangles)[:] = rows
+    if all(rows == group.rows[0] for rows in group.rows):  # one material list: one row set
+        first, count = group.rows[0]
+        material_out.reshape(k, triangles)[:] = first + np.minimum(slots, count - 1)
+    else:
+        first, count = np.array(group.rows, np.int64).reshape(-1, 2).T
+        material_out.reshape(k, triangles)[:] = first[:, None] + np.minimum(slots[None],
+                                                                            count[:, None] - 1)
     return keep
 
 
