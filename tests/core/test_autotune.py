@@ -181,26 +181,34 @@ def test_a_measured_fixed_cost_replaces_the_modelled_one():
     assert measured == pytest.approx(modelled - rest + 0.25)
 
 
-def test_a_budget_is_split_into_passes_only_where_the_cheapest_useful_frame_fits_a_share():
+def test_a_budget_is_split_into_passes_only_where_that_costs_little_error():
     """Two passes that would both be the cheapest useful frame, the second past the budget,
-    are planned as one pass of the whole budget instead."""
+    are planned as one pass of the whole budget instead; so are passes that would each repeat
+    a fixed cost large enough to cost more than SPLIT_COST of the error."""
     model = autotune.load_error_model()
-    cheapest = autotune.choose(replace(Settings(), auto_parameters="time", time_budget=0.0),
-                               WORK, COST, model)
     fastest = min(autotune.predict_seconds(COST, WORK, WORK.least_paths(), k, p, r,
                                            blur_radius(k, 4))
                   for k, p, r in model.options())
-    assert fastest <= cheapest.seconds
 
-    def planned(budget: float, split: int = 2) -> autotune.Choice:
+    def planned(budget: float, split: int = 2, work=WORK) -> autotune.Choice:
         settings = replace(Settings(), auto_parameters="time", time_budget=budget)
-        return autotune.choose(settings, WORK, COST, model, split)
+        return autotune.choose(settings, work, COST, model, split)
 
-    assert planned(2 * fastest).passes == 2
-    assert planned(2 * fastest).seconds <= fastest  # chosen for half the budget
     assert planned(1.9 * fastest).passes == 1
     assert planned(1.9 * fastest).seconds <= 1.9 * fastest  # for all of it
-    assert planned(2 * fastest, split=1).passes == 1
+    ample = 20 * fastest
+    split = planned(ample)
+    assert split.passes == 2 and split.seconds <= ample / 2  # chosen for half the budget
+    s = split.settings
+    together = model.error(2 * s.vpl_count, s.interleave, s.ism_points, s.ism_resolution)
+    assert together <= autotune.SPLIT_COST * planned(ample, split=1).error
+    assert planned(ample, split=1).passes == 1
+    costly = replace(WORK, fixed=0.4 * ample)  # a pass's work not chosen: 40 % of the budget
+    whole = planned(ample, work=costly)
+    assert whole.passes == 1 and ample / 2 < whole.seconds <= ample
+    half = planned(ample / 2, split=1, work=costly).settings
+    assert whole.error < model.error(2 * half.vpl_count, half.interleave, half.ism_points,
+                                     half.ism_resolution)
 
 
 def test_vpls_gathered_per_pixel_are_costed_at_the_pixels_and_their_pattern():
@@ -213,3 +221,16 @@ def test_vpls_gathered_per_pixel_are_costed_at_the_pixels_and_their_pattern():
     assert saved > 0
     assert autotune.chosen_seconds(COST, per_pixel, 512, 8, 1024, 64, 4) == pytest.approx(
         autotune.chosen_seconds(COST, WORK, 512, 8, 1024, 64, 4) - saved)
+
+
+def test_more_budget_never_chooses_more_error():
+    """Just above the cheapest useful frame's time the choice is as good as just below it
+    (where it may take OVERRUN of that time), and from there on error falls with budget."""
+    model = autotune.load_error_model()
+    fastest = min(autotune.predict_seconds(COST, WORK, WORK.least_paths(), k, p, r,
+                                           blur_radius(k, 4))
+                  for k, p, r in model.options())
+    errors = [autotune.choose(replace(Settings(), auto_parameters="time",
+                                      time_budget=fastest * f), WORK, COST, model).error
+              for f in np.linspace(0.5, 3.0, 51)]
+    assert errors == sorted(errors, reverse=True)
