@@ -41,13 +41,14 @@ MIN_VIEW_VPLS = 64
 """VPLs lighting the view of the cheapest useful frame (the interior at 384² with 3 of them was
 51 % dark and 79 % off; see docs/measurements.md)."""
 OVERRUN = 1.1
-"""Below the cheapest useful frame's time, the choice is the least predicted error among the
-candidates within this factor of the fastest (the least light paths; better ISMs cost little)."""
+"""Below or just above the cheapest useful frame's time, the choice is the least predicted error
+among the candidates within this factor of the fastest (the least light paths; better ISMs cost
+little)."""
 SPLIT_COST = 1.1
 """A time budget is split into passes (the first measures what the cost model predicts, the
 later ones are sized from it) only while the passes' predicted error is within this factor of
 one pass's over the whole budget: each pass repeats the work not chosen (on the Cornell box
-about 1.9 s of a 4.7 s budget, where two passes measured 6.7 % against one pass's 4.2 %)."""
+about 1.9 s of a 4.7 s budget: two passes measured 6.7 % in 2.7 s, one pass 3.7 % in 5.4 s)."""
 ONE_PASS_SHARE = 0.9
 """A time budget planned as one pass is chosen for this share of it: nothing measured corrects
 that pass's prediction (on the Cornell box 1448 light paths predicted at 4.68 s took 5.5 s)."""
