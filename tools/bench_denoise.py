@@ -76,7 +76,8 @@ def main() -> int:
                     scene.vpl_gi.denoiser = denoiser
                     image, seconds = report.render_timed(scene, exr)
                     stats = monitor.last_stats
-                    stage = stats.timings.get("denoise", 0.0) + stats.timings.get("blur", 0.0)
+                    stage = sum(stats.timings.get(k, 0.0)
+                                for k in ("denoise", "blur", "supersample blur"))
                     errors = report.error_metrics(image, *refs)
                     warnings = list(stats.warnings)
                     noise = float("nan")

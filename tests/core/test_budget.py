@@ -41,12 +41,13 @@ def cached_cost(renderer, tmp_path):
 
 
 def test_a_pass_splits_into_chosen_and_fixed_work_without_the_one_off_stages():
-    """The ISM stages are timed within "indirect light maps" and count once."""
+    """The ISM stages are timed within "indirect light maps" and count once; the blur at every
+    supersample (soft direct light, bias compensation) is work not chosen."""
     stats = Stats(timings={"g-buffer": 0.2, "direct light": 0.5, "vpl generation (camera-driven)":
                            0.3, "ism upload": 0.02, "ism splat": 0.06, "ism pull_push": 0.02,
                            "indirect light maps": 0.1, "indirect light": 0.4, "blur": 0.05,
-                           "automatic parameters": 0.2, "ray tracing setup": 0.1,
-                           "ism points": 0.5})
+                           "supersample blur": 0.25, "automatic parameters": 0.2,
+                           "ray tracing setup": 0.1, "ism points": 0.5})
     fixed, chosen = split_seconds(3.0, stats)
     assert chosen == pytest.approx(0.85) and fixed == pytest.approx(3.0 - 0.85 - 0.8)
     assert split_seconds(0.5, stats) == (0.0, pytest.approx(0.85))

@@ -243,6 +243,11 @@ class NearFieldStage(TileStage):
                        frame.settings.shadow_bias)
 
 
+SUPERSAMPLE_BLUR = "supersample blur"
+"""The stage of the blur of soft direct light and bias compensation at every supersample, where
+indirect light is gathered per pixel (its own blur is "blur")."""
+
+
 class BlurStage(TileStage):
     """The geometry-aware blur that removes the interleaving pattern of indirect light and of
     soft direct light; indirect light gathered per pixel is then brought to every
@@ -256,8 +261,9 @@ class BlurStage(TileStage):
         if per_pixel:
             near = [work.near] if work.near is not None else []
             lights = self._blurred(frame, work, work.indirect_gbuffer, [work.indirect])
-            if soft or near:
-                lights += self._blurred(frame, work, work.gbuffer, soft + near)
+            if soft or near:  # at every supersample, whatever the VPLs: timed apart
+                lights += self._blurred(frame, work, work.gbuffer, soft + near,
+                                        SUPERSAMPLE_BLUR)
             added = lights.pop() if near else None
             lights[0] = self._upsampled(frame, work, lights[0], added)
         else:
@@ -280,12 +286,13 @@ class BlurStage(TileStage):
         return result
 
     def _blurred(self, frame: FrameState, work: TileWork, gbuffer: GBuffer,
-                 accumulators: list[moderngl.Framebuffer]) -> list[list[moderngl.Texture]]:
+                 accumulators: list[moderngl.Framebuffer], stage: str = "blur"
+                 ) -> list[list[moderngl.Texture]]:
         """Each accumulator's light textures (diffuse, then glossy), blurred in one draw per
-        axis."""
+        axis, timed as ``stage``."""
         if not frame.blur_radius:
             return [list(a.color_attachments) for a in accumulators]
-        with frame.stats.timed(self.name):
+        with frame.stats.timed(stage):
             textures = gbuffer.textures
             targets = [t for a in accumulators for t in a.color_attachments]
             results = iter([work.scope.own(t) for t in self.gpu.blur.apply(
