@@ -15,7 +15,7 @@ the imperfect shadow maps only when the VPLs or the geometry changed. A camera-o
 therefore runs the g-buffer and shading alone. An edit that redraws every shadow map (lights
 moved, or geometry, world or settings changed) renders its quick first frame with a quarter of
 the lights' samples, and one that must make every VPL afresh also with fewer world and emission
-samples and light paths.
+samples, light paths and ISM points, in smaller ISMs.
 ``records`` keeps, per edit, its kind, the latency to its first frame and which stages ran or
 were skipped.
 """
@@ -47,6 +47,7 @@ DISPLAY_MODES = (
 DISPLAY_PASSES = {"direct": frozenset({"DiffDir", "DiffCol", "Emit"}),
                   "indirect": frozenset({"DiffInd", "DiffCol"})}
 """Passes a display mode reads besides Combined."""
+QUICK_ISM_RESOLUTION = 64  # a quick first frame's imperfect shadow maps, at most (texels a side)
 QUICK_MIN_SAMPLES = 4  # a quick first frame's least count of each kind of direct-light sample
 MAX_LEVEL_DIVISOR = 8  # the coarsest level's resolution divisor, at most
 START_PIXELS = 64 * 64
@@ -156,13 +157,14 @@ def quick_settings(settings: Settings, changes: Changes) -> Settings:
     samples of area, sphere and angled sun lights (at least QUICK_MIN_SAMPLES) where lights
     moved or every shadow map is redrawn; where the edit regenerates every VPL and shadow map,
     also a quarter of the emission and world samples, an eighth of the light paths (at least
-    64) and a quarter of the ISM points. (A light edit keeps the world's and emission's
-    samples: their shadow maps are kept.)"""
+    64), a quarter of the ISM points and maps of at most QUICK_ISM_RESOLUTION². (A light edit
+    keeps the world's and emission's samples: their shadow maps are kept.)"""
     def quarter(samples: int) -> int:
         return min(samples, max(QUICK_MIN_SAMPLES, samples // 4))
 
     if changes.regenerates:
         settings = replace(settings, ism_points=max(16, settings.ism_points // 4),
+                           ism_resolution=min(settings.ism_resolution, QUICK_ISM_RESOLUTION),
                            vpl_count=min(settings.vpl_count, max(64, settings.vpl_count // 8)),
                            emission_samples=quarter(settings.emission_samples),
                            world_samples=quarter(settings.world_samples))

@@ -17,6 +17,7 @@ from addon.core.viewport_session import (
     ViewportSession,
     classify,
     display_image,
+    quick_settings,
     refinement_levels,
 )
 from devtools import metrics
@@ -226,3 +227,20 @@ def test_idle_passes_converge_and_an_edit_starts_over(renderer):
         assert last.passes == record.passes == 8
     finally:
         session.close()
+
+
+def test_quick_settings_cut_only_what_the_edit_redraws():
+    """A regenerating edit's first frame takes fewer paths, points, 64² maps and a quarter of
+    every kind of direct-light sample; a light edit only the lights' samples (the world's
+    and emission's shadow maps and the ISMs are kept); a camera edit nothing."""
+    full = Settings(vpl_count=1024, ism_points=8192, ism_resolution=128, light_samples=16,
+                    world_samples=64, emission_samples=64)
+    moved = quick_settings(full, Changes(transforms=True))
+    assert (moved.vpl_count, moved.ism_points, moved.ism_resolution) == (128, 2048, 64)
+    assert (moved.light_samples, moved.world_samples, moved.emission_samples) == (4, 16, 16)
+    lit = quick_settings(full, Changes(lights=True))
+    assert lit == replace(full, light_samples=4)
+    assert quick_settings(full, Changes(camera=True)) == full
+    few = replace(full, light_samples=2, ism_resolution=32)
+    assert quick_settings(few, Changes(settings=True)).light_samples == 2  # never more
+    assert quick_settings(few, Changes(settings=True)).ism_resolution == 32
