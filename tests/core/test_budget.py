@@ -12,6 +12,7 @@ import pytest
 
 from addon.core.frame import autotune
 from addon.core.frame.budget import split_seconds
+from addon.core.frame.image import SUPERSAMPLE_BLUR
 from addon.core.frame.result import Stats
 from addon.core.settings import Settings
 from tests.core.builders import floor_scene, light, translation
@@ -46,7 +47,7 @@ def test_a_pass_splits_into_chosen_and_fixed_work_without_the_one_off_stages():
     stats = Stats(timings={"g-buffer": 0.2, "direct light": 0.5, "vpl generation (camera-driven)":
                            0.3, "ism upload": 0.02, "ism splat": 0.06, "ism pull_push": 0.02,
                            "indirect light maps": 0.1, "indirect light": 0.4, "blur": 0.05,
-                           "supersample blur": 0.25, "automatic parameters": 0.2,
+                           SUPERSAMPLE_BLUR: 0.25, "automatic parameters": 0.2,
                            "ray tracing setup": 0.1, "ism points": 0.5})
     fixed, chosen = split_seconds(3.0, stats)
     assert chosen == pytest.approx(0.85) and fixed == pytest.approx(3.0 - 0.85 - 0.8)

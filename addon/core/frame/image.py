@@ -286,13 +286,13 @@ class BlurStage(TileStage):
         return result
 
     def _blurred(self, frame: FrameState, work: TileWork, gbuffer: GBuffer,
-                 accumulators: list[moderngl.Framebuffer], stage: str = "blur"
+                 accumulators: list[moderngl.Framebuffer], stage: str | None = None
                  ) -> list[list[moderngl.Texture]]:
         """Each accumulator's light textures (diffuse, then glossy), blurred in one draw per
-        axis, timed as ``stage``."""
+        axis, timed as ``stage`` (default: this stage's name)."""
         if not frame.blur_radius:
             return [list(a.color_attachments) for a in accumulators]
-        with frame.stats.timed(stage):
+        with frame.stats.timed(stage or self.name):
             textures = gbuffer.textures
             targets = [t for a in accumulators for t in a.color_attachments]
             results = iter([work.scope.own(t) for t in self.gpu.blur.apply(
