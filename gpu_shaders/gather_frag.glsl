@@ -46,7 +46,11 @@ struct Lobe {
 // pattern takes every K²-th sample and scales by K², so the expectation is unchanged. With a
 // lobe (a.w > 0) the glossy radiance of the same samples goes into ``glossy``. With
 // AREA_SHAPES, the diffuse light of a draw of an area light's samples is its exact
-// unshadowed light times the fraction their shadows keep (lights_lib.glsl).
+// unshadowed light times the fraction their shadows keep (lights_lib.glsl): with
+// interleaving, the pixel's subset's shadowed light (times K²) over all the draw's samples'
+// unshadowed light, which needs no shadow lookup, so that the K × K supersamples of a pixel
+// together weigh each sample by its own light (a subset's own fraction would lose the light
+// of the subsets below a surface's horizon).
 vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lobe,
             out vec3 glossy) {
     vec3 irradiance = vec3(0.0);
@@ -55,6 +59,16 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
 #ifdef AREA_SHAPES
     int run = 0;  // the draw's samples, and their unshadowed and shadowed sums
     float open = 0.0, shaded = 0.0;
+    bool subset = interleave_size() > 1;
+    if (subset) {
+        for (int i = u_first; i < u_first + u_count; ++i) {
+            LightSample s = light_sample(i);
+            if (s.generation > max_generation) continue;
+            vec3 e = unshadowed_irradiance(s, world, normal);
+            ++run;
+            open += e.r + e.g + e.b;
+        }
+    }
 #endif
     for (int i = interleave_first(u_first, px); i < u_first + u_count;
          i += interleave_stride()) {
@@ -65,8 +79,10 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
         if (s.generation > max_generation) continue;
         vec3 e = unshadowed_irradiance(s, world, normal);
 #ifdef AREA_SHAPES
-        ++run;
-        open += e.r + e.g + e.b;
+        if (!subset) {
+            ++run;
+            open += e.r + e.g + e.b;
+        }
 #endif
         if (any(greaterThan(e, vec3(0.0)))) e *= shadow_visibility(s, world, geometric);
 #ifdef AREA_SHAPES
@@ -83,8 +99,9 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
 #ifdef AREA_SHAPES
     LightSample first = light_sample(u_first);  // a draw holds one area light's samples or none
     if (first.shape >= 0) {
-        irradiance = area_light_irradiance(first.shape, shaded, open, run, first.intensity,
-                                           world, normal);
+        glossy *= interleave_weight();
+        return area_light_irradiance(first.shape, shaded * interleave_weight(), open, run,
+                                     first.intensity, world, normal);
     }
 #endif
     float weight = interleave_weight();

@@ -160,7 +160,9 @@ class Settings:
     light_samples: int = setting(
         16, "Light Samples", "sampling",
         "Point samples per area light, per sphere light (radius > 0) and per sun with an angle, "
-        "each with its own shadow map", low=1, high=1024, soft_high=256)
+        "each with its own shadow map; shadow-mapped samples are spread over each pixel's "
+        "supersamples (each takes 1/antialiasing² of them, the pixel all of them once)",
+        low=1, high=1024, soft_high=256)
     emission_samples: int = setting(
         64, "Emission Samples", "sampling",
         "Point samples spread over all emissive surfaces (by emitted power)",

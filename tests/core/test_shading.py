@@ -197,10 +197,10 @@ def interleave(programs: ProgramCache, k: int, count: int, first: int, origin: t
             obj.release()
 
 
-@pytest.mark.parametrize("k", [1, 2, 4, 8])
+@pytest.mark.parametrize("k", [1, 2, 3, 4, 8])
 def test_each_block_uses_every_vpl_once(programs, k):
     n = k * k
-    count, first = 3 * n + 5, 7
+    count, first = 3 * n + 5, 7 if k & (k - 1) == 0 else 0  # K = 3 counts from first
     uses, loop = interleave(programs, k, count, first, (0, 0))
     index = uses[..., 0].astype(int)
     np.testing.assert_array_equal(uses[..., 3], n)
@@ -217,8 +217,21 @@ def test_each_block_uses_every_vpl_once(programs, k):
     np.testing.assert_array_equal(loop[..., 1], [[len(m[m >= first]) for m in
                                                    (members[i] for i in r)] for r in index])
     np.testing.assert_array_equal(loop[..., 2], 0)
-    far, _ = interleave(programs, k, count, first, (1024, 2048))
+    far, _ = interleave(programs, k, count, first, (3 * 1024, 3 * 2048))  # where K divides
     np.testing.assert_array_equal(far, uses)
+
+
+def test_a_pattern_of_the_antialiasing_factor_gives_each_pixel_every_subset_once(programs):
+    """K = 3, the antialiasing factor: each pixel's aligned 3×3 supersamples (tiles start on
+    pixel edges) take the 9 subsets once each, from the centre out in mirrored pairs, so that
+    the subsets holding one sample more (the first count % 9 of a draw's) lie symmetrically
+    about the pixel's centre. Indices count from the draw's first sample."""
+    ranks = [[1, 3, 5], [7, 0, 8], [6, 4, 2]]  # rows are y
+    uses, loop = interleave(programs, 3, 16, 5, (0, 0), size=6)
+    np.testing.assert_array_equal(uses[..., 0], np.tile(ranks, (2, 2)))
+    np.testing.assert_array_equal(loop[..., 0], 5 + uses[..., 0])  # the draw's own indices
+    cells = np.argwhere(np.array(ranks) < 7)  # 16 = 9 + 7: the seven subsets of two samples
+    np.testing.assert_array_equal(cells.mean(axis=0), [1, 1])
 
 
 def test_the_pattern_is_a_bayer_matrix(programs):

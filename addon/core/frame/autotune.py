@@ -33,7 +33,7 @@ from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Sc
 from ..settings import Settings
 from .stages import blur_radius, pixel_interleave
 
-COST_MODEL_VERSION = 7  # 7: clamp distance 0.1 (longer bias-compensation rays)
+COST_MODEL_VERSION = 8  # 8: soft lights' shadow-mapped samples spread over each pixel
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
 PATHS = tuple(round(16 * 2 ** (k / 4)) for k in range(41))
 """Light-path counts the automatic mode considers: 16 to 16384 in steps of 2^(1/4) (19 %)."""

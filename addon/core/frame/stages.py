@@ -242,8 +242,9 @@ class PlanLightPasses(Stage):
         (imperfect ones for soft lights with soft_light_ism). The world's samples are
         interleaved like VPLs (its light varies smoothly; the blur removes the pattern); a
         sun's angle samples are interleaved without the blur (each supersample traces one of
-        them: Cycles' one light sample per path, sharp where the penumbra is); the others go
-        to every supersample."""
+        them: Cycles' one light sample per path, sharp where the penumbra is); the shadow-mapped
+        samples of other soft lights are spread over each pixel's supersamples (each pixel
+        takes each sample once: ``_split_world``); hard lights go to every supersample."""
         settings, stats, samples = frame.settings, frame.stats, frame.light_samples
         near = frame.radius * 1e-6
         sun_disc = self._sun_disc(samples)
@@ -256,7 +257,7 @@ class PlanLightPasses(Stage):
         ray_traced = RayTracedVisibility()
         passes = [LightPass("direct light", b, near, ray_traced, k, blurred)
                   for chosen, k, blurred in self._split_world(samples, traced & ~sun_disc,
-                                                              settings.interleave)
+                                                              settings.interleave, 1)
                   for b in ray_traced.batches(chosen, settings, 0)]
         sun_samples = samples.subset(np.flatnonzero(traced & sun_disc))
         if len(sun_samples):  # the smallest pattern that gives each supersample one sample
@@ -273,13 +274,14 @@ class PlanLightPasses(Stage):
             mapped.kind, (KIND_COSINE, KIND_DIRECTIONAL)) if soft_ism \
             else np.zeros(len(mapped), bool)
         imperfect, triangles = ImperfectVisibility(), ShadowMapVisibility()
+        aa = settings.antialiasing
         passes += [LightPass("direct light", b, near, triangles, k, blurred)
                    for chosen, k, blurred in self._split_world(mapped, ~as_ism,
-                                                               settings.interleave)
+                                                               settings.interleave, aa)
                    for b in shadow_map_batches(chosen, self.gpu.max_texture)]
         return passes + [LightPass("direct light", b, near, imperfect, k, blurred)
                          for chosen, k, blurred in self._split_world(mapped, as_ism,
-                                                                     settings.interleave)
+                                                                     settings.interleave, aa)
                          for b in imperfect.batches(chosen, settings, 0)]
 
     def _reaching_view(self, frame: FrameState, samples: LightSamples) -> LightSamples:
@@ -307,14 +309,20 @@ class PlanLightPasses(Stage):
         return samples.soft & (samples.kind == KIND_DIRECTIONAL) & ~samples.of_world
 
     @staticmethod
-    def _split_world(samples: LightSamples, chosen: np.ndarray, interleave: int
-                     ) -> list[tuple[LightSamples, int, bool]]:
-        """The ``chosen`` world samples, interleaved and blurred, then the other ``chosen``
-        samples, which each pixel takes all of: lights whose shadows, spots or glossy
-        highlights can be sharp (the blur would smear them)."""
-        world = samples.of_world
-        return [(samples.subset(np.flatnonzero(chosen & subset)), k, k > 1)
-                for subset, k in ((world, interleave), (~world, 1))]
+    def _split_world(samples: LightSamples, chosen: np.ndarray, interleave: int,
+                     antialiasing: int) -> list[tuple[LightSamples, int, bool]]:
+        """The ``chosen`` world samples, interleaved and blurred; the other ``chosen`` samples
+        of soft lights in a pattern of ``antialiasing`` supersamples, so that each pixel's
+        supersamples take each sample once (antialiasing² times less work, the pixel's sum
+        unchanged but for where each sample is taken inside the pixel); the samples of hard
+        lights, which every supersample takes (a hard shadow's edge is antialiased by them).
+        Neither of the last two is blurred: shadows, spots and glossy highlights can be
+        sharp."""
+        world, soft = samples.of_world, samples.soft & ~samples.of_world
+        return [(samples.subset(np.flatnonzero(chosen & subset)), k, blurred)
+                for subset, k, blurred in ((world, interleave, interleave > 1),
+                                           (soft, antialiasing, False),
+                                           (~world & ~soft, 1, False))]
 
 
 class Sanitize(Stage):
