@@ -15,6 +15,13 @@ int interleave_size() {
     return max(u_interleave, 1);
 }
 
+// Whether the pattern is a Bayer matrix (K a power of two) rather than the centred order of
+// other sizes (interleave_pattern).
+bool interleave_is_bayer() {
+    int k = interleave_size();
+    return (k & (k - 1)) == 0;
+}
+
 // The pixel's subset of VPLs, 0 ≤ index < K², as a Bayer (ordered-dither) matrix: neighbouring
 // pixels use subsets far apart in index order. The bits of (x ^ y, y), lowest first, become the
 // index's bit pairs, highest first.
@@ -26,7 +33,7 @@ int interleave_size() {
 // first sample (interleave_first).
 int interleave_pattern(ivec2 pixel) {
     int k = interleave_size();
-    if ((k & (k - 1)) != 0) {
+    if (!interleave_is_bayer()) {
         ivec2 cell = pixel % k;
         int n = k * k, middle = n / 2, odd = n % 2;
         int p = cell.x + k * cell.y;  // its mirror is n - 1 - p
@@ -42,7 +49,6 @@ int interleave_pattern(ivec2 pixel) {
     return index;
 }
 
-// Whether the pixel gathers VPL vpl_index (≥ 0).
 // Whether the pixel gathers index vpl_index (≥ 0) of a draw starting at index 0.
 bool interleave_uses(int vpl_index, ivec2 pixel) {
     int k = interleave_size();
@@ -66,9 +72,8 @@ int interleave_stride() {
 // The smallest index ≥ first (≥ 0) that the pixel uses: for a power of two of all the
 // indices, for other sizes of the draw's own, counted from first.
 int interleave_first(int first, ivec2 pixel) {
-    int k = interleave_size();
-    int n = k * k;
-    if ((k & (k - 1)) != 0) return first + interleave_pattern(pixel);
+    if (!interleave_is_bayer()) return first + interleave_pattern(pixel);
+    int n = interleave_stride();
     return first + ((interleave_pattern(pixel) - first) & (n - 1));
 }
 

@@ -317,12 +317,13 @@ class PlanLightPasses(Stage):
         unchanged but for where each sample is taken inside the pixel); the samples of hard
         lights, which every supersample takes (a hard shadow's edge is antialiased by them).
         Neither of the last two is blurred: shadows, spots and glossy highlights can be
-        sharp."""
+        sharp. With ``antialiasing`` 1 (and for ray-traced samples) the last two are one
+        batch, as before soft lights were spread."""
         world, soft = samples.of_world, samples.soft & ~samples.of_world
+        others = ((~world, 1, False),) if antialiasing == 1 else \
+            ((soft, antialiasing, False), (~world & ~soft, 1, False))
         return [(samples.subset(np.flatnonzero(chosen & subset)), k, blurred)
-                for subset, k, blurred in ((world, interleave, interleave > 1),
-                                           (soft, antialiasing, False),
-                                           (~world & ~soft, 1, False))]
+                for subset, k, blurred in ((world, interleave, interleave > 1), *others)]
 
 
 class Sanitize(Stage):
