@@ -14,6 +14,8 @@ within chord d of a point has area πd²).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -136,6 +138,31 @@ def test_scrambled_halton_is_stratified_and_seeded():
         counts = np.bincount((points[:cells, k] * cells).astype(int), minlength=cells)
         assert counts.min() == counts.max() == 1
     assert not np.allclose(points, scrambled_halton(256, 4, seed=2))
+    # a range from index 100 continues the same sequence (the passes of a render)
+    np.testing.assert_array_equal(scrambled_halton(156, 4, seed=1, first=100), points[100:])
+
+
+def test_a_continued_path_sequence_traces_the_longer_sequences_paths(renderer):
+    """Two halves of 2N light paths (the second from path N) leave the first-bounce VPLs of
+    the 2N paths, at twice their intensity each (each half is N paths, not 2N)."""
+    from addon.core.scene.geometry import bounding_sphere, flatten_instances
+    from addon.core.transport.vpl import PathSequence, VPLs, generate_vpls
+
+    scene = sphere_scene(0.5)
+    geometry = flatten_instances(scene, [])
+    centre, radius = bounding_sphere(geometry.positions)
+    renderer.forget_frames()  # the tracer is given other triangles than the frames' here
+    tracer = renderer.tracer
+    tracer.upload(geometry.positions.reshape(-1, 3, 3))
+    settings = Settings(bounces=1, vpl_count=64, seed=5)
+    whole = generate_vpls(scene, geometry, replace(settings, vpl_count=128), tracer, centre,
+                          radius)
+    halves = [generate_vpls(scene, geometry, settings, tracer, centre, radius,
+                            PathSequence(5, first)) for first in (0, 64)]
+    renderer.forget_frames()
+    joined = VPLs.concatenate(halves)
+    np.testing.assert_allclose(joined.position, whole.position, atol=1e-6)
+    np.testing.assert_allclose(joined.intensity, 2 * whole.intensity, rtol=1e-6)
 
 
 @pytest.mark.parametrize("kind", [LightKind.POINT, LightKind.SPOT, LightKind.SUN, LightKind.AREA])

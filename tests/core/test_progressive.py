@@ -86,6 +86,26 @@ def test_the_average_is_shown_after_every_pass(renderer) -> None:
     assert all(np.isfinite(f.passes["Combined"]).all() for _, f in shown)
 
 
+def test_passes_continue_one_light_path_sequence(renderer, monkeypatch) -> None:
+    """Pass k traces the user's seed's light paths from where the passes before it ended (K
+    passes: one stratified set of K·N paths), whatever seed its other choices take."""
+    from addon.core.frame import vpl_stage
+
+    traced = []
+
+    def recording(*args, **kwargs):
+        sequence = args[6] if len(args) > 6 else kwargs["sequence"]
+        traced.append((sequence.seed, sequence.first, args[2].vpl_count))
+        return generate(*args, **kwargs)
+
+    generate = vpl_stage.generate_vpls
+    monkeypatch.setattr(vpl_stage, "generate_vpls", recording)
+    renderer.forget_frames()
+    renderer.render_progressive(closed_sphere(), replace(BASE, passes=3, seed=7,
+                                                         vpl_guidance="off"))
+    assert traced == [(7, 0, 16), (7, 16, 16), (7, 32, 16)]
+
+
 def test_time_limit_and_noise_threshold_stop_early(renderer) -> None:
     _, stats = renderer.render_progressive(closed_sphere(),
                                            replace(BASE, passes=50, time_limit=1e-3))

@@ -1,6 +1,9 @@
-"""Progressive final renders: passes with independent light samples and VPLs, averaged.
+"""Progressive final renders: passes with their own light samples and VPLs, averaged.
 
-Pass k (from 0) renders with its own seed, its supersamples moved by a sub-sample offset
+Pass k (from 0) renders with its own seed, its light paths continuing the sequence of the
+passes before it (the user's seed's scrambled Halton sequence from the path after their last:
+K passes of N paths trace one stratified set of K·N, the frame's state ``first_path``; camera
+guidance draws its candidates afresh per pass), its supersamples moved by a sub-sample offset
 (pass 0: none; so edges converge as in Cycles, whose samples fall anywhere in the pixel) and
 the VPL clamp distance shrunk to c_k = clamp / (k + 1)^CLAMP_EXPONENT. Both of the clamp's
 errors then vanish as passes are added, at the same rate. A VPL's hot spot (distance below
@@ -11,7 +14,9 @@ near region's area, c_K² ∝ K^(-2a), so its square as K^(-4a). The two rates m
 a = 1/6: mean squared error ∝ K^(-2/3), a consistent estimator. (With a = 1/2, the
 schedule before, the hot spots' share stayed constant over passes: Sponza's 4 passes
 measured 35.8 %, now 27.7 %; docs/how-it-works.md.) The noise of the average is estimated
-from the difference of the averages of the even and of the odd passes (independent halves)."""
+from the difference of the averages of the even and of the odd passes: independent halves but
+for their light paths, which are stratified together, so that the halves' errors tend to
+cancel in the average and add in the difference: the estimate errs high, not low."""
 
 from __future__ import annotations
 

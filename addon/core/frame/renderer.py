@@ -53,6 +53,7 @@ class Renderer:
         self.gpu = GpuSession(ctx or shared_context())
         self.kept = KeptProducts()
         self._automatic = ChooseParameters(self.gpu, self.kept, self.render)
+        self._last_pass = (-1, 0)  # the index of the last pass rendered and its last path + 1
         self.stages: list[Stage] = [
             CheckInput(self.gpu), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
@@ -66,12 +67,16 @@ class Renderer:
         """Render one pass of ``scene`` (``pass_index`` of a progressive render): the Combined
         pass and ``passes`` (all by default; the others come back zero when the planner is
         on). Raises RenderError or RenderCancelled."""
+        last_index, paths_end = self._last_pass
+        first_path = paths_end if pass_index and last_index == pass_index - 1 else \
+            pass_index * settings.vpl_count  # passes of N paths before it elsewhere (viewport)
         frame = FrameState(scene, settings, passes, Stats(warnings=list(scene.warnings)),
                            progress or (lambda _f, _m: None), cancelled or (lambda: False),
-                           pass_index=pass_index)
+                           pass_index=pass_index, first_path=first_path)
         for stage in self.stages:
             frame.check_cancelled()  # Esc in Blender: also between the long stages
             stage.run(frame)
+        self._last_pass = (pass_index, first_path + frame.settings.vpl_count)
         return Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats
 
     def render_progressive(self, scene: Scene, settings: Settings,

@@ -12,7 +12,7 @@ from ..scene.geometry import WorldGeometry
 from ..scene.model import Camera, Scene
 from ..settings import Settings
 from ..transport.lights import LightSamples
-from ..transport.vpl import VPLs
+from ..transport.vpl import PathSequence, VPLs
 from .planner import Bounds, FramePlan
 from .result import Stats
 
@@ -46,6 +46,8 @@ class FrameState:
     cancelled: CancelCallback
     pass_index: int = 0  # the pass of a progressive render (see progressive.py)
     point_seed: int = 0  # the user's seed: ISM points stay the same in every pass
+    first_path: int = 0  # the pass's first light path in the user's seed's sequence: the
+    # passes of a render continue one sequence (transport/vpl.py PathSequence)
     camera: Camera | None = None
     geometry: WorldGeometry | None = None
     shapes: WorldGeometry | None = None  # light outlines seen by the camera
@@ -67,6 +69,11 @@ class FrameState:
     traces_rays: bool = False  # a light pass or the bias compensation uses the ray tracer
     steps: int = 0  # light passes × tiles, for the progress bar
     steps_done: int = 0
+
+    @property
+    def path_sequence(self) -> PathSequence:
+        """The light paths this pass traces (``first_path`` on, the user's seed's sequence)."""
+        return PathSequence(self.point_seed, self.first_path)
 
     def check_cancelled(self) -> None:
         """Raise RenderCancelled if the user asked to stop."""

@@ -149,7 +149,8 @@ class MakeVPLs(Stage):
                 vpls = self._guided_vpls(frame, tracer)
         else:
             with stats.timed("vpl generation"):
-                vpls = generate_vpls(scene, geometry, settings, tracer, centre, radius)
+                vpls = generate_vpls(scene, geometry, settings, tracer, centre, radius,
+                                     frame.path_sequence)
         kept.keep("vpls", key, vpls)
         return vpls
 
@@ -178,7 +179,7 @@ class MakeVPLs(Stage):
             stats.skipped["vpl guidance"] = (f"{share:.0%} of the light paths' VPLs light the "
                                              "view: selecting among them would add noise")
             return generate_vpls(frame.scene, frame.geometry, settings, tracer, frame.centre,
-                                 frame.radius)
+                                 frame.radius, frame.path_sequence)
         more = camera_points(frame.camera, frame.geometry, tracer, MORE_GUIDE_POINTS,
                              settings.seed + 1)
         first = candidates(first_paths, 0)

@@ -30,11 +30,13 @@ def radical_inverse(index: int, base: int) -> float:
     return value
 
 
-def scrambled_halton(count: int, dimensions: int, seed: int) -> np.ndarray:
-    """``count`` points in [0, 1)^dimensions: dimension k is the radical inverse in the k-th prime
-    base with an independent random permutation of the digits at every digit position."""
+def scrambled_halton(count: int, dimensions: int, seed: int, first: int = 0) -> np.ndarray:
+    """``count`` points in [0, 1)^dimensions, the sequence's from index ``first``: dimension k
+    is the radical inverse in the k-th prime base with an independent random permutation of
+    the digits at every digit position (the same for every ``first``: consecutive ranges
+    continue one sequence)."""
     rng = np.random.default_rng(seed)
-    index = np.arange(count, dtype=np.int64)
+    index = np.arange(first, first + count, dtype=np.int64)
     points = np.empty((count, dimensions))
     for k, base in enumerate(primes(dimensions)):
         digits = int(np.ceil(DIGIT_BITS / np.log2(base)))

@@ -433,14 +433,29 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
     return VPLs.concatenate(out)
 
 
+@dataclass(frozen=True)
+class PathSequence:
+    """Which light paths of the scrambled Halton sequence a frame traces: those from index
+    ``first`` of the sequence scrambled by ``seed``. The passes of a render continue one
+    sequence, so that K passes of N paths trace its first K·N paths, stratified as one set,
+    not K independent sets of N."""
+
+    seed: int
+    first: int = 0
+
+
 def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tracer: RayCaster,
-                  centre: np.ndarray, radius: float) -> VPLs:
-    """Trace ``settings.vpl_count`` light paths for up to ``settings.bounces`` hits each."""
+                  centre: np.ndarray, radius: float, sequence: PathSequence | None = None
+                  ) -> VPLs:
+    """Trace ``settings.vpl_count`` light paths for up to ``settings.bounces`` hits each, from
+    ``sequence`` (default: from the start of ``settings.seed``'s)."""
     emitters = _emitters(scene, geometry, centre, radius)
     if settings.bounces == 0 or not emitters or geometry.vertex_count == 0:
         return VPLs.empty()
     n = settings.vpl_count
-    u = scrambled_halton(n, START_DIMENSIONS + 2 * max(0, settings.bounces - 1), settings.seed)
+    sequence = sequence or PathSequence(settings.seed)
+    u = scrambled_halton(n, START_DIMENSIONS + 2 * max(0, settings.bounces - 1), sequence.seed,
+                         sequence.first)
     paths = start_paths(emitters, u[:, :START_DIMENSIONS])
     alive = np.flatnonzero(np.any(paths.flux != 0, axis=1))
     first = trace_hits(tracer, geometry, paths.origin[alive], paths.direction[alive],
