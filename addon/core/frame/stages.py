@@ -50,7 +50,7 @@ class CheckInput(Stage):
         frame.settings.validate()
         check_scene_size(frame.scene, frame.settings, SceneLimits(
             self.gpu.max_storage, self.gpu.max_texture, physical_memory()))
-        frame.point_seed = frame.settings.seed
+        frame.user_seed = frame.settings.seed
         frame.settings = pass_settings(frame.settings, frame.pass_index)
         camera = frame.scene.camera
         if camera is None:
@@ -227,7 +227,7 @@ class PlanLightPasses(Stage):
             keyed = vpl_batches[0] if mode.uses_ism and len(vpl_batches) == 1 else None
             frame.ism_maps = ImperfectShadowMapFrame(
                 self.gpu.ism, self.kept, frame.geometry, settings, batches,
-                (frame.centre, radius), stats, keyed, frame.vpl_keys, frame.point_seed)
+                (frame.centre, radius), stats, keyed, frame.vpl_keys, frame.user_seed)
         stats.counts.update(
             triangles=frame.geometry.vertex_count // 3, light_samples=len(frame.light_samples),
             vpls=len(frame.vpls), shadow_maps=int(sum(

@@ -45,7 +45,8 @@ class FrameState:
     report: ProgressCallback
     cancelled: CancelCallback
     pass_index: int = 0  # the pass of a progressive render (see progressive.py)
-    point_seed: int = 0  # the user's seed: ISM points stay the same in every pass
+    user_seed: int = 0  # the settings' seed before the pass's own: ISM points and the light
+    # paths' sequence (path_sequence) stay the same in every pass
     first_path: int = 0  # the pass's first light path in the user's seed's sequence: the
     # passes of a render continue one sequence (transport/vpl.py PathSequence)
     camera: Camera | None = None
@@ -73,7 +74,7 @@ class FrameState:
     @property
     def path_sequence(self) -> PathSequence:
         """The light paths this pass traces (``first_path`` on, the user's seed's sequence)."""
-        return PathSequence(self.point_seed, self.first_path)
+        return PathSequence(self.user_seed, self.first_path)
 
     def check_cancelled(self) -> None:
         """Raise RenderCancelled if the user asked to stop."""
