@@ -13,7 +13,7 @@ from addon.core.frame.stages import blur_radius
 from addon.core.settings import Settings, SettingsError
 
 COST = autotune.CostModel("test GL", paths=2e-5, splat=2e-9, texels=1e-9, gather=4e-9,
-                          blur=1e-8, pixels=2e-6, maps=1e-9, pool=5e-7, frame=0.02)
+                          blur=1e-8, pixels=2e-6, maps=3e-5, pool=5e-7, frame=0.02)
 WORK = autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
                          vpls_per_path=2.5, bounces=4)
 
@@ -70,33 +70,39 @@ def test_an_unreachable_target_takes_the_least_error():
 def test_calibration_recovers_the_coefficients_of_a_linear_machine():
     """A stand-in renderer whose stage times follow the model exactly: the fit finds them,
     the ISM atlas's allocation (half the texels' cost here) included, which only the first
-    render of each setting pays, as every frame of a new process does."""
+    render of each setting pays, as every frame of a new process does. Its VPLs are gathered
+    once per pixel, as the base settings ask."""
 
     built = []  # the ISM area table is built by the first render only
     allocated = set()  # the settings whose ISM atlas is allocated
+    cost = COST
 
     def render(s: Settings) -> dict[str, float | int]:
-        assert s.indirect_resolution == "supersample"  # the model's gather is per supersample
-        vpls, pixels = 2.0 * s.vpl_count, 128 * 128 * s.antialiasing**2
-        table = {} if built else {"ism points": COST.pool * 4800}
+        assert s.indirect_resolution == "pixel"  # as the base settings gather
+        vpls, pixels = 2.0 * s.vpl_count, 256 * 144 * s.antialiasing**2
+        gathered, k = autotune.gathered_pixels(pixels, s.interleave, s.antialiasing)
+        table = {} if built else {"ism points": cost.pool * 4800}
         built.append(1)
-        allocation = 0.0 if s in allocated else 0.5 * COST.texels * vpls * s.ism_resolution**2
+        allocation = 0.0 if s in allocated else 0.5 * cost.texels * vpls * s.ism_resolution**2
         allocated.add(s)
-        return {"vpls": vpls, "pixels": pixels, "triangles": 4800, "shadow_tiles": 6, **table,
-                "vpl generation": COST.paths * s.vpl_count * s.bounces,
+        return {"vpls": vpls, "pixels": pixels, "triangles": 4800, "shadow_tiles": 6,
+                "gather_antialiasing": s.antialiasing,
+                **table,
+                "vpl generation": cost.paths * s.vpl_count * s.bounces,
                 "ism upload": allocation,
-                "indirect light maps": COST.splat * vpls * s.ism_points
-                + 0.5 * COST.texels * vpls * s.ism_resolution**2 + allocation,
-                "indirect light": COST.gather * pixels * vpls / s.interleave**2,
-                "blur": COST.blur * pixels * s.blur_radius if s.interleave > 1 else 0.0,
-                "g-buffer": 0.5 * (COST.frame + COST.pixels * pixels),
-                "bias compensation": 0.5 * (COST.frame + COST.pixels * pixels),
-                "direct light maps": COST.maps * 6 * 4800}
+                "indirect light maps": cost.splat * vpls * s.ism_points
+                + 0.5 * cost.texels * vpls * s.ism_resolution**2 + allocation,
+                "indirect light": cost.gather * gathered * vpls / k**2,
+                "blur": cost.blur * gathered * s.blur_radius if k > 1 else 0.0,
+                "g-buffer": 0.5 * (cost.frame + cost.pixels * pixels),
+                "bias compensation": 0.3 * (cost.frame + cost.pixels * pixels),
+                "supersample blur": 0.2 * (cost.frame + cost.pixels * pixels),
+                "direct light maps": cost.maps * 6}
 
     fitted = autotune.calibrate(render, "test GL", Settings(indirect_resolution="pixel"))
     for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool",
                  "frame"):
-        assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
+        assert getattr(fitted, name) == pytest.approx(getattr(cost, name), rel=1e-6), name
 
 
 def test_the_cost_model_is_cached_per_renderer(tmp_path):
@@ -182,7 +188,7 @@ def test_no_choice_is_below_the_cheapest_useful_frame(vpls_per_path):
 
 def test_a_measured_fixed_cost_replaces_the_modelled_one():
     modelled = autotune.predict_seconds(COST, WORK, 256, 4, 1024, 64, 4)
-    rest = COST.frame + COST.pixels * WORK.pixels + COST.maps * WORK.shadow_tiles * WORK.triangles
+    rest = COST.frame + COST.pixels * WORK.pixels + COST.maps * WORK.shadow_tiles
     measured = autotune.predict_seconds(COST, replace(WORK, fixed=0.25), 256, 4, 1024, 64, 4)
     assert measured == pytest.approx(modelled - rest + 0.25)
 

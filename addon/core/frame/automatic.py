@@ -103,8 +103,8 @@ class ChooseParameters(Stage):
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
                 **self._vpls_per_path(frame),
                 bounces=settings.bounces,
-                gather_antialiasing=settings.antialiasing
-                if indirect_per_pixel(settings, frame.geometry.has_specular) else 1,
+                gather_antialiasing=self._gather_antialiasing(settings,
+                                                              frame.geometry.has_specular),
                 area_table=self._ism_area_table(frame.geometry.vertex_count // 3))
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)
@@ -112,6 +112,12 @@ class ChooseParameters(Stage):
                            f"{choice.describe()}")
         stats.counts.update(auto_vpl_count=choice.settings.vpl_count)
         frame.settings = choice.settings
+
+    @staticmethod
+    def _gather_antialiasing(settings: Settings, specular: bool) -> int:
+        """Supersamples per pixel edge the VPLs are gathered once for (indirect light per
+        pixel: the antialiasing), else 1."""
+        return settings.antialiasing if indirect_per_pixel(settings, specular) else 1
 
     def _ism_area_table(self, triangles: int) -> bool:
         """Whether the ISM area table of these triangles is built already."""
@@ -145,7 +151,8 @@ class ChooseParameters(Stage):
         return {**stats.timings, "vpls": stats.counts["vpls"],
                 "pixels": camera.width * camera.height * settings.antialiasing**2,
                 "triangles": stats.counts["triangles"],
-                "shadow_tiles": stats.counts["shadow_maps"]}
+                "shadow_tiles": stats.counts["shadow_maps"],
+                "gather_antialiasing": self._gather_antialiasing(settings, False)}
 
 
 def _file_stamp(path: Path | None) -> tuple[str, int, int] | None:

@@ -7,10 +7,10 @@ Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interl
     VPL generation  c_paths · paths · bounces
     ISMs            c_splat · V · points + c_texels · V · resolution²
     ISM area table  c_pool · triangles, when the table of triangle areas must be built
-    indirect light  c_gather · P · V / K²
+    indirect light  c_gather · P · V / K²  (P and K of the pixels the VPLs are gathered at)
     blur            c_blur · P · radius (K > 1)
-    the rest        c_frame + c_pixels · P + c_maps · shadow-map tiles · triangles  (not
-                    chosen here: PIXEL_STAGES, the direct light's shadow maps)
+    the rest        c_frame + c_pixels · P + c_maps · shadow-map tiles  (not chosen here:
+                    PIXEL_STAGES, the direct light's shadow maps)
     (replaced by ``Workload.fixed``, their time measured in a pass, when it is known)
 Error (relative RMSE against a converged image):
     sqrt(floor² + noise² / paths + ism(points, resolution)²)
@@ -33,7 +33,7 @@ from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Sc
 from ..settings import Settings
 from .stages import blur_radius, pixel_interleave
 
-COST_MODEL_VERSION = 9  # 9: the ISM atlas's allocation counted (as in a new process)
+COST_MODEL_VERSION = 10  # 10: measured at 256×144 as frames gather, with a frame's atlas
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
 PATHS = tuple(round(16 * 2 ** (k / 4)) for k in range(41))
 """Light-path counts the automatic mode considers: 16 to 16384 in steps of 2^(1/4) (19 %)."""
@@ -53,7 +53,7 @@ ONE_PASS_SHARE = 0.9
 """A time budget planned as one pass is chosen for this share of it: nothing measured corrects
 that pass's prediction (on the Cornell box 1448 light paths predicted at 4.68 s took 5.5 s)."""
 PIXEL_STAGES = ("g-buffer", "direct light", "shadow hints", "bias compensation", "upsample",
-                "compose")
+                "supersample blur", "thin surfaces", "compose")
 """The stages whose time grows with the supersamples (from a cost per frame) and that the choice
 does not set."""
 
@@ -69,7 +69,7 @@ class CostModel:
     gather: float  # per pixel and VPL gathered
     blur: float  # per pixel and blur radius
     pixels: float  # per pixel: PIXEL_STAGES
-    maps: float  # per shadow-map tile and triangle
+    maps: float  # per shadow-map tile
     pool: float  # per triangle of the ISM area table (the points are drawn on the GPU)
     frame: float = 0.0  # per frame: PIXEL_STAGES' cost whatever the pixels (draws, passes)
     version: int = COST_MODEL_VERSION
@@ -150,20 +150,26 @@ def fixed_seconds(cost: CostModel, work: Workload) -> float:
     """Predicted (or measured) seconds of the work the choice does not set."""
     if work.fixed is not None:
         return work.fixed
-    return cost.frame + cost.pixels * work.pixels + cost.maps * work.shadow_tiles * work.triangles
+    return cost.frame + cost.pixels * work.pixels + cost.maps * work.shadow_tiles
 
 
 def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
                    resolution: int, blur_radius: int) -> float:
     """Predicted seconds of the stages these parameters set (not the ISM area table)."""
     vpls = paths * (work.gathered_per_path or work.vpls_per_path)
-    aa = work.gather_antialiasing
-    pixels = work.pixels / aa**2
-    k = pixel_interleave(interleave, aa)
+    pixels, k = gathered_pixels(work.pixels, interleave, work.gather_antialiasing)
     return (cost.paths * paths * max(1, work.bounces)
             + cost.splat * vpls * points + cost.texels * vpls * resolution**2
             + cost.gather * pixels * vpls / k**2
             + (cost.blur * pixels * blur_radius if k > 1 else 0.0))
+
+
+def gathered_pixels(supersamples: float, interleave: int, antialiasing: int
+                    ) -> tuple[float, int]:
+    """The pixels the VPLs are gathered at and their interleave pattern's edge: every
+    supersample with ``interleave``, or once per pixel (``antialiasing`` > 1: indirect light
+    per pixel) with stages.pixel_interleave."""
+    return supersamples / antialiasing**2, pixel_interleave(interleave, antialiasing)
 
 
 def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel,
@@ -230,11 +236,16 @@ def load_error_model(path: Path = ERROR_MODEL_FILE) -> ErrorModel:
 
 Render = Callable[[Settings], dict[str, float | int]]
 """Renders the calibration scene with the given settings and returns its stage timings
-(seconds) and counts (``vpls``, ``pixels``, ``triangles``, ``shadow_tiles``)."""
+(seconds), counts (``vpls``, ``pixels``, ``triangles``, ``shadow_tiles``) and the supersamples per
+pixel edge its VPLs were gathered once for (``gather_antialiasing``)."""
 
 CALIBRATION = (  # (paths, interleave, points, resolution, antialiasing): spread so each term
-    # is separable (two pixel counts part the cost per frame from the cost per pixel)
+    # is separable (three pixel counts part the cost per frame from the cost per pixel); the
+    # last with an atlas as large as a frame's: the gather's cost per VPL and pixel grows with
+    # it (the room at 640×360: 1.04 times the cost fitted without it for 569 VPLs of 64² maps,
+    # 1.71 times for 2276 of 128²)
     (64, 1, 1024, 64, 1), (256, 4, 4096, 128, 2), (128, 2, 1024, 256, 1), (512, 8, 2048, 64, 2),
+    (1024, 8, 1024, 128, 3),
 )
 
 
@@ -250,12 +261,13 @@ def _through_origin(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     """Measure the cost model: render the calibration scene at the CALIBRATION settings, each
     twice (the first compiles shaders and builds tables), and fit each stage's coefficients to
-    the second render's seconds, with the first's ISM atlas allocation."""
+    the second render's seconds, with the first's ISM atlas allocation. The VPLs are gathered
+    where ``base`` gathers them (indirect light per pixel or per supersample)."""
     rows = []
     for paths, k, points, resolution, aa in CALIBRATION:
         settings = replace(base, vpl_count=paths, interleave=k, ism_points=points,
                            ism_resolution=resolution, antialiasing=aa, visibility="ism",
-                           indirect_resolution="supersample", auto_parameters="off")
+                           auto_parameters="off")
         first = render(settings)  # builds the ISM area table (if new), compiles shaders
         again = render(settings)
         # a frame allocates its ISM atlas, as the first render did, where the second found it
@@ -276,14 +288,16 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
         column(lambda s, m: m.get("indirect light maps", 0.0)))
     (paths,) = _through_origin(column(lambda s, m: s.vpl_count * s.bounces)[:, None],
                                column(lambda s, m: m.get("vpl generation", 0.0)))
-    (gather,) = _through_origin((pixels * vpls / column(lambda s, m: s.interleave**2))[:, None],
+    gathered = [gathered_pixels(m["pixels"], s.interleave, m["gather_antialiasing"])
+                for s, m in rows]  # (pixels, pattern edge) the VPLs are gathered at
+    at, edge = (np.array(v, np.float64) for v in zip(*gathered, strict=True))
+    (gather,) = _through_origin((at * vpls / edge**2)[:, None],
                                 column(lambda s, m: m.get("indirect light", 0.0)))
-    blurred = column(lambda s, m: s.interleave > 1) * pixels * column(
-        lambda s, m: s.blur_radius)
+    blurred = (edge > 1) * at * column(lambda s, m: s.blur_radius)
     (blur,) = _through_origin(blurred[:, None], column(lambda s, m: m.get("blur", 0.0)))
     frame, pixel = _through_origin(np.stack([np.ones_like(pixels), pixels], axis=1), column(
         lambda s, m: sum(m.get(k, 0.0) for k in PIXEL_STAGES)))
-    (maps,) = _through_origin(column(lambda s, m: m["shadow_tiles"] * m["triangles"])[:, None],
+    (maps,) = _through_origin(column(lambda s, m: m["shadow_tiles"])[:, None],
                               column(lambda s, m: m.get("direct light maps", 0.0)))
     built = [m for _, m in rows if m["ism points"] is not None]  # the table is built once
     pool = (sum(m["ism points"] for m in built) / sum(m["triangles"] for m in built)
@@ -321,7 +335,8 @@ def default_cost_cache() -> Path:
 
 def calibration_scene() -> Scene:
     """A closed 4 × 4 × 3 m room of 4800 triangles with a box in it, lit by a point light (ray
-    traced) and an area light (its samples shadow mapped), seen at 128² pixels: the scene the
+    traced) and an area light (its samples shadow mapped), seen at 256×144 pixels (a model
+    fitted at 128² put its pixel stages at 640×360 at 0.6-0.9 of their time): the scene the
     cost model is measured on."""
     faces = []
     n = 20
@@ -354,7 +369,8 @@ def calibration_scene() -> Scene:
     light[:3, 3] = (-0.8, -0.5, 2.4)
     panel[:3, 3] = (0.8, 0.5, 2.9)  # under the ceiling, facing down (-z)
     near, far = 0.05, 50.0
-    projection = np.array([[1.2, 0, 0, 0], [0, 1.2, 0, 0],
+    width, height = 256, 144
+    projection = np.array([[1.2 * height / width, 0, 0, 0], [0, 1.2, 0, 0],
                            [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
                            [0, 0, -1, 0]])
     view = np.eye(4)
@@ -364,4 +380,4 @@ def calibration_scene() -> Scene:
     return Scene([Instance(room, np.eye(4), materials), Instance(room, box, materials)],
                  [Light("calibration", LightKind.POINT, light, power=200.0),
                   Light("calibration panel", LightKind.AREA, panel, power=100.0, size_x=0.5)],
-                 camera=Camera(view, projection, 128, 128))
+                 camera=Camera(view, projection, width, height))
