@@ -75,34 +75,33 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
 
     built = []  # the ISM area table is built by the first render only
     allocated = set()  # the settings whose ISM atlas is allocated
-    cost = COST
 
     def render(s: Settings) -> dict[str, float | int]:
         assert s.indirect_resolution == "pixel"  # as the base settings gather
         vpls, pixels = 2.0 * s.vpl_count, 256 * 144 * s.antialiasing**2
         gathered, k = autotune.gathered_pixels(pixels, s.interleave, s.antialiasing)
-        table = {} if built else {"ism points": cost.pool * 4800}
+        table = {} if built else {"ism points": COST.pool * 4800}
         built.append(1)
-        allocation = 0.0 if s in allocated else 0.5 * cost.texels * vpls * s.ism_resolution**2
+        allocation = 0.0 if s in allocated else 0.5 * COST.texels * vpls * s.ism_resolution**2
         allocated.add(s)
         return {"vpls": vpls, "pixels": pixels, "triangles": 4800, "shadow_tiles": 6,
                 "gather_antialiasing": s.antialiasing,
                 **table,
-                "vpl generation": cost.paths * s.vpl_count * s.bounces,
+                "vpl generation": COST.paths * s.vpl_count * s.bounces,
                 "ism upload": allocation,
-                "indirect light maps": cost.splat * vpls * s.ism_points
-                + 0.5 * cost.texels * vpls * s.ism_resolution**2 + allocation,
-                "indirect light": cost.gather * gathered * vpls / k**2,
-                "blur": cost.blur * gathered * s.blur_radius if k > 1 else 0.0,
-                "g-buffer": 0.5 * (cost.frame + cost.pixels * pixels),
-                "bias compensation": 0.3 * (cost.frame + cost.pixels * pixels),
-                "supersample blur": 0.2 * (cost.frame + cost.pixels * pixels),
-                "direct light maps": cost.maps * 6}
+                "indirect light maps": COST.splat * vpls * s.ism_points
+                + 0.5 * COST.texels * vpls * s.ism_resolution**2 + allocation,
+                "indirect light": COST.gather * gathered * vpls / k**2,
+                "blur": COST.blur * gathered * s.blur_radius if k > 1 else 0.0,
+                "g-buffer": 0.5 * (COST.frame + COST.pixels * pixels),
+                "bias compensation": 0.3 * (COST.frame + COST.pixels * pixels),
+                "supersample blur": 0.2 * (COST.frame + COST.pixels * pixels),
+                "direct light maps": COST.maps * 6}
 
     fitted = autotune.calibrate(render, "test GL", Settings(indirect_resolution="pixel"))
     for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool",
                  "frame"):
-        assert getattr(fitted, name) == pytest.approx(getattr(cost, name), rel=1e-6), name
+        assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
 
 
 def test_the_cost_model_is_cached_per_renderer(tmp_path):

@@ -151,7 +151,7 @@ class ChooseParameters(Stage):
         return {**stats.timings, "vpls": stats.counts["vpls"],
                 "pixels": camera.width * camera.height * settings.antialiasing**2,
                 "triangles": stats.counts["triangles"],
-                "shadow_tiles": stats.counts["shadow_maps"],
+                "shadow_tiles": stats.counts["shadow_maps"],  # the room has no glossy material:
                 "gather_antialiasing": self._gather_antialiasing(settings, False)}
 
 
