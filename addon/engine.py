@@ -60,6 +60,13 @@ def toggled(layer: object, toggle: str) -> bool:
     return found is not None and bool(getattr(*found))
 
 
+def layer_passes(layer: object) -> frozenset[str]:
+    """The optional passes (OPTIONAL_PASSES) the view layer asks for; Combined is always
+    rendered."""
+    return frozenset(name for name, (*_, toggle) in OPTIONAL_PASSES.items()
+                     if toggled(layer, toggle))
+
+
 @dataclass
 class RenderMonitor:
     """Lets a host (the command line) follow and stop renders the engine runs."""
@@ -155,9 +162,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         def cancelled() -> bool:
             return monitor.cancel_requested or self.test_break()
 
-        layer = depsgraph.view_layer
-        passes = frozenset(name for name, (*_, toggle) in OPTIONAL_PASSES.items()
-                           if toggled(layer, toggle))
+        passes = layer_passes(depsgraph.view_layer)
 
         def show(report: PassReport) -> None:
             """Each pass's average in the render window (Esc keeps the passes shown)."""

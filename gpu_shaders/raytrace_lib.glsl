@@ -2,6 +2,8 @@
 // it). Needs `#version 430`. Triangles are two-sided; a hit counts when t_min < t < t_max, t
 // being the ray parameter along `dir` (the distance when `dir` is a unit vector; any non-zero
 // length works). A zero `dir` misses everything. Names starting with rt_ / Rt / RT_ are taken.
+// Pass `dir` at run time (a uniform, a buffer, a computed value): NVIDIA's driver 580 missed
+// every ray when it was a compile-time constant (raytrace_test_comp.glsl).
 #ifndef RAYTRACE_LIB_GLSL
 #define RAYTRACE_LIB_GLSL
 

@@ -24,6 +24,20 @@ def test_every_device_is_listed_with_its_renderer_and_version():
     assert all("OpenGL" in line or "unusable" in line for line in devices)
 
 
+def test_a_device_is_listed_with_the_version_a_render_gets():
+    """NVIDIA's driver makes a 3.3 context unless asked for more: the list asks as a render
+    does, so it never calls a usable GPU too old."""
+    def version() -> int:
+        ctx = create_context(0)
+        try:
+            return ctx.version_code
+        finally:
+            ctx.release()
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        major, minor = divmod(pool.submit(version).result() // 10, 10)
+    assert f"OpenGL {major}.{minor}" in list_devices()[0]
+
+
 def test_a_device_that_does_not_exist_is_named_with_the_count():
     count = len(list_devices())
     with pytest.raises(GLUnavailableError, match=f"GPU {count + 3} does not exist: EGL finds "

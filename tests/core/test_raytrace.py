@@ -365,6 +365,7 @@ def test_the_library_works_from_another_shader(tracer):
         inputs.bind_to_storage_buffer(0)
         outputs.bind_to_storage_buffer(1)
         tracer.bind()
+        shader["u_direction"].value = (0.0, 0.0, 1.0)  # up
         shader.run(1)
         ctx.memory_barrier()
         result = np.frombuffer(outputs.read(), np.int32).reshape(-1, 2)

@@ -4,6 +4,7 @@ for light sampling and VPLs."""
 
 from __future__ import annotations
 
+import moderngl
 import numpy as np
 import pytest
 
@@ -98,6 +99,15 @@ def test_unknown_sampling_mode_is_refused():
         Texture("t", image(0, 2, 2), interpolation="Smart")
 
 
+def filter_tolerance(ctx: moderngl.Context) -> float:
+    """Absolute tolerance of filtered lookups of texels in [0, 1] against the CPU sampler's
+    float weights: a software rasteriser (llvmpipe) filters in float; GPUs filter with 8-bit
+    subtexel weights (Direct3D's minimum; NVIDIA's H200 was off by up to 1.6e-3), up to 1/512
+    of the step between two texels."""
+    software = any(name in ctx.info["GL_RENDERER"] for name in ("llvmpipe", "softpipe"))
+    return 2e-5 if software else 2e-5 + 1 / 512
+
+
 def test_gbuffer_samples_every_mode_like_the_cpu(renderer):
     """Twelve quads, one per interpolation and extension, with UVs from −0.8 to 1.9 (so the
     extension matters) on a 5×3 sRGB image: DiffCol equals the CPU sampler at each pixel's
@@ -121,7 +131,8 @@ def test_gbuffer_samples_every_mode_like_the_cpu(renderer):
         uv = (local / half + 1) / 2 * 2.7 - 0.8
         expected = tex.sample(texture, uv)
         got = frame.passes["DiffCol"][inside]
-        np.testing.assert_allclose(got, expected, atol=2e-5, err_msg=texture.name)
+        np.testing.assert_allclose(got, expected, atol=filter_tolerance(renderer.ctx),
+                                   err_msg=texture.name)
         colours.append(got)
     for a in range(len(colours)):  # every mode differs from every other one somewhere
         for b in range(a):
@@ -141,15 +152,16 @@ def test_gbuffer_samples_albedo_and_emission_like_the_cpu():
     renderer = Renderer()
     try:
         frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
+        tolerance = filter_tolerance(renderer.ctx)
     finally:
         renderer.release()
     x, y = pixel_centres(SIZE, EXTENT)
     inside = (np.abs(x) < half - 0.05) & (np.abs(y) < half - 0.05)
     uv = ((np.stack([x[inside], y[inside]], axis=1) / half + 1) / 2 * repeat)
     np.testing.assert_allclose(frame.passes["DiffCol"][inside], tex.sample(albedo, uv),
-                               atol=2e-5)
+                               atol=tolerance)
     np.testing.assert_allclose(frame.passes["Emit"][inside], 2.0 * tex.sample(glow, uv),
-                               atol=5e-5)
+                               atol=2.5 * tolerance)
 
 
 def test_texture_variant_is_compiled_only_for_textured_scenes():

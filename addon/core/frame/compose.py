@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from functools import cache
 
 import numpy as np
 
@@ -49,24 +50,27 @@ def _per_colour(radiance: np.ndarray, color: np.ndarray) -> np.ndarray:
     return np.where(color > 0, radiance / safe, 0.0)
 
 
-def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray], direct: np.ndarray,
-            indirect: np.ndarray, aa: int, x0: int, y0: int, passes: frozenset[str]) -> None:
+def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
+            read_light: Callable[[], tuple[np.ndarray, np.ndarray]], aa: int, x0: int, y0: int,
+            passes: frozenset[str]) -> None:
     """Write one supersampled tile's ``passes`` (of COMPOSED_PASSES; Combined is composed on
-    the GPU, gpu/combined.py) into ``output`` at output resolution. ``direct`` and
-    ``indirect`` are (h, w, 4) diffuse light, or (h, w, 8) with glossy radiance in channels
-    4-6."""
+    the GPU, gpu/combined.py) into ``output`` at output resolution. ``read_light`` returns
+    the direct and indirect light, (h, w, 4) diffuse or (h, w, 8) with glossy radiance in
+    channels 4-6; it is called once, and only where a light pass or GlossCol is asked for (the
+    others come from the g-buffer alone)."""
     covered = gbuffer["normal"][..., 3:4]
-    albedo, emission = gbuffer["albedo"][..., :3], gbuffer["emission"][..., :3]
-    diff_dir, diff_ind = direct[..., :3], indirect[..., :3]
-    gloss_col, gloss_dir, gloss_ind = _glossy(gbuffer, direct, indirect)
     h, w = covered.shape[0] // aa, covered.shape[1] // aa
     region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
-    images = {"DiffDir": lambda: diff_dir,
-              "DiffInd": lambda: diff_ind, "DiffCol": lambda: albedo,
-              "Emit": lambda: emission, "Normal": lambda: gbuffer["normal"][..., :3],
-              "GlossDir": lambda: _per_colour(gloss_dir, gloss_col),
-              "GlossInd": lambda: _per_colour(gloss_ind, gloss_col),
-              "GlossCol": lambda: gloss_col}
+    light = cache(read_light)
+    glossy = cache(lambda: _glossy(gbuffer, *light()))
+    images = {"DiffDir": lambda: light()[0][..., :3],
+              "DiffInd": lambda: light()[1][..., :3],
+              "DiffCol": lambda: gbuffer["albedo"][..., :3],
+              "Emit": lambda: gbuffer["emission"][..., :3],
+              "Normal": lambda: gbuffer["normal"][..., :3],
+              "GlossDir": lambda: _per_colour(glossy()[1], glossy()[0]),
+              "GlossInd": lambda: _per_colour(glossy()[2], glossy()[0]),
+              "GlossCol": lambda: glossy()[0]}
     for name, image in images.items():
         if name in passes:
             output[name][region] = downsample(image(), aa)

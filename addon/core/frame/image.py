@@ -321,11 +321,16 @@ class ComposeStage(TileStage):
             frame.output["Combined"][y0:y0 + h, x0:x0 + w] = combined
             others = frame.plan.passes - {"Combined"}
             if others & COMPOSED_PASSES:
-                direct = read_accumulator(work.direct)
-                if work.soft_light:
-                    direct += read_textures(work.soft_light)
-                compose(frame.output, work.gbuffer.images, direct,
-                        read_textures(work.indirect_light), aa, tile.x0, tile.y0, others)
+                compose(frame.output, work.gbuffer.images, partial(read_light, work), aa,
+                        tile.x0, tile.y0, others)
+
+
+def read_light(work: TileWork) -> tuple[np.ndarray, np.ndarray]:
+    """The tile's direct light (soft light added) and indirect light, read back."""
+    direct = read_accumulator(work.direct)
+    if work.soft_light:
+        direct += read_textures(work.soft_light)
+    return direct, read_textures(work.indirect_light)
 
 
 class RenderImage(Stage):

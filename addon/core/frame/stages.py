@@ -327,10 +327,12 @@ class PlanLightPasses(Stage):
 
 
 class Sanitize(Stage):
-    """No NaN or Inf leaves the renderer (each replaced by 0, with a warning)."""
+    """No NaN or Inf leaves the renderer (each replaced by 0, with a warning); the passes not
+    asked for stay zero, untouched (at 1920×1080 checking them all took 50 ms, the new pages
+    of zeros touched for nothing)."""
 
     name = "sanitize"
-    needs = ("output",)
+    needs = ("output", "plan")
 
     def run(self, frame: FrameState) -> None:
-        sanitize(frame.output, frame.stats)
+        sanitize({name: frame.output[name] for name in frame.plan.passes}, frame.stats)

@@ -1,0 +1,57 @@
+"""Blender's passes from a tile's supersamples (frame/compose.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from addon.core.frame.compose import BACKGROUND_DEPTH, compose
+from addon.core.frame.result import PASS_CHANNELS
+
+AA, H, W = 2, 4, 6  # a 4×6 supersampled tile: 2×3 pixels
+
+
+def tile_gbuffer() -> dict[str, np.ndarray]:
+    """A g-buffer whose upper supersample rows are covered, at depth 2 + x."""
+    rng = np.random.default_rng(7)
+    gbuffer = {name: rng.random((H, W, 4), dtype=np.float32)
+               for name in ("normal", "albedo", "emission", "position")}
+    gbuffer["normal"][..., 3] = 0.0
+    gbuffer["normal"][:2, :, 3] = 1.0
+    gbuffer["position"][..., 3] = 2.0 + np.arange(W, dtype=np.float32)
+    return gbuffer
+
+
+def empty_output() -> dict[str, np.ndarray]:
+    return {name: np.zeros((H // AA, W // AA, c), np.float32) for name, c in PASS_CHANNELS.items()}
+
+
+def test_passes_of_the_gbuffer_alone_read_no_light_back():
+    def read_light():
+        raise AssertionError("the light was read back for passes that do not need it")
+
+    output, gbuffer = empty_output(), tile_gbuffer()
+    compose(output, gbuffer, read_light, AA, 0, 0, frozenset({"Depth", "Normal", "DiffCol"}))
+    np.testing.assert_allclose(output["Depth"][0, :, 0], [2.0, 4.0, 6.0])
+    np.testing.assert_allclose(output["Depth"][1, :, 0], BACKGROUND_DEPTH)
+    albedo = gbuffer["albedo"][..., :3].reshape(H // AA, AA, W // AA, AA, 3).mean(axis=(1, 3))
+    np.testing.assert_allclose(output["DiffCol"], albedo, rtol=1e-6)
+
+
+def test_light_passes_read_the_light_back_once():
+    calls = []
+    direct = np.full((H, W, 4), 0.25, np.float32)
+    indirect = np.zeros((H, W, 4), np.float32)
+    indirect[0, 0, :3] = 4.0  # one supersample of the first pixel
+
+    def read_light():
+        calls.append(1)
+        return direct, indirect
+
+    output = empty_output()
+    compose(output, tile_gbuffer(), read_light, AA, 0, 0,
+            frozenset({"DiffDir", "DiffInd", "GlossCol"}))
+    assert len(calls) == 1
+    np.testing.assert_allclose(output["DiffDir"], 0.25)
+    np.testing.assert_allclose(output["DiffInd"][0, 0], 1.0)  # 4 / AA²
+    np.testing.assert_allclose(output["DiffInd"][1:, 1:], 0.0)
+    np.testing.assert_allclose(output["GlossCol"], 0.0)  # no glossy channels: zero
