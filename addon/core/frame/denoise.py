@@ -96,6 +96,8 @@ class PlanDenoise(Stage):
         if not mode.blur and frame.blur_radius:
             frame.blur_radius = 0
             frame.stats.skipped["blur"] = f"denoiser = {denoiser}"
+        if mode.oidn:  # its guides, written by DenoisingData
+            frame.plan.passes = frame.plan.passes | set(DENOISING_PASSES)
         if mode.oidn == "indirect":
             frame.plan.passes = frame.plan.passes | INDIRECT_PASSES
 
@@ -108,8 +110,6 @@ class DenoisingData:
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
         wanted = frame.plan.passes.intersection(DENOISING_PASSES)
-        if frame_denoiser(frame) in OIDN_DENOISERS:
-            wanted = set(DENOISING_PASSES)
         if not wanted:
             return
         with frame.stats.timed(self.name):

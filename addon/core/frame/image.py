@@ -350,7 +350,7 @@ class RenderImage(Stage):
         aa = settings.antialiasing
         tiles = tiles_of(camera.width * aa, camera.height * aa, aa)
         frame.output = {name: np.zeros((camera.height, camera.width, c), np.float32)
-                        for name, c in PASS_CHANNELS.items()}
+                        for name, c in PASS_CHANNELS.items() if name in frame.plan.passes}
         kept = KeptAtlases(self.kept.shadow_atlases, self.kept.versions.shape)
         frame.steps, frame.steps_done = len(tiles) * max(1, len(frame.light_passes)), 0
         with GpuScope() as scope:

@@ -19,8 +19,8 @@ PASS_CHANNELS = {
 
 @dataclass
 class Frame:
-    """Render passes, each (height, width, channels) float32, row 0 at the bottom (as Blender
-    and OpenGL store images)."""
+    """The render passes asked for (Combined always), each (height, width, channels) float32,
+    row 0 at the bottom (as Blender and OpenGL store images)."""
 
     width: int
     height: int
