@@ -44,16 +44,13 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from addon.cli import CliError, parse_overrides  # noqa: E402
 from addon.core.frame.result import PASS_CHANNELS  # noqa: E402
-from addon.core.settings import Settings  # noqa: E402
+from addon.core.settings import DEFAULTS, Settings  # noqa: E402
 from tools.bench_viewport import rotate_about  # noqa: E402
 
 if TYPE_CHECKING:
     from addon.core.scene.model import Scene
 
 DEFAULT_SPONZA = REPO.parent / "shared" / "assets" / "sponza" / "sponza.obj"
-
-
-DEFAULTS = Settings()
 
 
 def differs(value: object, default: object) -> bool:
@@ -150,6 +147,14 @@ def measure(name: str, exported: Scene, settings: Settings, passes: frozenset[st
         renderer.release()
 
 
+def measure_as_asked(args: argparse.Namespace, name: str, exported: Scene, settings: Settings,
+                     passes: frozenset[str]) -> None:
+    """``measure`` with the command line's ``--set`` and ``--passes`` instead of the scene's
+    (``--save`` writes the scene's own)."""
+    measure(name, exported, replace(settings, **args.overrides),
+            passes if args.passes is None else frozenset(args.passes), args.frames)
+
+
 def open_scene(name: str, sponza: Path) -> None:
     """Open sample scene ``name`` in Blender, or set Sponza up from its OBJ."""
     import bpy
@@ -179,9 +184,8 @@ def from_blender(args: argparse.Namespace, size: tuple[int, int]) -> None:
         for name in args.scenes:
             open_scene(name, args.sponza)
             exported, settings, passes = export_current(size)
-            passes = passes if args.passes is None else frozenset(args.passes)
             if args.save is None:
-                measure(name, exported, replace(settings, **args.overrides), passes, args.frames)
+                measure_as_asked(args, name, exported, settings, passes)
                 continue
             args.save.mkdir(parents=True, exist_ok=True)
             path = saved_path(args.save, name)
@@ -201,8 +205,7 @@ def from_files(args: argparse.Namespace) -> None:
         with warnings.catch_warnings():  # a numpy 1 pickle read by numpy 2: numpy.core's alias
             warnings.simplefilter("ignore", DeprecationWarning)
             exported, settings, passes = pickle.loads(lzma.decompress(path.read_bytes()))
-        passes = passes if args.passes is None else frozenset(args.passes)
-        measure(name, exported, replace(settings, **args.overrides), passes, args.frames)
+        measure_as_asked(args, name, exported, settings, passes)
 
 
 def main() -> None:

@@ -18,6 +18,19 @@ from addon.core.gpu.gl import (
 )
 
 
+def context_version(device: int | None = None) -> int:
+    """The version code of a new context, made in a thread of its own so the test session's
+    context stays current."""
+    def version() -> int:
+        ctx = create_context(device)
+        try:
+            return ctx.version_code
+        finally:
+            ctx.release()
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        return pool.submit(version).result()
+
+
 def test_every_device_is_listed_with_its_renderer_and_version():
     devices = list_devices()
     assert devices and devices[0].startswith("0: ")
@@ -27,14 +40,7 @@ def test_every_device_is_listed_with_its_renderer_and_version():
 def test_a_device_is_listed_with_the_version_a_render_gets():
     """NVIDIA's driver makes a 3.3 context unless asked for more: the list asks as a render
     does, so it never calls a usable GPU too old."""
-    def version() -> int:
-        ctx = create_context(0)
-        try:
-            return ctx.version_code
-        finally:
-            ctx.release()
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        major, minor = divmod(pool.submit(version).result() // 10, 10)
+    major, minor = divmod(context_version(0) // 10, 10)
     assert f"OpenGL {major}.{minor}" in list_devices()[0]
 
 
@@ -48,15 +54,7 @@ def test_a_device_that_does_not_exist_is_named_with_the_count():
 def test_the_environment_variable_chooses_the_device(monkeypatch):
     monkeypatch.setenv(GPU_VARIABLE, "0")
     assert requested_device() == 0
-
-    def version() -> int:  # in a thread of its own, so the test session's context stays current
-        ctx = create_context()
-        try:
-            return ctx.version_code
-        finally:
-            ctx.release()
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        assert pool.submit(version).result() >= 410
+    assert context_version() >= 410
     monkeypatch.setenv(GPU_VARIABLE, "first")
     with pytest.raises(GLUnavailableError, match="'first' is not a device number"):
         create_context()

@@ -26,6 +26,11 @@ REMEDY = ("update the graphics driver (Mesa 20.2 or newer gives OpenGL 4.5 witho
           "lists them)")
 
 
+VERSIONS = (430, 410)
+"""The OpenGL versions a context is asked for, best first: 4.3 (compute shaders), else 4.1 (as
+on macOS). Drivers such as NVIDIA's make 3.3 unless a newer version is asked for."""
+
+
 class GLUnavailableError(RuntimeError):
     """No OpenGL 4.1 context, or no OpenGL feature a step needs, is available on this machine."""
 
@@ -49,7 +54,7 @@ def create_context(device: int | None = None) -> moderngl.Context:
     backends = [{"backend": "egl"}, {}] if device is None else \
         [{"backend": "egl", "device_index": device}]
     errors = []
-    for require in (430, 410):
+    for require in VERSIONS:
         for kwargs in backends:
             try:
                 return moderngl.create_standalone_context(require=require, **kwargs)
@@ -90,9 +95,9 @@ def list_devices() -> list[str]:
 
 
 def _newest_context(index: int) -> moderngl.Context:
-    """A context on EGL device ``index`` of OpenGL 4.3, else 4.1, else the driver's default
-    (NVIDIA's driver gives 3.3 unless a newer version is asked for)."""
-    for require in (430, 410):
+    """A context on EGL device ``index`` of the best of VERSIONS (as renders ask), else of the
+    driver's default version, to say which it offers."""
+    for require in VERSIONS:
         try:
             return moderngl.create_standalone_context(backend="egl", device_index=index,
                                                       require=require)
