@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -15,6 +16,10 @@ from addon.core.gpu.gl import (
     require_compute,
 )
 from addon.core.gpu.instanced_bvh import build_instanced_bvh
+from addon.core.scene.geometry import flatten_instances
+from addon.core.scene.model import Instance, LightKind, Material
+from addon.core.settings import Settings
+from tests.core.builders import floor_scene, icosphere, light, rotation_x, translation
 
 
 def soup(count: int, rng: np.random.Generator, size: float = 0.2) -> np.ndarray:
@@ -393,3 +398,35 @@ def test_compute_needs_opengl_4_3():
     ("raytrace_comp.glsl", "local_size_x =", raytrace.LOCAL_SIZE)])
 def test_glsl_constants_match_python(file, name, value):
     assert f"{name} {value}" in (SHADER_DIR / file).read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("visibility", ["exact", "ism"])
+def test_a_frame_of_instanced_copies_is_the_frame_of_the_same_copies_each_its_own_mesh(
+        renderer, visibility):
+    """Sixteen turned, scaled copies of a sphere on a lit floor: traced through the instanced
+    BVH (one mesh's tree refitted to sixteen copies) and the ordinary one (sixteen meshes),
+    with every ray-traced part of a frame on (VPL paths, exact visibility or ISM, the hybrid
+    direct light's rays, bias compensation's rays)."""
+    ball = icosphere(0.45, 2)
+    turns = [rotation_x(0.4 * i) @ np.diag([1.0 + 0.1 * (i % 3), 1.0, 0.8, 1.0])
+             for i in range(16)]
+    places = [translation(-3 + 2 * (i % 4), -3 + 2 * (i // 4), 0.5) @ turn
+              for i, turn in enumerate(turns)]
+    red = [Material("red", (0.8, 0.2, 0.1))]
+    shared = [Instance(ball, place, red) for place in places]
+    copied = [Instance(replace(ball), place, red) for place in places]  # each its own mesh
+    sun = light(LightKind.SUN, rotation_x(0.5), power=3.0)
+    lamp = light(LightKind.POINT, translation(0.5, 0.3, 2.5), power=300.0)
+    settings = Settings(bounces=2, vpl_count=256, antialiasing=1, visibility=visibility,
+                        bias_compensation="image", seed=3)
+    frames = []
+    for instances in (shared, copied):
+        renderer.forget_frames()
+        frame, _ = renderer.render(floor_scene([sun, lamp], extra=instances), settings)
+        frames.append(frame.passes["Combined"][..., :3])
+    geometry = flatten_instances(floor_scene([sun, lamp], extra=shared), [])
+    assert geometry.instanced.tolist() == [[2, 16, 320]]  # the floor's 2 triangles first
+    instanced, flattened = frames
+    assert flattened.mean() > 0.05
+    np.testing.assert_allclose(instanced.mean(), flattened.mean(), rtol=2e-3)
+    assert np.mean(np.abs(instanced - flattened) > 0.02 * flattened.max()) < 2e-3
