@@ -709,10 +709,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     placed: list[tuple[Mesh, list[Material], str]] = []
     # Per (object, data): its mesh, materials and name, or None when no ray sees it. Keyed by
     # the structs themselves (hashed and compared by pointer: no as_pointer() call each).
+    # Each entry also says whether the mesh has triangles (instances of one without are left
+    # out): one lookup per instance, scenes may hold many thousands.
     placements: dict[tuple[bpy.types.Object, bpy.types.ID],
-                     tuple[Mesh, list[Material], str] | None] = {}
+                     tuple[tuple[Mesh, list[Material], str] | None, bool]] = {}
     ordinals: list[int] = []  # of the placed instances in depsgraph.object_instances
-    count = 0
+    count = reused = 0
     for count, inst in enumerate(depsgraph.object_instances, start=1):
         obj = inst.object
         kind = obj.type
@@ -729,14 +731,16 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         if kind not in RENDERED_OBJECT_TYPES or not inst.show_self:
             continue
         memo = (obj.original, obj.data)
-        known = placements.get(memo)
-        if known is None:
-            known = placements[memo] = state.placed(inst, obj) if state.include(obj) else None
-        elif known:
-            cache.stats["meshes_reused"] += 1
-        if known and known[0].triangle_count:
+        entry = placements.get(memo)
+        if entry is None:
+            known = state.placed(inst, obj) if state.include(obj) else None
+            entry = placements[memo] = (known, bool(known and known[0].triangle_count))
+        elif entry[0]:
+            reused += 1
+        if entry[1]:
             ordinals.append(count - 1)
-            placed.append(known)
+            placed.append(entry[0])
+    cache.stats["meshes_reused"] += reused
     # every instance's world matrix in one foreach_get over the same (deterministic) instance
     # iteration, as RNA stores them (float32, column by column)
     columns = np.empty(count * 16, dtype=np.float32)

@@ -362,8 +362,9 @@ class ViewportSession:
             return
         # Idle passes render with a second Renderer on the same context, so that what the
         # first keeps for the next edit (its VPLs, their shadow maps, the incremental
-        # anchors) stays untouched by the passes' own VPL sets.
-        idle = Renderer(renderer.ctx)
+        # anchors) stays untouched by the passes' own VPL sets; it uses the first's compiled
+        # programs.
+        idle = Renderer(renderer.ctx, share_programs_of=renderer)
         try:
             while True:
                 with self._cond:

@@ -229,6 +229,24 @@ def test_idle_passes_converge_and_an_edit_starts_over(renderer):
         session.close()
 
 
+def test_the_idle_passes_renderer_compiles_no_program_the_edit_renderer_has(renderer):
+    """The viewport's second renderer (idle passes) uses the first's compiled programs, and
+    releasing it leaves them to the first."""
+    renderer.forget_frames()
+    settings = replace(SETTINGS, antialiasing=1)
+    renderer.render(scene(), settings)
+    programs = renderer.gpu.programs
+    compiled = len(programs)
+    idle = Renderer(renderer.ctx, share_programs_of=renderer)
+    idle_frame, _ = idle.render(scene(), replace(settings, seed=1))
+    assert np.isfinite(idle_frame.passes["Combined"]).all()
+    assert idle.gpu.programs is programs and len(programs) == compiled
+    idle.release()
+    again, _ = renderer.render(scene(), settings)
+    assert np.isfinite(again.passes["Combined"]).all()
+    assert again.passes["Combined"][..., :3].mean() > 0
+
+
 def test_quick_settings_cut_only_what_the_edit_redraws():
     """A regenerating edit's first frame takes fewer paths, points, 64² maps and a quarter of
     every kind of direct-light sample; a light edit only the lights' samples (the world's

@@ -16,11 +16,13 @@ Helper = TypeVar("Helper", RayTracer, ImperfectShadowMaps, GeometryAwareBlur)
 
 class GpuSession:
     """The context frames render with; the ray tracer and imperfect shadow maps raise
-    GLUnavailableError on first use without OpenGL 4.3."""
+    GLUnavailableError on first use without OpenGL 4.3. ``programs``: another session's
+    compiled programs on the same context, shared (that session releases them)."""
 
-    def __init__(self, ctx: moderngl.Context) -> None:
+    def __init__(self, ctx: moderngl.Context, programs: ProgramCache | None = None) -> None:
         self.ctx = ctx
-        self.programs = ProgramCache(ctx)
+        self._owns_programs = programs is None
+        self.programs = programs or ProgramCache(ctx)
         self.max_texture = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
         self.max_storage = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0) \
             if ctx.version_code >= 430 else 0  # bytes; 0: no storage buffers, no ray tracer
@@ -54,8 +56,9 @@ class GpuSession:
         return self._helpers.get(ImperfectShadowMaps)  # type: ignore[return-value]
 
     def release(self) -> None:
-        """Release the helpers and programs (the context stays the caller's)."""
+        """Release the helpers and the programs it compiled (the context stays the caller's)."""
         for helper in self._helpers.values():
             helper.release()
         self._helpers.clear()
-        self.programs.release()
+        if self._owns_programs:
+            self.programs.release()

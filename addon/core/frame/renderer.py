@@ -47,10 +47,13 @@ __all__ = ["RenderCancelled", "RenderError", "Renderer"]
 
 class Renderer:
     """Renders Scenes with one OpenGL context. Create once, call render() per frame; what
-    frames reuse from each other is kept in ``kept``."""
+    frames reuse from each other is kept in ``kept``. ``share_programs_of``: a renderer on
+    the same context whose compiled programs this one uses too (and must outlive it)."""
 
-    def __init__(self, ctx: moderngl.Context | None = None) -> None:
-        self.gpu = GpuSession(ctx or shared_context())
+    def __init__(self, ctx: moderngl.Context | None = None,
+                 share_programs_of: Renderer | None = None) -> None:
+        programs = share_programs_of.gpu.programs if share_programs_of else None
+        self.gpu = GpuSession(ctx or shared_context(), programs)
         self.kept = KeptProducts()
         self._automatic = ChooseParameters(self.gpu, self.kept, self.render)
         self._last_pass = (-1, 0)  # the index of the last pass rendered and its last path + 1

@@ -180,6 +180,10 @@ class ProgramCache:
                 fragment_shader=load_source(fragment, defines, version))
         return self._programs[key]
 
+    def __len__(self) -> int:
+        """How many programs are compiled."""
+        return len(self._programs)
+
     def compute(self, name: str, defines: dict[str, object] | None = None
                 ) -> moderngl.ComputeShader:
         """The compute shader ``gpu_shaders/<name>``, compiled as GLSL 4.30."""
