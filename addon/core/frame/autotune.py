@@ -33,7 +33,9 @@ from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Sc
 from ..settings import Settings
 from .stages import blur_radius, pixel_interleave
 
-COST_MODEL_VERSION = 10  # 10: measured at 256×144 as frames gather, with a frame's atlas
+COST_MODEL_VERSION = 11  # 11: the g-buffer's GPU time in its own stage (it was counted in the
+# direct light's maps, the next stage that waited for the GPU); 10: measured at 256×144 as
+# frames gather, with a frame's atlas
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
 PATHS = tuple(round(16 * 2 ** (k / 4)) for k in range(41))
 """Light-path counts the automatic mode considers: 16 to 16384 in steps of 2^(1/4) (19 %)."""

@@ -114,6 +114,7 @@ class GBufferStage(TileStage):
             work.gbuffer = self._render(data, frame, work, work.tile)
             if aa > 1 and (per_pixel or hinted):
                 work.pixels = self._render(data, frame, work, pixel_tile(work.tile, aa))
+            self.gpu.ctx.finish()  # its GPU work timed here, not in the next stage
         work.indirect_gbuffer = work.pixels if per_pixel else work.gbuffer
         glossy = work.gbuffer.glossy
         work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
