@@ -230,21 +230,27 @@ def test_idle_passes_converge_and_an_edit_starts_over(renderer):
 
 
 def test_the_idle_passes_renderer_compiles_no_program_the_edit_renderer_has(renderer):
-    """The viewport's second renderer (idle passes) uses the first's compiled programs, and
-    releasing it leaves them to the first."""
-    renderer.forget_frames()
+    """The viewport's second renderer (idle passes), made as the session makes it, before
+    the first has compiled anything, uses the first's programs, and releasing it leaves them
+    to the first."""
     settings = replace(SETTINGS, antialiasing=1)
-    renderer.render(scene(), settings)
-    programs = renderer.gpu.programs
-    compiled = len(programs)
-    idle = Renderer(renderer.ctx, share_programs_of=renderer)
-    idle_frame, _ = idle.render(scene(), replace(settings, seed=1))
-    assert np.isfinite(idle_frame.passes["Combined"]).all()
-    assert idle.gpu.programs is programs and len(programs) == compiled
-    idle.release()
-    again, _ = renderer.render(scene(), settings)
-    assert np.isfinite(again.passes["Combined"]).all()
-    assert again.passes["Combined"][..., :3].mean() > 0
+    edit = Renderer(renderer.ctx)
+    idle = Renderer(renderer.ctx, share_programs_of=edit)
+    try:
+        programs = edit.gpu.programs
+        assert idle.gpu.programs is programs
+        edit.render(scene(), settings)
+        compiled = len(programs)
+        idle_frame, _ = idle.render(scene(), replace(settings, seed=1))
+        assert np.isfinite(idle_frame.passes["Combined"]).all()
+        assert len(programs) == compiled
+        idle.release()
+        again, _ = edit.render(scene(), settings)
+        assert np.isfinite(again.passes["Combined"]).all()
+        assert again.passes["Combined"][..., :3].mean() > 0
+    finally:
+        idle.release()
+        edit.release()
 
 
 def test_quick_settings_cut_only_what_the_edit_redraws():

@@ -22,7 +22,7 @@ class GpuSession:
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache | None = None) -> None:
         self.ctx = ctx
         self._owns_programs = programs is None
-        self.programs = programs or ProgramCache(ctx)
+        self.programs = programs if programs is not None else ProgramCache(ctx)
         self.max_texture = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
         self.max_storage = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0) \
             if ctx.version_code >= 430 else 0  # bytes; 0: no storage buffers, no ray tracer
