@@ -95,15 +95,12 @@ def list_devices() -> list[str]:
 
 
 def _newest_context(index: int) -> moderngl.Context:
-    """A context on EGL device ``index`` of the best of VERSIONS (as renders ask), else of the
-    driver's default version, to say which it offers."""
-    for require in VERSIONS:
-        try:
-            return moderngl.create_standalone_context(backend="egl", device_index=index,
-                                                      require=require)
-        except Exception:  # glcontext raises plain Exceptions; the default's error is kept
-            pass
-    return moderngl.create_standalone_context(backend="egl", device_index=index)
+    """A context on EGL device ``index`` as a render makes it (the best of VERSIONS), else of
+    the driver's default version, to say which it offers."""
+    try:
+        return create_context(index)
+    except GLUnavailableError:  # the default's error (a missing device, say) is the one kept
+        return moderngl.create_standalone_context(backend="egl", device_index=index)
 
 
 def _probe_devices() -> list[str]:
