@@ -26,6 +26,8 @@ USEFUL_SHARE = 0.25
 plain light paths are stratified, and selecting among them adds variance that only a large
 gain repays (measured on a wall bleeding onto a floor, 56 % useful: guided 1-4 % noise across
 seeds against 0.2-0.9 % plain; on the interior sample scene 7 % are useful)."""
+CONTRIBUTION_ROWS = 256
+"""VPLs whose pairs with the camera points :func:`contributions` forms at a time."""
 
 
 @dataclass
@@ -79,26 +81,41 @@ def camera_points(camera: Camera, geometry: WorldGeometry, tracer: RayCaster, co
 def contributions(vpls: VPLs, points: CameraPoints, tracer: RayCaster, epsilon: float
                   ) -> np.ndarray:
     """Each VPL's estimated radiance (luminance) summed over the camera points: intensity ×
-    both cosines / distance² × albedo / π, where a ray finds the pair mutually visible."""
+    both cosines / distance² × albedo / π, where a ray finds the pair mutually visible. The
+    (VPL, point) pairs are formed CONTRIBUTION_ROWS VPLs at a time and only pairs that face
+    each other are measured further: most candidates of an interior face away from every
+    point, and whole (VPL, point) matrices cost their allocation more than their arithmetic
+    (the interior's 6000 × 448: 0.27 s against 0.04 s)."""
     if len(vpls) == 0 or len(points) == 0:
         return np.zeros(len(vpls))
     centre = points.position.mean(axis=0)  # centred: the products lose little to cancellation
     x, p = vpls.position - centre, points.position - centre
-    squared = (x * x).sum(axis=1)[:, None] + (p * p).sum(axis=1)[None] - 2.0 * (x @ p.T)
-    distance = np.maximum(np.sqrt(np.maximum(squared, 0.0)), epsilon)  # (c, s)
-    along_vpl = vpls.normal @ p.T - (x * vpls.normal).sum(axis=1)[:, None]  # offset · n_vpl
-    along_point = x @ points.normal.T - (p * points.normal).sum(axis=1)[None]  # -offset · n
-    value = np.maximum(along_vpl, 0.0) * np.maximum(along_point, 0.0) / distance**4
-    value *= (vpls.intensity @ LUMINANCE)[:, None]
-    value *= (points.albedo @ LUMINANCE)[None] / np.pi
-    vpl, point = np.nonzero(value > 0)
+    x_squared, p_squared = (x * x).sum(axis=1), (p * p).sum(axis=1)
+    x_along_normal = (x * vpls.normal).sum(axis=1)
+    p_along_normal = (p * points.normal).sum(axis=1)
+    vpl_weight = vpls.intensity @ LUMINANCE
+    point_weight = (points.albedo @ LUMINANCE) / np.pi
+    found = []  # (vpl, point, value, distance) of the pairs that face each other
+    for start in range(0, len(x), CONTRIBUTION_ROWS):
+        rows = slice(start, start + CONTRIBUTION_ROWS)
+        cosines = vpls.normal[rows] @ p.T - x_along_normal[rows, None]  # offset · n_vpl
+        along_point = x[rows] @ points.normal.T - p_along_normal[None]  # -offset · n
+        np.maximum(cosines, 0.0, out=cosines)
+        cosines *= np.maximum(along_point, 0.0)
+        vpl, point = np.nonzero(cosines > 0)
+        squared = x_squared[rows][vpl] + p_squared[point] \
+            - 2.0 * (x[rows][vpl] * p[point]).sum(axis=1)
+        distance = np.maximum(np.sqrt(np.maximum(squared, 0.0)), epsilon)
+        value = cosines[vpl, point] / distance**4 * vpl_weight[rows][vpl] * point_weight[point]
+        lit = value > 0
+        found.append((vpl[lit] + start, point[lit], value[lit], distance[lit]))
+    vpl, point, value, distance = (np.concatenate(column) for column in zip(*found, strict=True))
     if len(vpl):
-        pair_distance = distance[vpl, point]
-        towards = (p[point] - x[vpl]) / pair_distance[:, None]
+        towards = (p[point] - x[vpl]) / distance[:, None]
         origin = vpls.position[vpl] + vpls.normal[vpl] * epsilon
-        hits = tracer.intersect(origin, towards, 0.0, pair_distance * (1 - 1e-4) - epsilon)
-        value[vpl[hits.triangle >= 0], point[hits.triangle >= 0]] = 0.0
-    return value.sum(axis=1)
+        hits = tracer.intersect(origin, towards, 0.0, distance * (1 - 1e-4) - epsilon)
+        value[hits.triangle >= 0] = 0.0
+    return np.bincount(vpl, weights=value, minlength=len(vpls))
 
 
 def refined_contributions(vpls: VPLs, points: CameraPoints, more_points: CameraPoints,
