@@ -13,7 +13,8 @@ from addon.core.frame.stages import blur_radius
 from addon.core.settings import Settings, SettingsError
 
 COST = autotune.CostModel("test GL", paths=2e-5, splat=2e-9, texels=1e-9, gather=4e-9,
-                          blur=1e-8, pixels=2e-6, maps=3e-5, pool=5e-7, frame=0.02)
+                          blur=1e-8, pixels=2e-6, maps=3e-5, pool=5e-7, frame=0.02,
+                          compensation=3e-7, probe=0.01)
 WORK = autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
                          vpls_per_path=2.5, bounces=4)
 
@@ -45,6 +46,20 @@ def test_a_time_budget_is_met_by_the_least_error_that_fits(budget):
             assert model.error(paths, k, points, resolution) >= choice.error - 1e-12
 
 
+def test_a_frame_costs_its_bias_compensation_at_its_ray_cost_and_what_it_spent_before():
+    """The image's bias compensation costs its rays at the scene's measured ray cost (the ray
+    probe against the calibration room's), and the seconds the frame spent before the choice
+    count in its predicted time."""
+    plain = replace(WORK, compensation_rays=0)
+    busy = replace(WORK, compensation_rays=2, ray_cost=3.0, spent=0.25)
+    args = (1024, 4, 8192, 128, 4)
+    extra = autotune.predict_seconds(COST, busy, *args) - autotune.predict_seconds(COST, plain,
+                                                                                  *args)
+    assert extra == pytest.approx(0.25 + COST.compensation * WORK.pixels * 2 * 3.0)
+    measured = replace(busy, fixed=1.5)  # a pass measured: its time replaces the model's
+    assert autotune.fixed_seconds(COST, measured) == 1.5
+
+
 def test_larger_budgets_give_smaller_errors_and_targets_cost_less_when_looser():
     model = autotune.load_error_model()
     base = Settings()
@@ -71,7 +86,9 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
     """A stand-in renderer whose stage times follow the model exactly: the fit finds them,
     the ISM atlas's allocation (half the texels' cost here) included, which only the first
     render of each setting pays, as every frame of a new process does. Its VPLs are gathered
-    once per pixel, as the base settings ask."""
+    once per pixel, as the base settings ask, and made by camera guidance (the stage's name
+    then says so; a fit of "vpl generation" alone found no cost). The ray probe's reference
+    is its least disturbed measurement."""
 
     built = []  # the ISM area table is built by the first render only
     allocated = set()  # the settings whose ISM atlas is allocated
@@ -87,20 +104,21 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
         return {"vpls": vpls, "pixels": pixels, "triangles": 4800, "shadow_tiles": 6,
                 "gather_antialiasing": s.antialiasing,
                 **table,
-                "vpl generation": COST.paths * s.vpl_count * s.bounces,
+                "vpl generation (camera-driven)": COST.paths * s.vpl_count * s.bounces,
+                "ray probe": COST.probe * (1.0 + 0.1 * (len(built) - 1)),
                 "ism upload": allocation,
                 "indirect light maps": COST.splat * vpls * s.ism_points
                 + 0.5 * COST.texels * vpls * s.ism_resolution**2 + allocation,
                 "indirect light": COST.gather * gathered * vpls / k**2,
                 "blur": COST.blur * gathered * s.blur_radius if k > 1 else 0.0,
                 "g-buffer": 0.5 * (COST.frame + COST.pixels * pixels),
-                "bias compensation": 0.3 * (COST.frame + COST.pixels * pixels),
-                "supersample blur": 0.2 * (COST.frame + COST.pixels * pixels),
+                "bias compensation": COST.compensation * pixels * s.bias_samples,
+                "supersample blur": 0.5 * (COST.frame + COST.pixels * pixels),
                 "direct light maps": COST.maps * 6}
 
     fitted = autotune.calibrate(render, "test GL", Settings(indirect_resolution="pixel"))
     for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool",
-                 "frame"):
+                 "frame", "compensation", "probe"):
         assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
 
 

@@ -3,17 +3,21 @@ machine and an error model, for the frame's workload."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
 from ..gpu.gl import GLUnavailableError
+from ..gpu.raytrace import RayTracer
+from ..scene.geometry import bounding_sphere, flatten_instances
 from ..scene.model import Scene
 from ..settings import Settings
 from ..transport.vpl import generate_vpls
 from . import autotune
 from .gpu_session import GpuSession
 from .planner import reaches_bounds
+from .ray_probe import ray_probe_seconds
 from .result import Frame, Stats
 from .reuse import KeptProducts
 from .stages import indirect_per_pixel
@@ -84,7 +88,7 @@ class ChooseParameters(Stage):
         modelled = autotune.chosen_seconds(cost, work, s.vpl_count, s.interleave, s.ism_points,
                                            s.ism_resolution, s.blur_radius)
         scale = min(max(chosen / modelled, 0.25), 8.0) if modelled > 0 and chosen > 0 else 1.0
-        work = replace(work, fixed=fixed, scale=scale,
+        work = replace(work, fixed=fixed, scale=scale, spent=0.0,
                        area_table=self._ism_area_table(work.triangles))
         return autotune.choose(replace(settings, time_budget=budget), work, cost,
                                self.error_model())
@@ -97,15 +101,23 @@ class ChooseParameters(Stage):
         cost = self.cost_model(stats, frame.report)
         camera = frame.camera
         with stats.timed("automatic parameters"):
+            try:
+                tracer = upload_triangles(self.gpu, self.kept, frame.geometry, frame.stats)
+            except GLUnavailableError:
+                tracer = None
+            rays = _compensation_rays(settings)
             work = autotune.Workload(
                 pixels=camera.width * camera.height * settings.antialiasing**2,
                 triangles=frame.geometry.vertex_count // 3,
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
-                **self._vpls_per_path(frame),
+                **self._vpls_per_path(frame, tracer),
                 bounces=settings.bounces,
                 gather_antialiasing=self._gather_antialiasing(settings,
                                                               frame.geometry.has_specular),
-                area_table=self._ism_area_table(frame.geometry.vertex_count // 3))
+                area_table=self._ism_area_table(frame.geometry.vertex_count // 3),
+                compensation_rays=rays,
+                ray_cost=self._ray_cost(frame, tracer, cost) if rays else 1.0)
+        work = replace(work, spent=time.perf_counter() - frame.started)
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
@@ -123,15 +135,25 @@ class ChooseParameters(Stage):
         """Whether the ISM area table of these triangles is built already."""
         return getattr(self.gpu.ism_if_made, "prepared_triangles", None) == triangles
 
-    def _vpls_per_path(self, frame: FrameState) -> dict[str, float | None]:
+    @staticmethod
+    def _ray_cost(frame: FrameState, tracer: RayTracer | None, cost: autotune.CostModel
+                  ) -> float:
+        """The frame's ray probe against the calibration room's (1 where either is
+        unmeasured)."""
+        if tracer is None or cost.probe <= 0.0:
+            return 1.0
+        seconds = ray_probe_seconds(frame.camera, frame.geometry, tracer, frame.radius,
+                                    frame.settings.clamp_distance * frame.radius)
+        return seconds / cost.probe if seconds > 0.0 else 1.0
+
+    def _vpls_per_path(self, frame: FrameState, tracer: RayTracer | None
+                       ) -> dict[str, float | None]:
         """The workload's VPLs that can light the view per light path, from a probe of
         PROBE_PATHS paths, and with camera guidance the VPLs gathered per path: all of the
         probe's (guidance keeps as many as the paths leave, chosen where the camera looks)."""
         settings = frame.settings
         probe = replace(settings, vpl_count=PROBE_PATHS, incremental=False)
-        try:
-            tracer = upload_triangles(self.gpu, self.kept, frame.geometry, frame.stats)
-        except GLUnavailableError:
+        if tracer is None:
             return {"vpls_per_path": float(settings.bounces)}
         vpls = generate_vpls(frame.scene, frame.geometry, probe, tracer, frame.centre,
                              frame.radius)
@@ -148,11 +170,22 @@ class ChooseParameters(Stage):
         scene = autotune.calibration_scene()
         _, stats = self.render(scene, settings)
         camera = scene.camera
-        return {**stats.timings, "vpls": stats.counts["vpls"],
+        geometry = flatten_instances(scene, [])
+        _, radius = bounding_sphere(geometry.positions)
+        tracer = upload_triangles(self.gpu, self.kept, geometry, stats)  # kept by the render
+        probe = ray_probe_seconds(camera, geometry, tracer, radius,
+                                  settings.clamp_distance * radius)
+        return {**stats.timings, "vpls": stats.counts["vpls"], "ray probe": probe,
                 "pixels": camera.width * camera.height * settings.antialiasing**2,
                 "triangles": stats.counts["triangles"],
                 "shadow_tiles": stats.counts["shadow_maps"],  # the room has no glossy material:
                 "gather_antialiasing": self._gather_antialiasing(settings, False)}
+
+
+def _compensation_rays(settings: Settings) -> int:
+    """Rays per supersample of the frame's bias compensation from the image (0: none)."""
+    on = settings.bias_compensation == "image" and settings.clamp_distance > 0
+    return settings.bias_samples if on else 0
 
 
 def _file_stamp(path: Path | None) -> tuple[str, int, int] | None:

@@ -11,7 +11,11 @@ Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interl
     blur            c_blur · P · radius (K > 1)
     the rest        c_frame + c_pixels · P + c_maps · shadow-map tiles  (not chosen here:
                     PIXEL_STAGES, the direct light's shadow maps)
+                    + c_compensation · P · rays · ray cost  (bias compensation, whose short
+                    rays cost what the scene's ray probe measures against the calibration
+                    room's)
     (replaced by ``Workload.fixed``, their time measured in a pass, when it is known)
+    plus what the pass spent before the choice (``Workload.spent``)
 Error (relative RMSE against a converged image):
     sqrt(floor² + noise² / paths + ism(points, resolution)²)
 No choice has fewer light paths than the cheapest useful one: MIN_VIEW_VPLS VPLs lighting
@@ -33,9 +37,10 @@ from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Sc
 from ..settings import Settings
 from .stages import blur_radius, pixel_interleave
 
-COST_MODEL_VERSION = 11  # 11: the g-buffer's GPU time in its own stage (it was counted in the
-# direct light's maps, the next stage that waited for the GPU); 10: measured at 256×144 as
-# frames gather, with a frame's atlas
+COST_MODEL_VERSION = 12  # 12: bias compensation by the scene's ray cost, VPL generation
+# under each of its stage names (none was fitted: the calibration's is camera-driven); 11: the
+# g-buffer's GPU time in its own stage (it was counted in the direct light's maps, the next
+# stage that waited for the GPU); 10: measured at 256×144 as frames gather, with a frame's atlas
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")
 PATHS = tuple(round(16 * 2 ** (k / 4)) for k in range(41))
 """Light-path counts the automatic mode considers: 16 to 16384 in steps of 2^(1/4) (19 %)."""
@@ -54,10 +59,13 @@ about 1.9 s of a 4.7 s budget: two passes measured 6.7 % in 2.7 s, one pass 3.7 
 ONE_PASS_SHARE = 0.9
 """A time budget planned as one pass is chosen for this share of it: nothing measured corrects
 that pass's prediction (on the Cornell box 1448 light paths predicted at 4.68 s took 5.5 s)."""
-PIXEL_STAGES = ("g-buffer", "direct light", "shadow hints", "bias compensation", "upsample",
-                "supersample blur", "thin surfaces", "compose")
+PIXEL_STAGES = ("g-buffer", "direct light", "shadow hints", "upsample", "supersample blur",
+                "thin surfaces", "compose")
 """The stages whose time grows with the supersamples (from a cost per frame) and that the choice
-does not set."""
+does not set, but for bias compensation (COMPENSATION_STAGE)."""
+COMPENSATION_STAGE = "bias compensation"
+"""The stage of a short ray per supersample, whose cost per ray differs between scenes as the ray
+probe's does (ray_probe.py)."""
 
 
 @dataclass(frozen=True)
@@ -74,6 +82,8 @@ class CostModel:
     maps: float  # per shadow-map tile
     pool: float  # per triangle of the ISM area table (the points are drawn on the GPU)
     frame: float = 0.0  # per frame: PIXEL_STAGES' cost whatever the pixels (draws, passes)
+    compensation: float = 0.0  # per bias compensation ray (one per supersample by default)
+    probe: float = 0.0  # seconds of the ray probe in the calibration room
     version: int = COST_MODEL_VERSION
 
 
@@ -115,6 +125,9 @@ class Workload:
     fixed: float | None = None  # measured seconds of the work not chosen here (None: modelled)
     scale: float = 1.0  # measured / modelled seconds of the chosen work (the machine's load)
     # (applied to the ISM area table's modelled time too)
+    compensation_rays: int = 0  # per supersample, of bias compensation from the image
+    ray_cost: float = 1.0  # the scene's ray probe / the calibration room's (cost.probe)
+    spent: float = 0.0  # seconds the frame spent before the choice (counted in its time)
 
     def least_paths(self) -> int:
         """Light paths of the cheapest useful frame: the fewest of PATHS that leave
@@ -145,14 +158,15 @@ def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int
     pool = 0.0 if work.area_table else cost.pool * work.triangles
     return (work.scale * (pool + chosen_seconds(cost, work, paths, interleave, points,
                                                 resolution, blur_radius))
-            + fixed_seconds(cost, work))
+            + fixed_seconds(cost, work) + work.spent)
 
 
 def fixed_seconds(cost: CostModel, work: Workload) -> float:
     """Predicted (or measured) seconds of the work the choice does not set."""
     if work.fixed is not None:
         return work.fixed
-    return cost.frame + cost.pixels * work.pixels + cost.maps * work.shadow_tiles
+    compensation = cost.compensation * work.pixels * work.compensation_rays * work.ray_cost
+    return cost.frame + cost.pixels * work.pixels + cost.maps * work.shadow_tiles + compensation
 
 
 def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
@@ -238,8 +252,9 @@ def load_error_model(path: Path = ERROR_MODEL_FILE) -> ErrorModel:
 
 Render = Callable[[Settings], dict[str, float | int]]
 """Renders the calibration scene with the given settings and returns its stage timings
-(seconds), counts (``vpls``, ``pixels``, ``triangles``, ``shadow_tiles``) and the supersamples per
-pixel edge its VPLs were gathered once for (``gather_antialiasing``)."""
+(seconds), counts (``vpls``, ``pixels``, ``triangles``, ``shadow_tiles``), the supersamples per
+pixel edge its VPLs were gathered once for (``gather_antialiasing``) and the seconds of the ray
+probe on it (``ray probe``)."""
 
 CALIBRATION = (  # (paths, interleave, points, resolution, antialiasing): spread so each term
     # is separable (three pixel counts part the cost per frame from the cost per pixel); the
@@ -263,15 +278,17 @@ def _through_origin(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     """Measure the cost model: render the calibration scene at the CALIBRATION settings, each
     twice (the first compiles shaders and builds tables), and fit each stage's coefficients to
-    the second render's seconds, with the first's ISM atlas allocation. The VPLs are gathered
+    the second render's seconds, with the first's ISM atlas allocation; the ray probe's
+    reference is the least of its measurements. The VPLs are gathered
     where ``base`` gathers them (indirect light per pixel or per supersample)."""
-    rows = []
+    rows, probes = [], []
     for paths, k, points, resolution, aa in CALIBRATION:
         settings = replace(base, vpl_count=paths, interleave=k, ism_points=points,
                            ism_resolution=resolution, antialiasing=aa, visibility="ism",
                            auto_parameters="off")
         first = render(settings)  # builds the ISM area table (if new), compiles shaders
         again = render(settings)
+        probes += [m["ray probe"] for m in (first, again) if "ray probe" in m]
         # a frame allocates its ISM atlas, as the first render did, where the second found it
         # made (a new process pays it every frame: about 0.3-1 s for 1500-2500 VPLs of 128²
         # maps on llvmpipe, the textures' fresh pages)
@@ -289,7 +306,8 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
                   vpls * column(lambda s, m: s.ism_resolution**2)], axis=1),
         column(lambda s, m: m.get("indirect light maps", 0.0)))
     (paths,) = _through_origin(column(lambda s, m: s.vpl_count * s.bounces)[:, None],
-                               column(lambda s, m: m.get("vpl generation", 0.0)))
+                               column(lambda s, m: sum(v for k, v in m.items()
+                                                       if k.startswith("vpl generation"))))
     gathered = [gathered_pixels(m["pixels"], s.interleave, m["gather_antialiasing"])
                 for s, m in rows]  # (pixels, pattern edge) the VPLs are gathered at
     at, edge = (np.array(v, np.float64) for v in zip(*gathered, strict=True))
@@ -297,15 +315,25 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
                                 column(lambda s, m: m.get("indirect light", 0.0)))
     blurred = (edge > 1) * at * column(lambda s, m: s.blur_radius)
     (blur,) = _through_origin(blurred[:, None], column(lambda s, m: m.get("blur", 0.0)))
-    frame, pixel = _through_origin(np.stack([np.ones_like(pixels), pixels], axis=1), column(
-        lambda s, m: sum(m.get(k, 0.0) for k in PIXEL_STAGES)))
+    # the rows with supersamples (antialiasing 1 runs no upsample, supersample blur or shadow
+    # hints: fitted with them, the three sample scenes' pixel stages at 640×360, antialiasing
+    # 3, were predicted at 1.25-1.73 s in three calibrations, where they took 1.06-1.23 s;
+    # without them 0.95-0.98 s in two)
+    supersampled = column(lambda s, m: s.antialiasing) > 1
+    frame, pixel = _through_origin(
+        np.stack([np.ones_like(pixels), pixels], axis=1)[supersampled],
+        column(lambda s, m: sum(m.get(k, 0.0) for k in PIXEL_STAGES))[supersampled])
+    (compensation,) = _through_origin((pixels * column(lambda s, m: s.bias_samples))[:, None],
+                                      column(lambda s, m: m.get(COMPENSATION_STAGE, 0.0)))
+    probe = float(min(probes, default=0.0))  # the least disturbed
     (maps,) = _through_origin(column(lambda s, m: m["shadow_tiles"])[:, None],
                               column(lambda s, m: m.get("direct light maps", 0.0)))
     built = [m for _, m in rows if m["ism points"] is not None]  # the table is built once
     pool = (sum(m["ism points"] for m in built) / sum(m["triangles"] for m in built)
             if built else 0.0)
     return CostModel(renderer_name, float(paths), float(splat), float(texels), float(gather),
-                     float(blur), float(pixel), float(maps), float(pool), float(frame))
+                     float(blur), float(pixel), float(maps), float(pool), float(frame),
+                     float(compensation), probe)
 
 
 def cached_cost_model(cache: Path | None, renderer_name: str,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
@@ -70,6 +71,7 @@ class FrameState:
     traces_rays: bool = False  # a light pass or the bias compensation uses the ray tracer
     steps: int = 0  # light passes × tiles, for the progress bar
     steps_done: int = 0
+    started: float = field(default_factory=time.perf_counter)  # when the frame began
 
     @property
     def path_sequence(self) -> PathSequence:
