@@ -174,6 +174,8 @@ def test_a_real_automatic_frame_lands_near_its_budget(renderer, tmp_path):
         assert "blur" not in stats.skipped and stats.timings["blur"] > 0
     assert 0.5 * predicted <= measured <= 2 * predicted + 0.2, (predicted, measured)
     assert np.isfinite(predicted)
+    ray_cost = float(note.split("bias compensation rays at ")[1].split("×")[0])
+    assert 0 < ray_cost < 100  # the floor's rays against the calibration room's
 
 
 @pytest.mark.parametrize("vpls_per_path", [0.05, 0.5, 2.5])

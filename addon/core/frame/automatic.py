@@ -120,8 +120,10 @@ class ChooseParameters(Stage):
         work = replace(work, spent=time.perf_counter() - frame.started)
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)
+        rays = (f"; bias compensation rays at {work.ray_cost:.1f}× the calibration room's cost"
+                if work.compensation_rays else "")
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
-                           f"{choice.describe()}")
+                           f"{choice.describe()}{rays}")
         stats.counts.update(auto_vpl_count=choice.settings.vpl_count)
         frame.settings = choice.settings
 
