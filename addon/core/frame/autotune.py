@@ -257,10 +257,10 @@ pixel edge its VPLs were gathered once for (``gather_antialiasing``) and the sec
 probe on it (``ray probe``)."""
 
 CALIBRATION = (  # (paths, interleave, points, resolution, antialiasing): spread so each term
-    # is separable (three pixel counts part the cost per frame from the cost per pixel); the
-    # last with an atlas as large as a frame's: the gather's cost per VPL and pixel grows with
-    # it (the room at 640×360: 1.04 times the cost fitted without it for 569 VPLs of 64² maps,
-    # 1.71 times for 2276 of 128²)
+    # is separable (the two supersampled pixel counts part the pixel stages' cost per frame
+    # from their cost per pixel); the last with an atlas as large as a frame's: the gather's
+    # cost per VPL and pixel grows with it (the room at 640×360: 1.04 times the cost fitted
+    # without it for 569 VPLs of 64² maps, 1.71 times for 2276 of 128²)
     (64, 1, 1024, 64, 1), (256, 4, 4096, 128, 2), (128, 2, 1024, 256, 1), (512, 8, 2048, 64, 2),
     (1024, 8, 1024, 128, 3),
 )
