@@ -20,7 +20,7 @@ from .planner import reaches_bounds
 from .ray_probe import ray_probe_seconds
 from .result import Frame, Stats
 from .reuse import KeptProducts
-from .stages import indirect_per_pixel
+from .stages import indirect_per_pixel, near_field_rays
 from .state import FrameState, Stage
 from .vpl_stage import may_guide, upload_triangles
 
@@ -105,7 +105,7 @@ class ChooseParameters(Stage):
                 tracer = upload_triangles(self.gpu, self.kept, frame.geometry, frame.stats)
             except GLUnavailableError:
                 tracer = None
-            rays = _compensation_rays(settings)
+            rays = near_field_rays(settings)
             work = autotune.Workload(
                 pixels=camera.width * camera.height * settings.antialiasing**2,
                 triangles=frame.geometry.vertex_count // 3,
@@ -120,10 +120,10 @@ class ChooseParameters(Stage):
         work = replace(work, spent=time.perf_counter() - frame.started)
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)
-        rays = (f"; bias compensation rays at {work.ray_cost:.1f}× the calibration room's cost"
-                if work.compensation_rays else "")
+        priced = (f"; bias compensation rays at {work.ray_cost:.1f}× the calibration room's "
+                  "cost" if work.compensation_rays else "")
         stats.notes.append(f"automatic parameters ({settings.auto_parameters}): "
-                           f"{choice.describe()}{rays}")
+                           f"{choice.describe()}{priced}")
         stats.counts.update(auto_vpl_count=choice.settings.vpl_count)
         frame.settings = choice.settings
 
@@ -182,12 +182,6 @@ class ChooseParameters(Stage):
                 "triangles": stats.counts["triangles"],
                 "shadow_tiles": stats.counts["shadow_maps"],  # the room has no glossy material:
                 "gather_antialiasing": self._gather_antialiasing(settings, False)}
-
-
-def _compensation_rays(settings: Settings) -> int:
-    """Rays per supersample of the frame's bias compensation from the image (0: none)."""
-    on = settings.bias_compensation == "image" and settings.clamp_distance > 0
-    return settings.bias_samples if on else 0
 
 
 def _file_stamp(path: Path | None) -> tuple[str, int, int] | None:

@@ -152,6 +152,12 @@ class PlanGather(Stage):
         frame.settings = replace(frame.settings, pull_push_levels=levels)
 
 
+def near_field_rays(settings: Settings) -> int:
+    """Rays per supersample of the bias compensation from the image (0: none, or ``full``)."""
+    on = settings.bias_compensation == "image" and settings.clamp_distance > 0
+    return settings.bias_samples if on else 0
+
+
 def indirect_per_pixel(settings: Settings, glossy: bool) -> bool:
     """Whether VPLs are gathered once per pixel (the pixel-centre g-buffer) rather than per
     supersample: with antialiasing only, and with ``auto`` where no material is ``glossy``."""
@@ -209,15 +215,15 @@ class PlanLightPasses(Stage):
         passes += [LightPass("indirect light", b, clamp, mode, pattern) for b in vpl_batches]
         frame.blur_radius = blur_radius(settings.interleave, settings.blur_radius) \
             if any(p.interleave > 1 and (p.indirect or p.blurred) for p in passes) else 0
-        if settings.bias_compensation != "off" and len(frame.vpls) and settings.clamp_distance:
-            if settings.bias_compensation == "full":
-                frame.compensation = Compensation(settings.clamp_distance * radius,
-                                                  settings.bias_samples, settings.seed,
-                                                  settings.bounces - 1)
-            else:
-                frame.near_field = NearField(settings.clamp_distance * radius,
-                                             settings.bias_samples, settings.seed,
-                                             settings.bounces > 1)
+        if len(frame.vpls) and settings.clamp_distance \
+                and settings.bias_compensation == "full":
+            frame.compensation = Compensation(settings.clamp_distance * radius,
+                                              settings.bias_samples, settings.seed,
+                                              settings.bounces - 1)
+        elif len(frame.vpls) and near_field_rays(settings):
+            frame.near_field = NearField(settings.clamp_distance * radius,
+                                         settings.bias_samples, settings.seed,
+                                         settings.bounces > 1)
         frame.traces_rays = frame.compensation is not None or frame.near_field is not None \
             or any(p.visibility.rays_per_sample for p in passes)
         if frame.traces_rays:
