@@ -232,7 +232,7 @@ class Settings:
     time_limit: float = setting(
         0.0, "Time Limit", "sampling",
         "Seconds a final render may take: no pass starts that would end past it, by the mean "
-        "time of the passes so far (at least one pass; 0 = no limit)",
+        "time of the passes so far like it (at least one pass; 0 = no limit)",
         low=0.0, high=7 * 86400.0, soft_high=600.0, applies=unless("passes", 1))
     noise_threshold: float = setting(
         0.0, "Noise Threshold", "sampling",
@@ -284,6 +284,13 @@ class Settings:
     visibility: str = setting(
         "ism", "Visibility", "visibility", "How the visibility of each VPL is found",
         choices=VISIBILITY_MODES)
+    ray_traced_from_pass: int = setting(
+        5, "Ray-Traced From Pass", "visibility",
+        "Passes of a final render from this one on trace a ray per pixel and VPL instead of "
+        "reading imperfect shadow maps, in scenes with more triangles than each map has "
+        "points: the maps' visibility error is the same in every pass, so passes alone do "
+        "not remove it (0 = never)",
+        low=0, high=1 << 16, soft_high=64, applies=when("visibility", "ism"))
     vpl_shadow_resolution: int = setting(
         256, "VPL Shadow Resolution", "visibility",
         "Texels per cube-face edge of each VPL's shadow map",

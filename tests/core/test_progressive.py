@@ -8,7 +8,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from addon.core.frame.progressive import Accumulator, pass_camera, pass_settings
+from addon.core.frame.progressive import (
+    EXACT_PASS_COST,
+    Accumulator,
+    expected_pass_seconds,
+    pass_camera,
+    pass_settings,
+    ray_traced_from,
+)
 from addon.core.frame.renderer import RenderCancelled
 from addon.core.frame.result import Frame
 from addon.core.scene.model import Instance, Material, Scene, World
@@ -196,3 +203,36 @@ def test_pass_offsets_stay_within_a_supersample_and_centre_on_it() -> None:
                          - camera.projection_matrix)[:2, 3] * 10 * 2 / 2 for k in range(1, 65)])
     assert np.all(np.abs(offsets) <= 0.5) and len(np.unique(offsets, axis=0)) == 64
     np.testing.assert_allclose(offsets.mean(axis=0), 0.0, atol=0.02)
+
+
+ISM = replace(BASE, visibility="ism", ism_points=1024)  # the closed sphere: 1280 triangles
+
+
+def test_passes_trace_visibility_from_the_set_pass_where_the_maps_undersample_the_scene(
+        renderer) -> None:
+    """From ``ray_traced_from_pass`` on a final render's passes are the passes the exact mode
+    renders; with more ISM points than triangles, or 0, every pass reads the maps."""
+    settings = replace(ISM, passes=3, ray_traced_from_pass=2)
+    renderer.forget_frames()
+    frame, stats = renderer.render_progressive(closed_sphere(), settings)
+    assert "passes 2–3: VPL visibility ray traced (1024 ISM points for 1,280 triangles)" \
+        in stats.notes
+    renderer.forget_frames()
+    one_by_one = [renderer.render(closed_sphere(), replace(settings, visibility=visibility),
+                                  pass_index=index)[0].passes["Combined"].astype(np.float64)
+                  for index, visibility in enumerate(["ism", "exact", "exact"])]
+    np.testing.assert_allclose(frame.passes["Combined"], sum(one_by_one) / 3, rtol=1e-6,
+                               atol=1e-7)
+    assert ray_traced_from(replace(settings, ism_points=2048), 1280) is None
+    assert ray_traced_from(replace(settings, ray_traced_from_pass=0), 1280) is None
+    assert ray_traced_from(replace(settings, visibility="classic"), 1280) is None
+    _, stats = renderer.render_progressive(closed_sphere(), replace(settings, ism_points=2048))
+    assert stats.skipped["ray-traced visibility from pass 2"] == \
+        "1,280 triangles: each ISM's 2048 points hold them"
+    assert not any("ray traced" in note for note in stats.notes)
+
+
+def test_a_time_limit_expects_the_first_ray_traced_pass_to_take_longer() -> None:
+    assert expected_pass_seconds({"ism": [1.0, 3.0]}, "ism") == 2.0
+    assert expected_pass_seconds({"ism": [1.0, 3.0]}, "exact") == 2.0 * EXACT_PASS_COST
+    assert expected_pass_seconds({"ism": [1.0], "exact": [5.0]}, "exact") == 5.0

@@ -128,7 +128,8 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         return frame, stats
 
     frame, stats = render_passes(
-        one_pass, scene, replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget),
+        one_pass, scene,  # the passes keep the visibility the cost model priced
+        replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget, ray_traced_from_pass=0),
         progress, cancelled, on_pass, open_ended=True,
         next_seconds=lambda: sum(walls) / len(walls) if walls else expected,
         pass_weight=lambda index: paths[index])

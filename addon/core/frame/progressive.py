@@ -5,7 +5,9 @@ passes before it (the user's seed's scrambled Halton sequence from the path afte
 K passes of N paths trace one stratified set of K·N, the frame's state ``first_path``; camera
 guidance draws its candidates afresh per pass), its supersamples moved by a sub-sample offset
 (pass 0: none; so edges converge as in Cycles, whose samples fall anywhere in the pixel) and
-the VPL clamp distance shrunk to c_k = clamp / (k + 1)^CLAMP_EXPONENT. Both of the clamp's
+the VPL clamp distance shrunk to c_k = clamp / (k + 1)^CLAMP_EXPONENT; from the setting
+``ray_traced_from_pass`` on, in scenes with more triangles than an ISM has points, it traces
+its VPLs' visibility (``ray_traced_from``). Both of the clamp's
 errors then vanish as passes are added, at the same rate. A VPL's hot spot (distance below
 c_k) peaks at 1 / c_k² over an area c_k², so pass k's squared error from hot spots grows as
 1 / c_k² ∝ (k + 1)^(2a), and the average of K passes keeps Σ (k + 1)^(2a) / K² ∝ K^(2a - 1) of
@@ -30,6 +32,7 @@ from ..scene.model import Camera, Scene
 from ..settings import Settings
 from ..transport.sequences import radical_inverse
 from .result import Frame, Stats
+from .scene_size import flattened_triangles
 from .state import CancelCallback, ProgressCallback
 
 UNFILTERED_PASSES = frozenset({"Depth", "Denoising Depth"})
@@ -37,6 +40,7 @@ UNFILTERED_PASSES = frozenset({"Depth", "Denoising Depth"})
 SEED_STRIDE = 0x9E3779B1  # pass k's seed: seed + k × stride (mod 2³¹)
 MIN_PASSES_FOR_NOISE = 4  # passes before the noise estimate may stop a render
 CLAMP_EXPONENT = 1 / 6  # pass k's clamp distance: clamp / (k + 1)^CLAMP_EXPONENT
+EXACT_PASS_COST = 2.0  # a ray-traced pass against one with ISMs: 1.6–1.9 on the sample scenes
 
 
 def pass_settings(settings: Settings, index: int) -> Settings:
@@ -46,6 +50,20 @@ def pass_settings(settings: Settings, index: int) -> Settings:
         return settings
     return replace(settings, seed=(settings.seed + index * SEED_STRIDE) % 2**31,
                    clamp_distance=settings.clamp_distance / (index + 1) ** CLAMP_EXPONENT)
+
+
+def ray_traced_from(settings: Settings, triangles: int) -> int | None:
+    """The first pass (from 0) of a final render that traces its VPLs' visibility instead of
+    reading imperfect shadow maps, or None: from ``ray_traced_from_pass`` (from 1) on where
+    the scene's ``triangles`` outnumber each map's points. The maps' error is the same in every
+    pass, so it stays in the average: the interior's 16 passes measured 5.3 % with maps
+    throughout and 4.4 % with rays from pass 5 (docs/measurements.md, *Long renders*). Where
+    every triangle gets points the maps' error was the smaller: the Cornell box (34 triangles)
+    measured 1.5 % and 1.7 %."""
+    if settings.visibility != "ism" or settings.ray_traced_from_pass == 0 \
+            or triangles <= settings.ism_points:
+        return None
+    return settings.ray_traced_from_pass - 1
 
 
 def pass_camera(camera: Camera, index: int, aa: int) -> Camera:
@@ -118,6 +136,15 @@ class Accumulator:
         return float(np.sqrt(np.mean((even - odd) ** 2)) * share) / mean
 
 
+def expected_pass_seconds(seconds: dict[str, list[float]], visibility: str) -> float:
+    """The expected time of a pass with ``visibility``: the mean of such passes so far, else
+    EXACT_PASS_COST times the mean of the others (``seconds``: each pass's time by its
+    visibility)."""
+    if seconds.get(visibility):
+        return float(np.mean(seconds[visibility]))
+    return EXACT_PASS_COST * float(np.mean([t for times in seconds.values() for t in times]))
+
+
 def merge_stats(total: Stats, one: Stats) -> None:
     """Add one pass's stats to the render's: times summed, counts and skipped stages of the
     last pass, each warning and note once."""
@@ -146,13 +173,16 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
     ``open_ended``: the time limit, not the pass count, ends the render (progress is time);
     ``next_seconds``: the expected time of the next pass (None or absent: the mean so far);
     ``pass_weight``: each pass's weight in the average, by its index, after it rendered
-    (absent: all alike). Cancelling raises RenderCancelled from inside the current pass."""
+    (absent: all alike). Passes from ``ray_traced_from`` on trace their VPLs' visibility. Cancelling raises RenderCancelled from inside the current pass."""
     report = progress or (lambda _f, _m: None)
     check = cancelled or (lambda: False)
     total, accumulator = Stats(), Accumulator()
     start = time.perf_counter()
     planned = settings.passes
+    switch = ray_traced_from(settings, flattened_triangles(scene)) if planned > 1 else None
+    seconds: dict[str, list[float]] = {}  # each pass's time by its visibility
     for index in range(planned):
+        visibility = "exact" if switch is not None and index >= switch else settings.visibility
 
         def pass_progress(fraction: float, message: str, index: int = index) -> None:
             if open_ended:
@@ -162,7 +192,10 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
             prefix = f"Pass {index + 1}/{planned} | " if planned > 1 else ""
             report((index + fraction) / planned, prefix + message)
 
-        frame, stats = render_pass(scene, settings, index, pass_progress, check)
+        began = time.perf_counter()
+        frame, stats = render_pass(scene, replace(settings, visibility=visibility), index,
+                                   pass_progress, check)
+        seconds.setdefault(visibility, []).append(time.perf_counter() - began)
         accumulator.add(frame, pass_weight(index) if pass_weight is not None else 1.0)
         merge_stats(total, stats)
         noise = accumulator.noise()
@@ -171,13 +204,19 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
         elapsed = time.perf_counter() - start
         expected = next_seconds() if next_seconds is not None else None
         if expected is None:
-            expected = elapsed / accumulator.count
+            expected = expected_pass_seconds(seconds, "exact" if switch is not None and
+                                             accumulator.count >= switch else visibility)
         if settings.time_limit > 0 and elapsed + expected > settings.time_limit:
             break  # another pass would end past the limit
         if settings.noise_threshold > 0 and noise is not None \
                 and accumulator.count >= MIN_PASSES_FOR_NOISE and noise <= settings.noise_threshold:
             break
     total.counts["passes"] = accumulator.count
+    if switch is None and settings.visibility == "ism" \
+            and 0 < settings.ray_traced_from_pass <= accumulator.count:
+        total.skipped[f"ray-traced visibility from pass {settings.ray_traced_from_pass}"] = (
+            f"{flattened_triangles(scene):,} triangles: each ISM's {settings.ism_points} "
+            f"points hold them")
     if planned > 1:
         estimate = accumulator.noise()
         of = "" if open_ended else f" of {planned}"
@@ -186,4 +225,8 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
                            f"{time.perf_counter() - start:.1f} s" +
                            (f", estimated noise {estimate * 100:.1f} %" if estimate is not None
                             else ""))
+    if switch is not None and accumulator.count > switch:
+        total.notes.append(f"passes {switch + 1}–{accumulator.count}: VPL visibility ray traced "
+                           f"({settings.ism_points} ISM points for "
+                           f"{flattened_triangles(scene):,} triangles)")
     return accumulator.average(), total
