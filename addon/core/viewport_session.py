@@ -29,9 +29,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .frame.progressive import Accumulator
+from .frame.progressive import Accumulator, ray_traced_from
 from .frame.renderer import RenderCancelled, Renderer, RenderError
 from .frame.result import Frame, Stats
+from .frame.scene_size import flattened_triangles
 from .gpu.gl import GLUnavailableError, create_context
 from .scene.model import RENDERED_OBJECT_TYPES, Camera, Scene
 from .settings import Choice, Settings, SettingsError
@@ -417,11 +418,14 @@ class ViewportSession:
         if display not in AVERAGED_DISPLAYS:
             return
         # Idle refinement: independent VPL sets (not incremental ones), averaged with the clamp
-        # shrinking as in final renders.
+        # shrinking and the visibility ray traced from ray_traced_from_pass as in final renders.
         independent = replace(view_settings, incremental=False)
+        traced = replace(independent, visibility="exact")
+        switch = ray_traced_from(independent, flattened_triangles(scene))
         for index in range(1, settings.viewport_passes):
-            frame = self._frame(idle, edit, replace(scene, camera=camera), independent,
-                                display, index)
+            frame = self._frame(idle, edit, replace(scene, camera=camera),
+                                traced if switch is not None and index >= switch
+                                else independent, display, index)
             if frame is None:
                 return
             full.add(frame[0])

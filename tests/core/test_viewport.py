@@ -268,3 +268,29 @@ def test_quick_settings_cut_only_what_the_edit_redraws():
     few = replace(full, light_samples=2, ism_resolution=32)
     assert quick_settings(few, Changes(settings=True)).light_samples == 2  # never more
     assert quick_settings(few, Changes(settings=True)).ism_resolution == 32
+
+
+def test_idle_passes_trace_visibility_from_the_set_pass_as_final_renders_do(renderer,
+                                                                             monkeypatch):
+    """The floor and ball (322 triangles) with 256 points per ISM: idle passes from
+    ``ray_traced_from_pass`` on render with ray-traced visibility; with 1024 points, none."""
+    seen = []
+    render = Renderer.render
+
+    def recording(self, scene, settings, *args, pass_index: int = 0, **kwargs):
+        seen.append((pass_index, settings.visibility))
+        return render(self, scene, settings, *args, pass_index=pass_index, **kwargs)
+
+    monkeypatch.setattr(Renderer, "render", recording)
+    for points, expected in ((256, ["ism", "ism", "exact", "exact"]), (1024, ["ism"] * 4)):
+        seen.clear()
+        settings = replace(SETTINGS, ism_points=points, viewport_passes=4, ray_traced_from_pass=3)
+        session = ViewportSession()
+        try:
+            run(session, Changes(settings=True), scene=scene(), camera=scene().camera,
+                settings=settings, display="indirect")
+        finally:
+            session.close()
+        full_size = [visibility for index, visibility in seen if index > 0]
+        assert [v for i, v in seen if i == 0][-1] == "ism"
+        assert full_size == expected[1:], seen

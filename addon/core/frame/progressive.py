@@ -171,9 +171,10 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
     """Render ``settings.passes`` passes (fewer when the time limit or the noise threshold is
     reached first) and return their average; ``on_pass`` sees the average after each pass.
     ``open_ended``: the time limit, not the pass count, ends the render (progress is time);
-    ``next_seconds``: the expected time of the next pass (None or absent: the mean so far);
-    ``pass_weight``: each pass's weight in the average, by its index, after it rendered
-    (absent: all alike). Passes from ``ray_traced_from`` on trace their VPLs' visibility. Cancelling raises RenderCancelled from inside the current pass."""
+    ``next_seconds``: the expected time of the next pass (None or absent: the mean of those
+    like it so far); ``pass_weight``: each pass's weight in the average, by its index, after
+    it rendered (absent: all alike). Passes from ``ray_traced_from`` on trace their VPLs'
+    visibility. Cancelling raises RenderCancelled from inside the current pass."""
     report = progress or (lambda _f, _m: None)
     check = cancelled or (lambda: False)
     total, accumulator = Stats(), Accumulator()
