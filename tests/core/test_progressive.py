@@ -233,6 +233,6 @@ def test_passes_trace_visibility_from_the_set_pass_where_the_maps_undersample_th
 
 
 def test_a_time_limit_expects_the_first_ray_traced_pass_to_take_longer() -> None:
-    assert expected_pass_seconds({"ism": [1.0, 3.0]}, "ism") == 2.0
-    assert expected_pass_seconds({"ism": [1.0, 3.0]}, "exact") == 2.0 * EXACT_PASS_COST
-    assert expected_pass_seconds({"ism": [1.0], "exact": [5.0]}, "exact") == 5.0
+    assert expected_pass_seconds(2.0, [], tracing=False) == 2.0
+    assert expected_pass_seconds(2.0, [], tracing=True) == 2.0 * EXACT_PASS_COST
+    assert expected_pass_seconds(2.0, [5.0, 6.0], tracing=True) == 5.5

@@ -11,7 +11,9 @@ indirect gather and blur took twice the model's time). The later passes get the 
 again with those measurements for the rest of the budget, and passes run while the next one
 fits (progressive.py's time limit). Passes are averaged weighted by their light paths (the VPL
 noise's variance goes as 1 / paths), so a smaller later pass adds to the image instead of
-diluting it. A budget below the cheapest useful frame still renders that frame, with one
+diluting it. Passes from ``ray_traced_from_pass`` on trace their VPLs' visibility as in any
+final render (progressive.py), the first of them expected to take twice a mapped pass. A
+budget below the cheapest useful frame still renders that frame, with one
 warning naming the time it took.
 
 The chosen parameters depend on this machine's speed: frames of one job rendered on different
@@ -83,12 +85,13 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
     notes: list[str] = []
     warnings: list[str] = []
 
-    def one_pass(scene: Scene, _settings: Settings, index: int, progress: ProgressCallback,
+    def one_pass(scene: Scene, given: Settings, index: int, progress: ProgressCallback,
                  cancelled: CancelCallback) -> tuple[Frame, Stats]:
         nonlocal later, expected
-        if index > 0 and later is not None:
+        if index > 0 and later is not None:  # with the visibility render_passes gives it
             began = time.perf_counter()
-            result = render_pass(scene, later, index, progress, cancelled)
+            result = render_pass(scene, replace(later, visibility=given.visibility), index,
+                                 progress, cancelled)
             walls.append(time.perf_counter() - began)
             paths.append(later.vpl_count)
             return result
@@ -128,8 +131,7 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         return frame, stats
 
     frame, stats = render_passes(
-        one_pass, scene,  # the passes keep the visibility the cost model priced
-        replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget, ray_traced_from_pass=0),
+        one_pass, scene, replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget),
         progress, cancelled, on_pass, open_ended=True,
         next_seconds=lambda: sum(walls) / len(walls) if walls else expected,
         pass_weight=lambda index: paths[index])

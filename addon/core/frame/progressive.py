@@ -136,13 +136,13 @@ class Accumulator:
         return float(np.sqrt(np.mean((even - odd) ** 2)) * share) / mean
 
 
-def expected_pass_seconds(seconds: dict[str, list[float]], visibility: str) -> float:
-    """The expected time of a pass with ``visibility``: the mean of such passes so far, else
-    EXACT_PASS_COST times the mean of the others (``seconds``: each pass's time by its
-    visibility)."""
-    if seconds.get(visibility):
-        return float(np.mean(seconds[visibility]))
-    return EXACT_PASS_COST * float(np.mean([t for times in seconds.values() for t in times]))
+def expected_pass_seconds(like_before: float, traced: list[float], tracing: bool) -> float:
+    """The expected time of the next pass: ``like_before`` (a pass like those before the
+    switch to ray-traced visibility) unless it is ``tracing``, then the mean of the ``traced``
+    passes so far, or EXACT_PASS_COST times ``like_before`` before the first."""
+    if not tracing:
+        return like_before
+    return float(np.mean(traced)) if traced else EXACT_PASS_COST * like_before
 
 
 def merge_stats(total: Stats, one: Stats) -> None:
@@ -171,17 +171,18 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
     """Render ``settings.passes`` passes (fewer when the time limit or the noise threshold is
     reached first) and return their average; ``on_pass`` sees the average after each pass.
     ``open_ended``: the time limit, not the pass count, ends the render (progress is time);
-    ``next_seconds``: the expected time of the next pass (None or absent: the mean of those
-    like it so far); ``pass_weight``: each pass's weight in the average, by its index, after
-    it rendered (absent: all alike). Passes from ``ray_traced_from`` on trace their VPLs'
-    visibility. Cancelling raises RenderCancelled from inside the current pass."""
+    ``next_seconds``: the expected time of the next pass before ray-traced ones (None or
+    absent: the mean so far); ``pass_weight``: each pass's weight in the average, by its
+    index, after it rendered (absent: all alike). Passes from ``ray_traced_from`` on trace
+    their VPLs' visibility. Cancelling raises RenderCancelled from inside the current pass."""
     report = progress or (lambda _f, _m: None)
     check = cancelled or (lambda: False)
     total, accumulator = Stats(), Accumulator()
     start = time.perf_counter()
     planned = settings.passes
     switch = ray_traced_from(settings, flattened_triangles(scene)) if planned > 1 else None
-    seconds: dict[str, list[float]] = {}  # each pass's time by its visibility
+    mapped: list[float] = []  # each pass's time, before the switch
+    traced: list[float] = []  # and after it
     for index in range(planned):
         visibility = "exact" if switch is not None and index >= switch else settings.visibility
 
@@ -196,17 +197,18 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
         began = time.perf_counter()
         frame, stats = render_pass(scene, replace(settings, visibility=visibility), index,
                                    pass_progress, check)
-        seconds.setdefault(visibility, []).append(time.perf_counter() - began)
         accumulator.add(frame, pass_weight(index) if pass_weight is not None else 1.0)
         merge_stats(total, stats)
         noise = accumulator.noise()
         if on_pass is not None:
             on_pass(PassReport(accumulator.count, accumulator.average(), total, noise))
         elapsed = time.perf_counter() - start
-        expected = next_seconds() if next_seconds is not None else None
-        if expected is None:
-            expected = expected_pass_seconds(seconds, "exact" if switch is not None and
-                                             accumulator.count >= switch else visibility)
+        (traced if visibility != settings.visibility else mapped).append(
+            time.perf_counter() - began)  # with the average shown
+        like_before = next_seconds() if next_seconds is not None else None
+        expected = expected_pass_seconds(
+            like_before if like_before is not None else float(np.mean(mapped)), traced,
+            switch is not None and accumulator.count >= switch)
         if settings.time_limit > 0 and elapsed + expected > settings.time_limit:
             break  # another pass would end past the limit
         if settings.noise_threshold > 0 and noise is not None \
