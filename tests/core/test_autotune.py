@@ -19,6 +19,15 @@ WORK = autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
                          vpls_per_path=2.5, bounces=4)
 
 
+def test_passes_lower_the_error_models_floor_as_the_clamp_schedule_does():
+    """K passes of N paths: the noise of one set of K·N paths, the floor times K^(-1/3)."""
+    model = autotune.ErrorModel(floor=0.04, noise=1.0, ism={"128/8192": 0.0},
+                                interleave={"4": 1.0})
+    assert model.error(1024, 4, 8192, 128, passes=8) == pytest.approx(
+        np.hypot(0.04 / 2, 1.0 / np.sqrt(8 * 1024)))
+    assert model.error(8192, 4, 8192, 128) == pytest.approx(np.hypot(0.04, 1.0 / np.sqrt(8192)))
+
+
 def test_the_error_model_file_is_complete_and_plausible():
     model = autotune.load_error_model()
     assert 0 < model.floor < 1 and model.noise > 0
@@ -229,10 +238,17 @@ def test_a_budget_is_split_into_passes_only_where_that_costs_little_error():
     assert planned(1.9 * fastest).seconds <= 1.9 * fastest  # for all of it
     ample = 20 * fastest
     split = planned(ample)
-    assert split.passes == 2 and split.seconds <= ample / 2  # chosen for half the budget
+    assert split.passes in (2, 4, 8, 16) and split.seconds <= ample / split.passes
     s = split.settings
-    together = model.error(2 * s.vpl_count, s.interleave, s.ism_points, s.ism_resolution)
+    together = model.error(s.vpl_count, s.interleave, s.ism_points, s.ism_resolution,
+                           split.passes)
+    assert together == split.error
     assert together <= autotune.SPLIT_COST * planned(ample, split=1).error
+    for passes in (2, 4, 8, 16):  # the plan of least error among the counts that fit
+        if passes * fastest <= ample:
+            other = planned(ample / passes, split=1).settings
+            assert together <= model.error(other.vpl_count, other.interleave, other.ism_points,
+                                           other.ism_resolution, passes)
     assert planned(ample, split=1).passes == 1
     costly = replace(WORK, fixed=0.4 * ample)  # a pass's work not chosen: 40 % of the budget
     whole = planned(ample, work=costly)

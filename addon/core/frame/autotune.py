@@ -51,6 +51,9 @@ OVERRUN = 1.1
 """Below or just above the cheapest useful frame's time, the choice is the least predicted error
 among the candidates within this factor of the fastest (the least light paths; better ISMs cost
 little)."""
+FLOOR_EXPONENT = 1 / 3
+"""The error model's floor falls as passes^(-FLOOR_EXPONENT): the clamp schedule's bias's mean
+squared error goes as passes^(-2/3) (progressive.CLAMP_EXPONENT = 1/6)."""
 SPLIT_COST = 1.1
 """A time budget is split into passes (the first measures what the cost model predicts, the
 later ones are sized from it) only while the passes' predicted error is within this factor of
@@ -96,10 +99,15 @@ class ErrorModel:
     ism: dict[str, float]  # "resolution/points" -> ISM visibility error against exact
     interleave: dict[str, float]  # K -> factor on the noise term (with its blur)
 
-    def error(self, paths: int, interleave: int, points: int, resolution: int) -> float:
-        noise = self.noise * self.interleave[str(interleave)] / math.sqrt(paths)
+    def error(self, paths: int, interleave: int, points: int, resolution: int,
+              passes: int = 1) -> float:
+        """The error of ``passes`` passes of ``paths`` light paths each: their noise as one
+        set's of all their paths, and the floor shrinking as passes^(-1/3), as the passes'
+        clamp schedule makes its bias (progressive.py)."""
+        noise = self.noise * self.interleave[str(interleave)] / math.sqrt(paths * passes)
         ism = self.ism[f"{resolution}/{points}"]
-        return math.sqrt(self.floor**2 + noise**2 + ism**2)
+        floor = self.floor * passes ** -FLOOR_EXPONENT
+        return math.sqrt(floor**2 + noise**2 + ism**2)
 
     def options(self) -> list[tuple[int, int, int]]:
         """(interleave, points, resolution) triples the model has measurements for."""
@@ -141,15 +149,16 @@ class Choice:
 
     settings: Settings
     seconds: float
-    error: float
+    error: float  # of all the passes planned
     useful: bool = True  # False: the goal needs less than the cheapest useful frame
     passes: int = 1  # passes the time budget is planned as (the choice is for one share)
 
     def describe(self) -> str:
         s = self.settings
+        plan = f" a pass, {self.passes} passes planned," if self.passes > 1 else ""
         return (f"{s.vpl_count} paths, {s.ism_points} points/VPL, {s.ism_resolution}² ISMs, "
                 f"interleave {s.interleave}, blur {s.blur_radius}: predicted "
-                f"{self.seconds:.2f} s, relative RMSE {self.error * 100:.1f} %")
+                f"{self.seconds:.2f} s{plan} relative RMSE {self.error * 100:.1f} %")
 
 
 def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
@@ -194,19 +203,26 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
     (mode 'time'), or of least predicted time within ``settings.target_error`` (mode
     'error'). Never fewer light paths than the cheapest useful frame's; when nothing meets the
     goal, the closest candidate, marked not ``useful`` when the budget is below that frame.
-    ``split``: passes the time mode would share the budget among; the choice is for one
-    share when the cheapest useful frame fits it and the passes' predicted error (their light
-    paths together) is within SPLIT_COST of one pass's over the whole budget, else for
-    ONE_PASS_SHARE of it, as ``Choice.passes`` says (``split`` 1: for all of it)."""
+    ``split``: the fewest passes the time mode would share the budget among (1: none); it
+    tries split, 2 × split, 4 × split … passes while the cheapest useful frame fits a share,
+    and the choice is for one share of the count whose passes' predicted error is least, where
+    that is within SPLIT_COST of one pass's over the whole budget, else for ONE_PASS_SHARE of
+    it, as ``Choice.passes`` says."""
     candidates = _candidates(settings, work, cost, errors)
     budget, passes = settings.time_budget, 1
     if settings.auto_parameters == "time":
         best = _least_error(candidates, ONE_PASS_SHARE * budget if split > 1 else budget)
-        if split > 1 and min(candidates)[0] <= budget / split:
-            share = _least_error(candidates, budget / split)
+        plans = []
+        count = split
+        while split > 1 and min(candidates)[0] <= budget / count:
+            share = _least_error(candidates, budget / count)
             _, _, paths, k, points, resolution, _ = share
-            if errors.error(split * paths, k, points, resolution) <= SPLIT_COST * best[1]:
-                best, budget, passes = share, budget / split, split
+            plans.append((errors.error(paths, k, points, resolution, count), count, share))
+            count *= 2
+        if plans and min(plans)[0] <= SPLIT_COST * best[1]:
+            error, passes, best = min(plans)
+            best = (best[0], error, *best[2:])  # the error of all the passes
+            budget /= passes
     else:
         fitting = [c for c in candidates if c[1] <= settings.target_error]
         best = min(fitting) if fitting else min(candidates, key=lambda c: (c[1], c[0]))

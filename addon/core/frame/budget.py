@@ -1,8 +1,11 @@
 """The automatic mode 'time' as a progressive render: passes until the time budget is spent.
 
-Pass 0 gets the parameters of least predicted error for BUDGET_SPLIT-th of the budget, or for
-all of it when the cheapest useful frame (see autotune.MIN_VIEW_VPLS) does not fit that share
-(two passes would then both be that frame, and the second would not fit). Its wall time tells
+Pass 0 gets the parameters of least predicted error for a share of the budget: a half, a
+quarter, an eighth … whichever count of passes the error model predicts least error for (more
+passes shrink the clamp's bias and, past ``ray_traced_from_pass``, trace visibility; fewer
+repeat less of the work not chosen), or all of it when the cheapest useful frame (see
+autotune.MIN_VIEW_VPLS) does not fit half (two passes would then both be that frame, and the
+second would not fit). Its wall time tells
 what the work the automatic mode does not choose (g-buffer, direct light, bias compensation,
 shadow maps, compose) really costs here, and how far the chosen work's time is from the
 model's: the cost model is measured on a small room, and its stages cost more per pixel on
