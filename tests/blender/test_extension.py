@@ -162,7 +162,8 @@ except TypeError as exc:
     result["engine_enum_error"] = str(exc)
 
 modules = {}
-for name in ("moderngl", "glcontext", "xatlas", "scipy", "pyoidn", "cffi", "pycparser"):
+for name in ("moderngl", "glcontext", "xatlas", "scipy", "pyoidn", "cffi", "pycparser",
+             "threadpoolctl"):
     try:
         module = __import__(name)
         modules[name] = module.__file__

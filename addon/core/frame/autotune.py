@@ -37,8 +37,10 @@ from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Sc
 from ..settings import Settings
 from .stages import blur_radius, pixel_interleave
 
-COST_MODEL_VERSION = 12  # 12: bias compensation by the scene's ray cost, VPL generation
-# under each of its stage names (none was fitted: the calibration's is camera-driven); 11: the
+COST_MODEL_VERSION = 13  # 13: measured with numpy's BLAS on one thread (blas_threads.py:
+# a spinning BLAS thread slowed the ray probe by up to 60 % in streaks); 12: bias
+# compensation by the scene's ray cost, VPL generation under each of its stage names (none
+# was fitted: the calibration's is camera-driven); 11: the
 # g-buffer's GPU time in its own stage (it was counted in the direct light's maps, the next
 # stage that waited for the GPU); 10: measured at 256×144 as frames gather, with a frame's atlas
 ERROR_MODEL_FILE = Path(__file__).with_name("error_model.json")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import moderngl
 
+from ..blas_threads import single_threaded_blas
 from ..gpu.blur import GeometryAwareBlur
 from ..gpu.gl import shared_context
 from ..gpu.ism import ImperfectShadowMaps
@@ -76,9 +77,10 @@ class Renderer:
         frame = FrameState(scene, settings, passes, Stats(warnings=list(scene.warnings)),
                            progress or (lambda _f, _m: None), cancelled or (lambda: False),
                            pass_index=pass_index, first_path=first_path)
-        for stage in self.stages:
-            frame.check_cancelled()  # Esc in Blender: also between the long stages
-            stage.run(frame)
+        with single_threaded_blas():  # no spinning BLAS thread takes a core from the driver
+            for stage in self.stages:
+                frame.check_cancelled()  # Esc in Blender: also between the long stages
+                stage.run(frame)
         self._last_pass = (pass_index, first_path + frame.settings.vpl_count)
         return Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats
 
