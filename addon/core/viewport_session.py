@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .frame.progressive import Accumulator, ray_traced_from
+from .frame.progressive import Accumulator, ray_traced_from, traces
 from .frame.renderer import RenderCancelled, Renderer, RenderError
 from .frame.result import Frame, Stats
 from .frame.scene_size import flattened_triangles
@@ -424,8 +424,8 @@ class ViewportSession:
         switch = ray_traced_from(independent, flattened_triangles(scene))
         for index in range(1, settings.viewport_passes):
             frame = self._frame(idle, edit, replace(scene, camera=camera),
-                                traced if switch is not None and index >= switch
-                                else independent, display, index)
+                                traced if traces(switch, index) else independent, display,
+                                index)
             if frame is None:
                 return
             full.add(frame[0])

@@ -66,6 +66,11 @@ def ray_traced_from(settings: Settings, triangles: int) -> int | None:
     return settings.ray_traced_from_pass - 1
 
 
+def traces(switch: int | None, index: int) -> bool:
+    """Whether pass ``index`` traces its VPLs' visibility, ``switch`` being ray_traced_from's."""
+    return switch is not None and index >= switch
+
+
 def pass_camera(camera: Camera, index: int, aa: int) -> Camera:
     """The camera of pass ``index``: its projection moved by a sub-sample offset in
     [-1/2, 1/2)² supersamples, the Halton point (bases 2, 3) of the index (pass 0: the camera
@@ -184,7 +189,7 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
     mapped: list[float] = []  # each pass's time, before the switch
     traced: list[float] = []  # and after it
     for index in range(planned):
-        visibility = "exact" if switch is not None and index >= switch else settings.visibility
+        visibility = "exact" if traces(switch, index) else settings.visibility
 
         def pass_progress(fraction: float, message: str, index: int = index) -> None:
             if open_ended:
@@ -208,7 +213,7 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
         like_before = next_seconds() if next_seconds is not None else None
         expected = expected_pass_seconds(
             like_before if like_before is not None else float(np.mean(mapped)), traced,
-            switch is not None and accumulator.count >= switch)
+            traces(switch, accumulator.count))
         if settings.time_limit > 0 and elapsed + expected > settings.time_limit:
             break  # another pass would end past the limit
         if settings.noise_threshold > 0 and noise is not None \
@@ -228,7 +233,7 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
                            f"{time.perf_counter() - start:.1f} s" +
                            (f", estimated noise {estimate * 100:.1f} %" if estimate is not None
                             else ""))
-    if switch is not None and accumulator.count > switch:
+    if traces(switch, accumulator.count - 1):
         total.notes.append(f"passes {switch + 1}–{accumulator.count}: VPL visibility ray traced "
                            f"({settings.ism_points} ISM points for "
                            f"{flattened_triangles(scene):,} triangles)")
