@@ -285,7 +285,7 @@ class Settings:
         "ism", "Visibility", "visibility", "How the visibility of each VPL is found",
         choices=VISIBILITY_MODES)
     ray_traced_from_pass: int = setting(
-        5, "Ray-Traced From Pass", "visibility",
+        3, "Ray-Traced From Pass", "visibility",
         "Passes of a final render from this one on trace a ray per pixel and VPL instead of "
         "reading imperfect shadow maps, in scenes with more triangles than each map has "
         "points: the maps' visibility error is the same in every pass, so passes alone do "

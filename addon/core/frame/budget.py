@@ -2,11 +2,10 @@
 
 Pass 0 gets the parameters of least predicted error for a share of the budget: a half, a
 quarter, an eighth … whichever count of passes the error model predicts least error for (more
-passes shrink the clamp's bias and, past ``ray_traced_from_pass``, trace visibility; fewer
-repeat less of the work not chosen), or all of it when the cheapest useful frame (see
-autotune.MIN_VIEW_VPLS) does not fit half (two passes would then both be that frame, and the
-second would not fit). Its wall time tells
-what the work the automatic mode does not choose (g-buffer, direct light, bias compensation,
+passes shrink the clamp's bias; fewer repeat less of the work not chosen), or all of it when
+the cheapest useful frame (see autotune.MIN_VIEW_VPLS) does not fit half (two passes would
+then both be that frame, and the second would not fit). Its wall time tells what the work
+the automatic mode does not choose (g-buffer, direct light, bias compensation,
 shadow maps, compose) really costs here, and how far the chosen work's time is from the
 model's: the cost model is measured on a small room, and its stages cost more per pixel on
 larger scenes (the interior at 640×360: 609 light paths predicted at 4.47 s took 5.7 s; its
@@ -14,10 +13,11 @@ indirect gather and blur took twice the model's time). The later passes get the 
 again with those measurements for the rest of the budget, and passes run while the next one
 fits (progressive.py's time limit). Passes are averaged weighted by their light paths (the VPL
 noise's variance goes as 1 / paths), so a smaller later pass adds to the image instead of
-diluting it. Passes from ``ray_traced_from_pass`` on trace their VPLs' visibility as in any
-final render (progressive.py), the first of them expected to take twice a mapped pass. A
-budget below the cheapest useful frame still renders that frame, with one
-warning naming the time it took.
+diluting it. The passes keep the imperfect shadow maps the cost model priced: ray-traced
+visibility (``ray_traced_from_pass`` in other final renders) costs more than twice a mapped
+pass where a pass has many VPLs (Sponza's 40 s budget, whose third pass of 6889 paths traced
+its rays, took 43.2 s), which the model does not know. A budget below the cheapest useful
+frame still renders that frame, with one warning naming the time it took.
 
 The chosen parameters depend on this machine's speed: frames of one job rendered on different
 machines differ. Render farms pin the parameters instead (auto_parameters = off)."""
@@ -88,13 +88,12 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
     notes: list[str] = []
     warnings: list[str] = []
 
-    def one_pass(scene: Scene, given: Settings, index: int, progress: ProgressCallback,
+    def one_pass(scene: Scene, _settings: Settings, index: int, progress: ProgressCallback,
                  cancelled: CancelCallback) -> tuple[Frame, Stats]:
         nonlocal later, expected
-        if index > 0 and later is not None:  # with the visibility render_passes gives it
+        if index > 0 and later is not None:
             began = time.perf_counter()
-            result = render_pass(scene, replace(later, visibility=given.visibility), index,
-                                 progress, cancelled)
+            result = render_pass(scene, later, index, progress, cancelled)
             walls.append(time.perf_counter() - began)
             paths.append(later.vpl_count)
             return result
@@ -134,7 +133,8 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         return frame, stats
 
     frame, stats = render_passes(
-        one_pass, scene, replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget),
+        one_pass, scene,  # its passes keep the maps the cost model priced
+        replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget, ray_traced_from_pass=0),
         progress, cancelled, on_pass, open_ended=True,
         next_seconds=lambda: sum(walls) / len(walls) if walls else expected,
         pass_weight=lambda index: paths[index])

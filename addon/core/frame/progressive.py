@@ -57,9 +57,9 @@ def ray_traced_from(settings: Settings, triangles: int) -> int | None:
     reading imperfect shadow maps, or None: from ``ray_traced_from_pass`` (from 1) on where
     the scene's ``triangles`` outnumber each map's points. The maps' error is the same in every
     pass, so it stays in the average: the interior's 16 passes measured 5.3 % with maps
-    throughout and 4.4 % with rays from pass 5 (docs/measurements.md, *Long renders*). Where
+    throughout and 4.3 % with rays from pass 3 (docs/measurements.md, *Long renders*). Where
     every triangle gets points the maps' error was the smaller: the Cornell box (34 triangles)
-    measured 1.5 % and 1.7 %."""
+    measured 1.5 % and 1.7 % (rays from pass 5)."""
     if settings.visibility != "ism" or settings.ray_traced_from_pass == 0 \
             or triangles <= settings.ism_points:
         return None
