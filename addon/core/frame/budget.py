@@ -36,9 +36,9 @@ from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
 
 BUDGET_SPLIT = 2
-"""Passes the budget is planned as where the cheapest useful frame fits a share: pass 0 gets
-this fraction of it (measured on the Cornell box, docs/measurements.md: 1 pass / 2 / 4 at equal
-budgets)."""
+"""The fewest passes a budget is planned as where the cheapest useful frame fits that share of
+it (autotune.choose tries twice and four times as many …, as its error model favours; measured
+on the Cornell box, docs/measurements.md: 1 pass / 2 / 4 at equal budgets)."""
 PLAN_HEADROOM = 0.9
 """Share of the rest of the budget the later passes are planned for: the rest is measured
 before the choice is made again, and a pass predicted to fill all of it would not start, since
