@@ -3,6 +3,7 @@ unclamped answer; stopped by a time limit, a noise threshold or the user."""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -233,6 +234,17 @@ def test_passes_trace_visibility_from_the_set_pass_where_the_maps_undersample_th
 
 
 def test_a_time_limit_expects_the_first_ray_traced_pass_to_take_longer() -> None:
-    assert expected_pass_seconds(2.0, [], tracing=False) == 2.0
-    assert expected_pass_seconds(2.0, [], tracing=True) == 2.0 * EXACT_PASS_COST
-    assert expected_pass_seconds(2.0, [5.0, 6.0], tracing=True) == 5.5
+    assert expected_pass_seconds([1.0, 3.0], [], tracing=False) == 2.0
+    assert expected_pass_seconds([1.0, 3.0], [], tracing=False, predicted=2.5) == 2.5
+    assert expected_pass_seconds([1.0, 3.0], [], tracing=True) == 2.0 * EXACT_PASS_COST
+    assert expected_pass_seconds([1.0, 3.0], [5.0, 6.0], tracing=True) == 5.5
+    assert expected_pass_seconds([], [5.0], tracing=True) == 5.0  # rays from the first pass
+
+
+def test_rays_from_the_first_pass_render_every_pass_traced(renderer) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no mean of an empty list of mapped passes' times
+        _, stats = renderer.render_progressive(closed_sphere(), replace(
+            ISM, passes=2, ray_traced_from_pass=1, time_limit=1e5))
+    assert "passes 1–2: VPL visibility ray traced (1024 ISM points for 1,280 triangles)" \
+        in stats.notes

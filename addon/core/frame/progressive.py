@@ -141,13 +141,16 @@ class Accumulator:
         return float(np.sqrt(np.mean((even - odd) ** 2)) * share) / mean
 
 
-def expected_pass_seconds(like_before: float, traced: list[float], tracing: bool) -> float:
-    """The expected time of the next pass: ``like_before`` (a pass like those before the
-    switch to ray-traced visibility) unless it is ``tracing``, then the mean of the ``traced``
-    passes so far, or EXACT_PASS_COST times ``like_before`` before the first."""
-    if not tracing:
-        return like_before
-    return float(np.mean(traced)) if traced else EXACT_PASS_COST * like_before
+def expected_pass_seconds(mapped: list[float], traced: list[float], tracing: bool,
+                          predicted: float | None = None) -> float:
+    """The expected time of the next pass, from the times of the passes before the switch to
+    ray-traced visibility (``mapped``) and after it (``traced``): one like those before it
+    (``predicted``, else their mean) unless it is ``tracing``, then the mean of the traced
+    passes so far, or EXACT_PASS_COST times one like those before it ahead of the first."""
+    if tracing and traced:
+        return float(np.mean(traced))
+    like_before = predicted if predicted is not None else float(np.mean(mapped))
+    return EXACT_PASS_COST * like_before if tracing else like_before
 
 
 def merge_stats(total: Stats, one: Stats) -> None:
@@ -185,7 +188,8 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
     total, accumulator = Stats(), Accumulator()
     start = time.perf_counter()
     planned = settings.passes
-    switch = ray_traced_from(settings, flattened_triangles(scene)) if planned > 1 else None
+    triangles = flattened_triangles(scene) if planned > 1 else 0  # one pass: no switch
+    switch = ray_traced_from(settings, triangles)
     mapped: list[float] = []  # each pass's time, before the switch
     traced: list[float] = []  # and after it
     for index in range(planned):
@@ -208,23 +212,20 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
         if on_pass is not None:
             on_pass(PassReport(accumulator.count, accumulator.average(), total, noise))
         elapsed = time.perf_counter() - start
-        (traced if visibility != settings.visibility else mapped).append(
+        (traced if traces(switch, index) else mapped).append(
             time.perf_counter() - began)  # with the average shown
-        like_before = next_seconds() if next_seconds is not None else None
-        expected = expected_pass_seconds(
-            like_before if like_before is not None else float(np.mean(mapped)), traced,
-            traces(switch, accumulator.count))
+        expected = expected_pass_seconds(mapped, traced, traces(switch, accumulator.count),
+                                         next_seconds() if next_seconds is not None else None)
         if settings.time_limit > 0 and elapsed + expected > settings.time_limit:
             break  # another pass would end past the limit
         if settings.noise_threshold > 0 and noise is not None \
                 and accumulator.count >= MIN_PASSES_FOR_NOISE and noise <= settings.noise_threshold:
             break
     total.counts["passes"] = accumulator.count
-    if switch is None and settings.visibility == "ism" \
+    if planned > 1 and switch is None and settings.visibility == "ism" \
             and 0 < settings.ray_traced_from_pass <= accumulator.count:
         total.skipped[f"ray-traced visibility from pass {settings.ray_traced_from_pass}"] = (
-            f"{flattened_triangles(scene):,} triangles: each ISM's {settings.ism_points} "
-            f"points hold them")
+            f"{triangles:,} triangles: each ISM's {settings.ism_points} points hold them")
     if planned > 1:
         estimate = accumulator.noise()
         of = "" if open_ended else f" of {planned}"
@@ -235,6 +236,5 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
                             else ""))
     if traces(switch, accumulator.count - 1):
         total.notes.append(f"passes {switch + 1}–{accumulator.count}: VPL visibility ray traced "
-                           f"({settings.ism_points} ISM points for "
-                           f"{flattened_triangles(scene):,} triangles)")
+                           f"({settings.ism_points} ISM points for {triangles:,} triangles)")
     return accumulator.average(), total
