@@ -5,6 +5,8 @@ from __future__ import annotations
 from threadpoolctl import threadpool_info
 
 from addon.core.blas_threads import single_threaded_blas
+from addon.core.frame import stages
+from tests.core.test_progressive import BASE, closed_sphere
 
 
 def blas_threads() -> list[int]:
@@ -20,9 +22,6 @@ def test_blas_runs_on_one_thread_inside_and_as_before_outside() -> None:
 
 
 def test_a_frame_renders_with_one_blas_thread(renderer, monkeypatch) -> None:
-    from addon.core.frame import stages
-    from tests.core.test_progressive import BASE, closed_sphere
-
     seen = []
     run = stages.CheckInput.run
 
