@@ -14,7 +14,7 @@ from addon.core.settings import Settings, SettingsError
 
 COST = autotune.CostModel("test GL", paths=2e-5, splat=2e-9, texels=1e-9, gather=4e-9,
                           blur=1e-8, pixels=2e-6, maps=3e-5, pool=5e-7, frame=0.02,
-                          compensation=3e-7, probe=0.01)
+                          compensation=3e-7, probe=0.01, traced=3e-8)
 WORK = autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
                          vpls_per_path=2.5, bounces=4)
 
@@ -26,6 +26,13 @@ def test_passes_lower_the_error_models_floor_as_the_clamp_schedule_does():
     assert model.error(1024, 4, 8192, 128, passes=8) == pytest.approx(
         np.hypot(0.04 / 2, 1.0 / np.sqrt(8 * 1024)))
     assert model.error(8192, 4, 8192, 128) == pytest.approx(np.hypot(0.04, 1.0 / np.sqrt(8192)))
+
+
+def test_passes_that_trace_their_visibility_add_none_of_the_maps_error():
+    model = autotune.ErrorModel(floor=0.0, noise=0.0, ism={"64/1024": 0.08},
+                                interleave={"4": 1.0})
+    assert model.error(1024, 4, 1024, 64, passes=4) == pytest.approx(0.08)
+    assert model.error(1024, 4, 1024, 64, passes=4, traced=3) == pytest.approx(0.02)
 
 
 def test_the_error_model_file_is_complete_and_plausible():
@@ -69,6 +76,45 @@ def test_a_frame_costs_its_bias_compensation_at_its_ray_cost_and_what_it_spent_b
     assert autotune.fixed_seconds(COST, measured) == 1.5
 
 
+def test_a_pass_that_traces_costs_its_pairs_at_the_ray_cost_instead_of_its_maps():
+    """Tracing a pass's VPL visibility costs c_traced per gathered pixel and VPL at the
+    scene's ray cost, in place of the maps (and the ISM area table, which it does not use)."""
+    work = replace(WORK, ray_cost=2.0)
+    args = (1024, 4, 8192, 128, 4)
+    vpls = 1024 * WORK.vpls_per_path
+    maps = COST.pool * WORK.triangles + vpls * (COST.splat * 8192 + COST.texels * 128**2)
+    rays = COST.traced * WORK.pixels * vpls / 4**2 * 2.0
+    assert autotune.predict_seconds(COST, work, *args, traced=True) == pytest.approx(
+        autotune.predict_seconds(COST, work, *args) - maps + rays)
+
+
+def test_passes_that_trace_are_planned_without_the_maps_error_and_priced_when_chosen_again():
+    """A budget's plan keeps its passes' count and size (pass 0's, the later ones are chosen
+    again from its measured time), credits the passes from ``ray_traced_from`` on with none of
+    the maps' error and predicts their time (its note says it); the later passes' choice with
+    a ``traced_share`` fits the budget at the share's mixed time."""
+    model = autotune.load_error_model()
+    settings = replace(Settings(), auto_parameters="time", time_budget=40.0)
+    dear = replace(COST, traced=1e-6)
+    mapped = autotune.choose(settings, WORK, dear, model, split=2)
+    traced = autotune.choose(settings, replace(WORK, ray_traced_from=2), dear, model, split=2)
+    assert mapped.traced_seconds == 0.0 and traced.passes == mapped.passes > 2
+    s = traced.settings
+    assert s == mapped.settings and traced.seconds == mapped.seconds
+    args = (s.vpl_count, s.interleave, s.ism_points, s.ism_resolution, s.blur_radius)
+    assert traced.traced_seconds == pytest.approx(
+        autotune.predict_seconds(dear, WORK, *args, traced=True))
+    assert traced.error == pytest.approx(model.error(
+        s.vpl_count, s.interleave, s.ism_points, s.ism_resolution, traced.passes,
+        traced.passes - 2))
+    assert "s ray traced)" in traced.describe() and "ray traced" not in mapped.describe()
+    later = autotune.choose(replace(settings, time_budget=4.0),
+                            replace(WORK, traced_share=0.5), dear, model)
+    alike = autotune.choose(replace(settings, time_budget=4.0), WORK, dear, model)
+    assert 0.5 * (later.seconds + later.traced_seconds) <= 4.0 < later.traced_seconds
+    assert later.settings.vpl_count < alike.settings.vpl_count
+
+
 def test_larger_budgets_give_smaller_errors_and_targets_cost_less_when_looser():
     model = autotune.load_error_model()
     base = Settings()
@@ -106,6 +152,9 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
         assert s.indirect_resolution == "pixel"  # as the base settings gather
         vpls, pixels = 2.0 * s.vpl_count, 256 * 144 * s.antialiasing**2
         gathered, k = autotune.gathered_pixels(pixels, s.interleave, s.antialiasing)
+        if s.visibility == "exact":  # no maps: each gathered pair traced
+            return {"vpls": vpls, "pixels": pixels, "gather_antialiasing": s.antialiasing,
+                    "indirect light": (COST.gather + COST.traced) * gathered * vpls / k**2}
         table = {} if built else {"ism points": COST.pool * 4800}
         built.append(1)
         allocation = 0.0 if s in allocated else 0.5 * COST.texels * vpls * s.ism_resolution**2
@@ -127,7 +176,7 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
 
     fitted = autotune.calibrate(render, "test GL", Settings(indirect_resolution="pixel"))
     for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool",
-                 "frame", "compensation", "probe"):
+                 "frame", "compensation", "probe", "traced"):
         assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
 
 

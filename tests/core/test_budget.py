@@ -15,11 +15,11 @@ from addon.core.frame.budget import split_seconds
 from addon.core.frame.image import SUPERSAMPLE_BLUR
 from addon.core.frame.result import Stats
 from addon.core.settings import Settings
-from tests.core.builders import floor_scene, light, translation
+from tests.core.builders import floor_scene, icosphere, light, translation
 from tests.core.test_planner import wall
 
 COST = autotune.CostModel("", paths=2e-5, splat=5e-7, texels=3e-7, gather=2e-7, blur=2.5e-7,
-                          pixels=8.5e-4, maps=4e-6, pool=7e-7)
+                          pixels=8.5e-4, maps=4e-6, pool=7e-7, traced=4e-7)
 """llvmpipe's coefficients on 2 cores, roughly, but per pixel 340 times too dear: a model that
 over-predicts the work it does not choose (2 s for these 48² pixels), as on the interior."""
 BASE = Settings(antialiasing=1, auto_parameters="time")
@@ -77,6 +77,34 @@ def test_a_budget_is_spent_in_passes(renderer, cached_cost):
     assert seconds <= 4.0 * 2, spent  # a pass starts only when it is expected to fit
     assert any(n.startswith("automatic parameters of passes 2+") for n in stats.notes)
     assert not stats.warnings, stats.warnings
+
+
+def test_a_budgets_passes_trace_from_the_switch_priced_as_tracing(renderer, cached_cost):
+    """In a scene with more triangles (a ball of 1280) than the maps' points, the time mode's
+    passes from ``ray_traced_from_pass`` on trace their VPLs' visibility as other final renders
+    do, and the later passes' choice prices them so (its note gives the traced pass's time)."""
+    ball = autotune.Instance(icosphere(0.5, 3), translation(0.5, 0.5, 0.5),
+                             [autotune.Material("ball", (0.8, 0.8, 0.8))])
+    busy = scene()
+    busy.instances.append(ball)
+    settings = replace(BASE, time_budget=4.0, ism_points=1024, ray_traced_from_pass=2)
+    renderer.forget_frames()  # the same render first: shaders compiled
+    renderer.render_progressive(busy, settings)
+    renderer.forget_frames()
+    _, stats = renderer.render_progressive(busy, settings)
+    passes = stats.counts["passes"]
+    assert passes >= 2, stats.notes
+    assert f"passes 2–{passes}: VPL visibility ray traced (1024 ISM points for 1,284 " \
+        "triangles)" in stats.notes
+    later, = (n for n in stats.notes if n.startswith("automatic parameters of passes 2+"))
+    assert " s ray traced)" in later
+    assert not stats.warnings, stats.warnings
+    # where tracing would cost more than EXACT_PASS_COST times the maps, the passes keep them
+    renderer.cost_cache.write_text(json.dumps(asdict(replace(cached_cost, traced=1e-3))))
+    renderer.forget_frames()
+    _, stats = renderer.render_progressive(busy, settings)
+    assert "over 2× its" in stats.skipped["ray-traced visibility from pass 2"]
+    assert not any("ray traced" in n for n in stats.notes), stats.notes
 
 
 def test_a_budget_below_the_cheapest_useful_frame_renders_that_and_says_so(renderer,

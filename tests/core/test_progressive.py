@@ -16,9 +16,10 @@ from addon.core.frame.progressive import (
     pass_camera,
     pass_settings,
     ray_traced_from,
+    render_passes,
 )
 from addon.core.frame.renderer import RenderCancelled
-from addon.core.frame.result import Frame
+from addon.core.frame.result import Frame, Stats
 from addon.core.scene.model import Instance, Material, Scene, World
 from addon.core.settings import Settings, SettingsError
 from tests.core.builders import inside_sphere_camera, quad, top_down_camera, translation
@@ -238,6 +239,9 @@ def test_a_time_limit_expects_the_first_ray_traced_pass_to_take_longer() -> None
     assert expected_pass_seconds([1.0, 3.0], [], tracing=False, predicted=2.5) == 2.5
     assert expected_pass_seconds([1.0, 3.0], [], tracing=True) == 2.0 * EXACT_PASS_COST
     assert expected_pass_seconds([1.0, 3.0], [5.0, 6.0], tracing=True) == 5.5
+    # a prediction of the first traced pass (the time mode's) replaces the rule of thumb
+    assert expected_pass_seconds([1.0, 3.0], [], tracing=True, predicted=7.0) == 7.0
+    assert expected_pass_seconds([1.0, 3.0], [5.0, 6.0], tracing=True, predicted=7.0) == 5.5
     assert expected_pass_seconds([], [5.0], tracing=True) == 5.0  # rays from the first pass
 
 
@@ -248,3 +252,23 @@ def test_rays_from_the_first_pass_render_every_pass_traced(renderer) -> None:
             ISM, passes=2, ray_traced_from_pass=1, time_limit=1e5))
     assert "passes 1–2: VPL visibility ray traced (1024 ISM points for 1,280 triangles)" \
         in stats.notes
+
+
+def test_passes_keep_the_maps_where_asked_before_the_first_traced_one() -> None:
+    """``maps_kept`` (the time mode's: a traced pass would cost too much) turns the switch off
+    before its pass, with its reason among the skipped stages and no note of rays."""
+    seen: list[str] = []
+
+    def one_pass(_scene, settings, _index, _progress, _cancelled):
+        seen.append(settings.visibility)
+        return Frame(2, 2, {"Combined": np.ones((2, 2, 4), np.float32)}), Stats()
+
+    settings = replace(ISM, passes=4, ray_traced_from_pass=3)
+    _, stats = render_passes(one_pass, closed_sphere(), settings)
+    assert seen == ["ism", "ism", "exact", "exact"]
+    seen.clear()
+    _, stats = render_passes(one_pass, closed_sphere(), settings,
+                             maps_kept=lambda: "too dear" if seen else None)
+    assert seen == ["ism"] * 4
+    assert stats.skipped["ray-traced visibility from pass 3"] == "too dear"
+    assert not any("ray traced" in note for note in stats.notes)

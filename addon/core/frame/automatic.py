@@ -17,6 +17,7 @@ from ..transport.vpl import generate_vpls
 from . import autotune
 from .gpu_session import GpuSession
 from .planner import reaches_bounds
+from .progressive import ray_traced_from
 from .ray_probe import ray_probe_seconds
 from .result import Frame, Stats
 from .reuse import KeptProducts
@@ -76,10 +77,11 @@ class ChooseParameters(Stage):
             self._error = (key, autotune.load_error_model())
         return self._error[1]
 
-    def rechoose(self, fixed: float, chosen: float, budget: float) -> autotune.Choice | None:
-        """The last frame's choice made again for ``budget`` seconds, from its measured
+    def rechoose(self, fixed: float, chosen: float, budget: float, traced_share: float = 0.0
+                 ) -> autotune.Choice | None:
+        """The last frame's choice made again for ``budget`` seconds a pass, from its measured
         seconds: ``fixed`` of the work it does not choose, ``chosen`` of the work it does (None:
-        no frame chose yet)."""
+        no frame chose yet); ``traced_share`` of the passes trace their VPLs' visibility."""
         if self.last is None:
             return None
         settings, work, last = self.last
@@ -89,7 +91,8 @@ class ChooseParameters(Stage):
                                            s.ism_resolution, s.blur_radius)
         scale = min(max(chosen / modelled, 0.25), 8.0) if modelled > 0 and chosen > 0 else 1.0
         work = replace(work, fixed=fixed, scale=scale, spent=0.0,
-                       area_table=self._ism_area_table(work.triangles))
+                       area_table=self._ism_area_table(work.triangles), ray_traced_from=None,
+                       traced_share=traced_share)
         return autotune.choose(replace(settings, time_budget=budget), work, cost,
                                self.error_model())
 
@@ -106,17 +109,21 @@ class ChooseParameters(Stage):
             except GLUnavailableError:
                 tracer = None
             rays = near_field_rays(settings)
+            triangles = frame.geometry.vertex_count // 3
+            switch = ray_traced_from(settings, triangles) if self.split > 1 else None
             work = autotune.Workload(
                 pixels=camera.width * camera.height * settings.antialiasing**2,
-                triangles=frame.geometry.vertex_count // 3,
+                triangles=triangles,
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
                 **self._vpls_per_path(frame, tracer),
                 bounces=settings.bounces,
                 gather_antialiasing=self._gather_antialiasing(settings,
                                                               frame.geometry.has_specular),
-                area_table=self._ism_area_table(frame.geometry.vertex_count // 3),
+                area_table=self._ism_area_table(triangles),
                 compensation_rays=rays,
-                ray_cost=self._ray_cost(frame, tracer, cost) if rays else 1.0)
+                ray_cost=(self._ray_cost(frame, tracer, cost) if rays or switch is not None
+                          else 1.0),
+                ray_traced_from=switch)
         work = replace(work, spent=time.perf_counter() - frame.started)
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)

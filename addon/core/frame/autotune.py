@@ -8,6 +8,9 @@ Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interl
     ISMs            c_splat · V · points + c_texels · V · resolution²
     ISM area table  c_pool · triangles, when the table of triangle areas must be built
     indirect light  c_gather · P · V / K²  (P and K of the pixels the VPLs are gathered at)
+                    + c_traced · P · V / K² · ray cost, instead of the ISMs, in a pass that
+                    traces its VPLs' visibility (a time budget's passes from
+                    ``ray_traced_from_pass`` on, progressive.py)
     blur            c_blur · P · radius (K > 1)
     the rest        c_frame + c_pixels · P + c_maps · shadow-map tiles  (not chosen here:
                     PIXEL_STAGES, the direct light's shadow maps)
@@ -18,6 +21,7 @@ Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interl
     plus what the pass spent before the choice (``Workload.spent``)
 Error (relative RMSE against a converged image):
     sqrt(floor² + noise² / paths + ism(points, resolution)²)
+(over K passes, of which T trace: noise² / (K · paths), floor · K^(-1/3), ism · (K - T) / K)
 No choice has fewer light paths than the cheapest useful one: MIN_VIEW_VPLS VPLs lighting
 the view (fewer leave the image dark and blotchy whatever the budget).
 """
@@ -29,7 +33,9 @@ import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from itertools import product
+from operator import attrgetter
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,7 +43,8 @@ from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Sc
 from ..settings import Settings
 from .stages import blur_radius, pixel_interleave
 
-COST_MODEL_VERSION = 13  # 13: measured with numpy's BLAS on one thread (blas_threads.py:
+COST_MODEL_VERSION = 14  # 14: the cost of ray-traced VPL visibility (c_traced); 13:
+# measured with numpy's BLAS on one thread (blas_threads.py:
 # a spinning BLAS thread slowed the ray probe by up to 60 % in streaks); 12: bias
 # compensation by the scene's ray cost, VPL generation under each of its stage names (none
 # was fitted: the calibration's is camera-driven); 11: the
@@ -89,6 +96,8 @@ class CostModel:
     frame: float = 0.0  # per frame: PIXEL_STAGES' cost whatever the pixels (draws, passes)
     compensation: float = 0.0  # per bias compensation ray (one per supersample by default)
     probe: float = 0.0  # seconds of the ray probe in the calibration room
+    traced: float = 0.0  # per pixel and VPL gathered, of tracing their visibility (at the
+    # calibration room's ray cost)
     version: int = COST_MODEL_VERSION
 
 
@@ -102,12 +111,13 @@ class ErrorModel:
     interleave: dict[str, float]  # K -> factor on the noise term (with its blur)
 
     def error(self, paths: int, interleave: int, points: int, resolution: int,
-              passes: int = 1) -> float:
+              passes: int = 1, traced: int = 0) -> float:
         """The error of ``passes`` passes of ``paths`` light paths each: their noise as one
         set's of all their paths, and the floor shrinking as passes^(-1/3), as the passes'
-        clamp schedule makes its bias (progressive.py)."""
+        clamp schedule makes its bias (progressive.py); ``traced`` of them trace their VPLs'
+        visibility and add none of the maps' error."""
         noise = self.noise * self.interleave[str(interleave)] / math.sqrt(paths * passes)
-        ism = self.ism[f"{resolution}/{points}"]
+        ism = self.ism[f"{resolution}/{points}"] * (passes - traced) / passes
         floor = self.floor * passes ** -FLOOR_EXPONENT
         return math.sqrt(floor**2 + noise**2 + ism**2)
 
@@ -138,6 +148,9 @@ class Workload:
     compensation_rays: int = 0  # per supersample, of bias compensation from the image
     ray_cost: float = 1.0  # the scene's ray probe / the calibration room's (cost.probe)
     spent: float = 0.0  # seconds the frame spent before the choice (counted in its time)
+    ray_traced_from: int | None = None  # the first of a time budget's passes (from 0) that
+    # traces its VPLs' visibility (progressive.ray_traced_from), None: none does
+    traced_share: float = 0.0  # share of the passes chosen for that trace (the later passes)
 
     def least_paths(self) -> int:
         """Light paths of the cheapest useful frame: the fewest of PATHS that leave
@@ -154,21 +167,26 @@ class Choice:
     error: float  # of all the passes planned
     useful: bool = True  # False: the goal needs less than the cheapest useful frame
     passes: int = 1  # passes the time budget is planned as (the choice is for one share)
+    traced_seconds: float = 0.0  # predicted for a pass that traces its VPLs' visibility,
+    # where some of the passes chosen for do (0: none)
 
     def describe(self) -> str:
         s = self.settings
-        plan = f" a pass, {self.passes} passes planned," if self.passes > 1 else ""
+        traced = f" ({self.traced_seconds:.2f} s ray traced)" if self.traced_seconds else ""
+        plan = (f" a pass{traced}, {self.passes} passes planned," if self.passes > 1
+                else f" a pass{traced}," if traced else "")
         return (f"{s.vpl_count} paths, {s.ism_points} points/VPL, {s.ism_resolution}² ISMs, "
                 f"interleave {s.interleave}, blur {s.blur_radius}: predicted "
                 f"{self.seconds:.2f} s{plan} relative RMSE {self.error * 100:.1f} %")
 
 
 def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
-                    resolution: int, blur_radius: int) -> float:
-    """Predicted wall time of one frame with these parameters."""
-    pool = 0.0 if work.area_table else cost.pool * work.triangles
+                    resolution: int, blur_radius: int, traced: bool = False) -> float:
+    """Predicted wall time of one frame with these parameters (``traced``: tracing its VPLs'
+    visibility instead of rendering their ISMs)."""
+    pool = 0.0 if work.area_table or traced else cost.pool * work.triangles
     return (work.scale * (pool + chosen_seconds(cost, work, paths, interleave, points,
-                                                resolution, blur_radius))
+                                                resolution, blur_radius, traced))
             + fixed_seconds(cost, work) + work.spent)
 
 
@@ -181,13 +199,14 @@ def fixed_seconds(cost: CostModel, work: Workload) -> float:
 
 
 def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
-                   resolution: int, blur_radius: int) -> float:
+                   resolution: int, blur_radius: int, traced: bool = False) -> float:
     """Predicted seconds of the stages these parameters set (not the ISM area table)."""
     vpls = paths * (work.gathered_per_path or work.vpls_per_path)
     pixels, k = gathered_pixels(work.pixels, interleave, work.gather_antialiasing)
-    return (cost.paths * paths * max(1, work.bounces)
-            + cost.splat * vpls * points + cost.texels * vpls * resolution**2
-            + cost.gather * pixels * vpls / k**2
+    pairs = pixels * vpls / k**2
+    visibility = (cost.traced * pairs * work.ray_cost if traced
+                  else cost.splat * vpls * points + cost.texels * vpls * resolution**2)
+    return (cost.paths * paths * max(1, work.bounces) + visibility + cost.gather * pairs
             + (cost.blur * pixels * blur_radius if k > 1 else 0.0))
 
 
@@ -197,6 +216,25 @@ def gathered_pixels(supersamples: float, interleave: int, antialiasing: int
     supersample with ``interleave``, or once per pixel (``antialiasing`` > 1: indirect light
     per pixel) with stages.pixel_interleave."""
     return supersamples / antialiasing**2, pixel_interleave(interleave, antialiasing)
+
+
+class Candidate(NamedTuple):
+    """One choice of parameters with what the models predict for it."""
+
+    seconds: float  # of a pass with imperfect shadow maps
+    error: float  # of one pass
+    paths: int
+    interleave: int
+    points: int
+    resolution: int
+    blur: int
+    traced: float  # seconds of a pass that traces its VPLs' visibility instead
+
+
+def traced_passes(passes: int, switch: int | None) -> int:
+    """Of ``passes`` passes, those that trace their VPLs' visibility: from pass ``switch``
+    (from 0) on, None: none."""
+    return 0 if switch is None else max(0, passes - switch)
 
 
 def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel,
@@ -209,53 +247,68 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
     tries split, 2 × split, 4 × split … passes while the cheapest useful frame fits a share,
     and the choice is for one share of the count whose passes' predicted error is least, where
     that is within SPLIT_COST of one pass's over the whole budget, else for ONE_PASS_SHARE of
-    it, as ``Choice.passes`` says."""
+    it, as ``Choice.passes`` says. A plan's passes are priced as pass 0 (the later ones are
+    chosen again from its measured time, see budget.py); those from ``work.ray_traced_from`` on
+    add none of the maps' error. With ``work.traced_share`` that share of the passes is priced
+    as tracing their VPLs' visibility (the later passes' choice)."""
     candidates = _candidates(settings, work, cost, errors)
-    budget, passes = settings.time_budget, 1
+    share = work.traced_share
+
+    def mixed(c: Candidate) -> float:
+        return (1.0 - share) * c.seconds + share * c.traced
+
+    budget, passes, tracing = settings.time_budget, 1, 0
     if settings.auto_parameters == "time":
-        best = _least_error(candidates, ONE_PASS_SHARE * budget if split > 1 else budget)
+        best = _least_error(candidates, ONE_PASS_SHARE * budget if split > 1 else budget, mixed)
+        priced = mixed(best)
         plans = []
         count = split
-        while split > 1 and min(candidates)[0] <= budget / count:
-            share = _least_error(candidates, budget / count)
-            _, _, paths, k, points, resolution, _ = share
-            plans.append((errors.error(paths, k, points, resolution, count), count, share))
+        while split > 1 and min(candidates).seconds <= budget / count:
+            one = _least_error(candidates, budget / count)
+            plans.append((errors.error(one.paths, one.interleave, one.points, one.resolution,
+                                       count, traced_passes(count, work.ray_traced_from)),
+                          count, one))
             count *= 2
-        if plans and min(plans)[0] <= SPLIT_COST * best[1]:
+        if plans and min(plans)[0] <= SPLIT_COST * best.error:
             error, passes, best = min(plans)
-            best = (best[0], error, *best[2:])  # the error of all the passes
+            best = best._replace(error=error)  # the error of all the passes
             budget /= passes
+            priced = best.seconds
+            tracing = traced_passes(passes, work.ray_traced_from)
     else:
-        fitting = [c for c in candidates if c[1] <= settings.target_error]
-        best = min(fitting) if fitting else min(candidates, key=lambda c: (c[1], c[0]))
-    seconds, error, paths, k, points, resolution, blur = best
-    chosen = replace(settings, vpl_count=paths, interleave=k, ism_points=points,
-                     ism_resolution=resolution, blur_radius=max(1, blur or settings.blur_radius),
-                     visibility="ism")
-    return Choice(chosen, seconds, error,
-                  useful=settings.auto_parameters != "time" or seconds <= budget, passes=passes)
+        fitting = [c for c in candidates if c.error <= settings.target_error]
+        best = min(fitting) if fitting else min(candidates, key=lambda c: (c.error, c.seconds))
+        priced = best.seconds
+    chosen = replace(settings, vpl_count=best.paths, interleave=best.interleave,
+                     ism_points=best.points, ism_resolution=best.resolution,
+                     blur_radius=max(1, best.blur or settings.blur_radius), visibility="ism")
+    return Choice(chosen, best.seconds, best.error,
+                  useful=settings.auto_parameters != "time" or priced <= budget, passes=passes,
+                  traced_seconds=best.traced if share > 0 or tracing else 0.0)
 
 
-def _least_error(candidates: list[tuple], budget: float) -> tuple:
-    """The candidate of least predicted error within ``budget`` seconds, or within OVERRUN of
-    the cheapest useful frame's where that is more (so that a budget just above that frame
-    does not get a worse choice than one just below it)."""
-    limit = max(budget, OVERRUN * min(candidates)[0])
-    return min((c for c in candidates if c[0] <= limit), key=lambda c: (c[1], c[0]))
+def _least_error(candidates: list[Candidate], budget: float,
+                 seconds: Callable[[Candidate], float] = attrgetter("seconds")) -> Candidate:
+    """The candidate of least predicted error within ``budget`` seconds (by ``seconds``), or
+    within OVERRUN of the cheapest useful frame's where that is more (so that a budget just
+    above that frame does not get a worse choice than one just below it)."""
+    limit = max(budget, OVERRUN * min(map(seconds, candidates)))
+    return min((c for c in candidates if seconds(c) <= limit),
+               key=lambda c: (c.error, seconds(c)))
 
 
 def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel
-                ) -> list[tuple[float, float, int, int, int, int, int]]:
-    """(seconds, error, paths, interleave, points, resolution, blur) of every choice with at
-    least the cheapest useful frame's light paths."""
+                ) -> list[Candidate]:
+    """Every choice with at least the cheapest useful frame's light paths."""
     candidates = []
     least = work.least_paths()
     for paths, (k, points, resolution) in product([p for p in PATHS if p >= least],
                                                   errors.options()):
         blur = blur_radius(k, settings.blur_radius)
         seconds = predict_seconds(cost, work, paths, k, points, resolution, blur)
+        traced = predict_seconds(cost, work, paths, k, points, resolution, blur, traced=True)
         error = errors.error(paths, k, points, resolution)
-        candidates.append((seconds, error, paths, k, points, resolution, blur))
+        candidates.append(Candidate(seconds, error, paths, k, points, resolution, blur, traced))
     return candidates
 
 
@@ -282,6 +335,9 @@ CALIBRATION = (  # (paths, interleave, points, resolution, antialiasing): spread
     (64, 1, 1024, 64, 1), (256, 4, 4096, 128, 2), (128, 2, 1024, 256, 1), (512, 8, 2048, 64, 2),
     (1024, 8, 1024, 128, 3),
 )
+TRACED_CALIBRATION = (256, 4, 1024, 64, 1)
+"""The calibration frame that traces its VPLs' visibility (the gather's cost per traced pair
+beyond the mapped gather's)."""
 
 
 def _through_origin(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -298,12 +354,19 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     twice (the first compiles shaders and builds tables), and fit each stage's coefficients to
     the second render's seconds, with the first's ISM atlas allocation; the ray probe's
     reference is the least of its measurements. The VPLs are gathered
-    where ``base`` gathers them (indirect light per pixel or per supersample)."""
+    where ``base`` gathers them (indirect light per pixel or per supersample). Last, the
+    TRACED_CALIBRATION frame traces its VPLs' visibility: what its gather takes beyond the
+    mapped gather's cost is the cost of tracing."""
     rows, probes = [], []
-    for paths, k, points, resolution, aa in CALIBRATION:
-        settings = replace(base, vpl_count=paths, interleave=k, ism_points=points,
-                           ism_resolution=resolution, antialiasing=aa, visibility="ism",
-                           auto_parameters="off")
+
+    def settings_of(paths: int, k: int, points: int, resolution: int, aa: int,
+                    visibility: str = "ism") -> Settings:
+        return replace(base, vpl_count=paths, interleave=k, ism_points=points,
+                       ism_resolution=resolution, antialiasing=aa, visibility=visibility,
+                       auto_parameters="off")
+
+    for row in CALIBRATION:
+        settings = settings_of(*row)
         first = render(settings)  # builds the ISM area table (if new), compiles shaders
         again = render(settings)
         probes += [m["ray probe"] for m in (first, again) if "ray probe" in m]
@@ -349,9 +412,16 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     built = [m for _, m in rows if m["ism points"] is not None]  # the table is built once
     pool = (sum(m["ism points"] for m in built) / sum(m["triangles"] for m in built)
             if built else 0.0)
+    traced_settings = settings_of(*TRACED_CALIBRATION, visibility="exact")
+    render(traced_settings)  # compiles the tracing gather
+    traced_row = render(traced_settings)
+    at, edge = gathered_pixels(traced_row["pixels"], traced_settings.interleave,
+                               traced_row["gather_antialiasing"])
+    pairs = at * traced_row["vpls"] / edge**2
+    traced = max(0.0, traced_row.get("indirect light", 0.0) / pairs - gather) if pairs else 0.0
     return CostModel(renderer_name, float(paths), float(splat), float(texels), float(gather),
                      float(blur), float(pixel), float(maps), float(pool), float(frame),
-                     float(compensation), probe)
+                     float(compensation), probe, float(traced))
 
 
 def cached_cost_model(cache: Path | None, renderer_name: str,

@@ -13,11 +13,15 @@ indirect gather and blur took twice the model's time). The later passes get the 
 again with those measurements for the rest of the budget, and passes run while the next one
 fits (progressive.py's time limit). Passes are averaged weighted by their light paths (the VPL
 noise's variance goes as 1 / paths), so a smaller later pass adds to the image instead of
-diluting it. The passes keep the imperfect shadow maps the cost model priced: ray-traced
-visibility (``ray_traced_from_pass`` in other final renders) costs more than twice a mapped
-pass where a pass has many VPLs (Sponza's 40 s budget, whose third pass of 6889 paths traced
-its rays, took 43.2 s), which the model does not know. A budget below the cheapest useful
-frame still renders that frame, with one warning naming the time it took.
+diluting it. From ``ray_traced_from_pass`` on (the second pass at the earliest: the first
+measures the model) passes trace their VPLs' visibility where other final renders do
+(progressive.ray_traced_from), priced by the cost model's cost of a traced pair at the scene's
+ray cost, unless the later passes' choice would trace in more than EXACT_PASS_COST times its
+time with the maps (the cost other final renders' switch was measured at): the error model
+does not know what tracing gains, and Sponza's 40 s budget, whose later passes would have
+traced at 2.8 times their mapped time, measured 18.4 % with them against 17.2 % without. A
+budget below the cheapest useful frame still renders that frame, with one warning naming the
+time it took.
 
 The chosen parameters depend on this machine's speed: frames of one job rendered on different
 machines differ. Render farms pin the parameters instead (auto_parameters = off)."""
@@ -31,7 +35,8 @@ from dataclasses import replace
 from ..scene.model import Scene
 from ..settings import Settings
 from .automatic import ChooseParameters
-from .progressive import PassReport, RenderPass, render_passes
+from .autotune import traced_passes
+from .progressive import EXACT_PASS_COST, PassReport, RenderPass, render_passes
 from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
 
@@ -78,23 +83,30 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
                   on_pass: Callable[[PassReport], None] | None = None) -> tuple[Frame, Stats]:
     """Render passes within ``settings.time_budget`` seconds (see the module docstring)."""
     budget = settings.time_budget
+    if settings.ray_traced_from_pass:  # the first pass measures the (mapped) model
+        settings = replace(settings, ray_traced_from_pass=max(2, settings.ray_traced_from_pass))
     calibration = Stats()
     chooser.cost_model(calibration, progress or (lambda _f, _m: None))  # not in the budget
     start = time.perf_counter()
     later: Settings | None = None
     expected: float | None = None  # seconds of the first later pass (predicted)
-    walls: list[float] = []  # of the later passes
+    expected_traced: float | None = None  # of the first later pass that traces (predicted)
+    walls: list[float] = []  # of the later passes that read maps
+    maps_kept: str | None = None  # why the later passes keep the maps after all
     paths: list[int] = []  # light paths of each pass: its weight (noise variance ∝ 1 / paths)
     notes: list[str] = []
     warnings: list[str] = []
 
-    def one_pass(scene: Scene, _settings: Settings, index: int, progress: ProgressCallback,
-                 cancelled: CancelCallback) -> tuple[Frame, Stats]:
-        nonlocal later, expected
+    def one_pass(scene: Scene, pass_settings: Settings, index: int,
+                 progress: ProgressCallback, cancelled: CancelCallback) -> tuple[Frame, Stats]:
+        nonlocal later, expected, expected_traced, maps_kept
         if index > 0 and later is not None:
             began = time.perf_counter()
-            result = render_pass(scene, later, index, progress, cancelled)
-            walls.append(time.perf_counter() - began)
+            tracing = pass_settings.visibility == "exact"
+            result = render_pass(scene, replace(later, visibility=pass_settings.visibility),
+                                 index, progress, cancelled)
+            if not tracing:
+                walls.append(time.perf_counter() - began)
             paths.append(later.vpl_count)
             return result
         began = time.perf_counter()
@@ -112,12 +124,21 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         paths.append(chosen.settings.vpl_count)
         fixed, variable = split_seconds(wall, stats)
         rest = max(budget - (time.perf_counter() - start), 0.0)
-        again = chooser.rechoose(fixed, variable,
-                                 PLAN_HEADROOM * rest / max(1, chosen.passes - 1))
+        others = max(1, chosen.passes - 1)  # the later passes planned (one where none was)
+        tracing = traced_passes(1 + others, chooser.last[1].ray_traced_from)
+        again = chooser.rechoose(fixed, variable, PLAN_HEADROOM * rest / others,
+                                 tracing / others)
+        if tracing and again is not None \
+                and again.traced_seconds > EXACT_PASS_COST * again.seconds:
+            maps_kept = (f"a pass of {again.settings.vpl_count} light paths would trace its "
+                         f"VPLs' visibility in {again.traced_seconds:.1f} s, over "
+                         f"{EXACT_PASS_COST:g}× its {again.seconds:.1f} s with the maps")
+            again = chooser.rechoose(fixed, variable, PLAN_HEADROOM * rest / others)
         later = replace(again.settings if again is not None else chosen.settings,
                         auto_parameters="off", time_budget=budget)
         if again is not None:
             expected = again.seconds
+            expected_traced = again.traced_seconds or None
             notes.append(f"automatic parameters of passes 2+: {again.describe()} (measured "
                          f"{fixed:.2f} s per pass of work not chosen)")
         repeated = wall - once_seconds(stats)
@@ -132,12 +153,15 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
                             f"passes after the first are sized from its measured time)")
         return frame, stats
 
+    def next_seconds(tracing: bool) -> float | None:
+        if tracing:
+            return expected_traced
+        return sum(walls) / len(walls) if walls else expected
+
     frame, stats = render_passes(
-        one_pass, scene,  # its passes keep the maps the cost model priced
-        replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget, ray_traced_from_pass=0),
-        progress, cancelled, on_pass, open_ended=True,
-        next_seconds=lambda: sum(walls) / len(walls) if walls else expected,
-        pass_weight=lambda index: paths[index])
+        one_pass, scene, replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget),
+        progress, cancelled, on_pass, open_ended=True, next_seconds=next_seconds,
+        pass_weight=lambda index: paths[index], maps_kept=lambda: maps_kept)
     stats.timings.update(calibration.timings)
     stats.notes.extend(notes)
     stats.warnings.extend(warnings)

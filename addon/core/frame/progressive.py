@@ -144,12 +144,15 @@ class Accumulator:
 def expected_pass_seconds(mapped: list[float], traced: list[float], tracing: bool,
                           predicted: float | None = None) -> float:
     """The expected time of the next pass, from the times of the passes before the switch to
-    ray-traced visibility (``mapped``) and after it (``traced``): one like those before it
-    (``predicted``, else their mean) unless it is ``tracing``, then the mean of the traced
-    passes so far, or EXACT_PASS_COST times one like those before it ahead of the first."""
+    ray-traced visibility (``mapped``) and after it (``traced``): the mean of the traced
+    passes so far where it is ``tracing`` and one has, else ``predicted`` (the expected time
+    of a pass like it), else the mean of the mapped passes, times EXACT_PASS_COST where it
+    is ``tracing``."""
     if tracing and traced:
         return float(np.mean(traced))
-    like_before = predicted if predicted is not None else float(np.mean(mapped))
+    if predicted is not None:
+        return predicted
+    like_before = float(np.mean(mapped))
     return EXACT_PASS_COST * like_before if tracing else like_before
 
 
@@ -173,16 +176,19 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
                   cancelled: CancelCallback | None = None,
                   on_pass: Callable[[PassReport], None] | None = None,
                   open_ended: bool = False,
-                  next_seconds: Callable[[], float | None] | None = None,
-                  pass_weight: Callable[[int], float] | None = None
+                  next_seconds: Callable[[bool], float | None] | None = None,
+                  pass_weight: Callable[[int], float] | None = None,
+                  maps_kept: Callable[[], str | None] | None = None
                   ) -> tuple[Frame, Stats]:
     """Render ``settings.passes`` passes (fewer when the time limit or the noise threshold is
     reached first) and return their average; ``on_pass`` sees the average after each pass.
     ``open_ended``: the time limit, not the pass count, ends the render (progress is time);
-    ``next_seconds``: the expected time of the next pass before ray-traced ones (None or
-    absent: the mean so far); ``pass_weight``: each pass's weight in the average, by its
-    index, after it rendered (absent: all alike). Passes from ``ray_traced_from`` on trace
-    their VPLs' visibility. Cancelling raises RenderCancelled from inside the current pass."""
+    ``next_seconds``: the expected time of the next pass, given whether it traces (None or
+    absent: from the passes so far, see expected_pass_seconds); ``pass_weight``: each
+    pass's weight in the average, by its index, after it rendered (absent: all alike).
+    Passes from ``ray_traced_from`` on trace their VPLs' visibility, unless ``maps_kept``,
+    asked after each pass before them, gives a reason they keep the maps. Cancelling raises
+    RenderCancelled from inside the current pass."""
     report = progress or (lambda _f, _m: None)
     check = cancelled or (lambda: False)
     total, accumulator = Stats(), Accumulator()
@@ -214,15 +220,20 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
         elapsed = time.perf_counter() - start
         (traced if traces(switch, index) else mapped).append(
             time.perf_counter() - began)  # with the average shown
-        expected = expected_pass_seconds(mapped, traced, traces(switch, accumulator.count),
-                                         next_seconds() if next_seconds is not None else None)
+        if switch is not None and not traces(switch, index) and maps_kept is not None \
+                and (reason := maps_kept()):
+            total.skipped[f"ray-traced visibility from pass {switch + 1}"] = reason
+            switch = None
+        tracing = traces(switch, accumulator.count)
+        expected = expected_pass_seconds(
+            mapped, traced, tracing, next_seconds(tracing) if next_seconds is not None else None)
         if settings.time_limit > 0 and elapsed + expected > settings.time_limit:
             break  # another pass would end past the limit
         if settings.noise_threshold > 0 and noise is not None \
                 and accumulator.count >= MIN_PASSES_FOR_NOISE and noise <= settings.noise_threshold:
             break
     total.counts["passes"] = accumulator.count
-    if planned > 1 and switch is None and settings.visibility == "ism" \
+    if planned > 1 and settings.visibility == "ism" and triangles <= settings.ism_points \
             and 0 < settings.ray_traced_from_pass <= accumulator.count:
         total.skipped[f"ray-traced visibility from pass {settings.ray_traced_from_pass}"] = (
             f"{triangles:,} triangles: each ISM's {settings.ism_points} points hold them")
