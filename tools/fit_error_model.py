@@ -10,13 +10,26 @@
   visibility, the same VPLs (256 light paths, one bounce, no interleaving), for each
   resolution/points pair; stored as the error beyond the default pair's, averaged over the
   scenes in squares.
+- Maps' term (``maps``, ``--maps``): in scenes with more triangles than an ISM has points, the
+  maps' visibility error that passes do not remove. From pairs of long-render reports of one
+  scene, K passes with the maps throughout (``--set ray_traced_from_pass=0``) and with rays
+  from pass s: their RMSE² differ by maps² (1 - ((s - 1) / K)²); averaged over the pairs in
+  squares. Alone (no positional reports) it updates that term of the stored model only.
 
     .venv/bin/python tools/fit_error_model.py renders/fit_cornell_box/report.json \
         renders/fit_interior/report.json renders/fit_sponza/report.json
 
 on reports made with ``--set bounces=4 --cycles-samples none --oidn-samples none --vpl-ladder
 vpl_count=256,512,1024,2048,4096 --vpl-ladder interleave=1,4 --out renders/fit_SCENE`` (the
-Cornell box with ``--reference-samples 256``, the interior 128, Sponza's OBJ 64).
+Cornell box with ``--reference-samples 256``, the interior 128, Sponza's OBJ 64), and
+
+    .venv/bin/python tools/fit_error_model.py --maps \
+        renders/fit_maps_interior_rays0/report.json renders/fit_maps_interior_rays3/report.json \
+        renders/fit_maps_sponza_rays0/report.json renders/fit_maps_sponza_rays3/report.json
+
+on reports made with ``--set bounces=4 --cycles-samples none --oidn-samples none --set
+ray_traced_from_pass=R --vpl-ladder passes=K -o renders/fit_maps_SCENE_raysR`` (R = 0 and 3; the
+interior with ``--reference-samples 128`` and K = 16, Sponza's OBJ 64 and 8).
 """
 
 from __future__ import annotations
@@ -99,12 +112,56 @@ def ism_errors(size: int) -> dict[str, float]:
             for (r, p), v in squares.items()}
 
 
+def longest_render(report: dict) -> tuple[int, int, float]:
+    """(passes, ray_traced_from_pass, relative RMSE) of the report's VPL GI render of most
+    passes."""
+    entries = [e for e in report["renders"] if "metrics" in e and "settings" in e]
+    entry = max(entries, key=lambda e: int(e["settings"]["passes"]))
+    s = entry["settings"]
+    return (int(s["passes"]), int(s["ray_traced_from_pass"]),
+            float(entry["metrics"]["relative_rmse_unbiased"]))
+
+
+def fit_maps(pairs: list[tuple[dict, dict]]) -> float:
+    """The maps' error passes do not remove, from (maps throughout, rays from pass s) pairs of
+    long-render reports of one scene each (see the module docstring)."""
+    squares = []
+    for maps_report, rays_report in pairs:
+        passes, never, maps_error = longest_render(maps_report)
+        same, switch, rays_error = longest_render(rays_report)
+        if never != 0 or switch < 1 or same != passes:
+            raise SystemExit("--maps takes pairs of reports of equal passes: ray_traced_from_pass"
+                             f" 0, then from a pass (got {never} and {switch}, {passes} and "
+                             f"{same} passes)")
+        mapped = min(switch - 1, passes) / passes
+        square = (maps_error**2 - rays_error**2) / (1.0 - mapped**2)
+        print(f"{passes} passes: maps {maps_error * 100:.2f} %, rays from pass {switch} "
+              f"{rays_error * 100:.2f} %: maps' term {np.sqrt(max(square, 0.0)) * 100:.2f} %")
+        squares.append(square)
+    return float(np.sqrt(max(0.0, np.mean(squares))))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("reports", type=Path, nargs="+")
+    parser.add_argument("reports", type=Path, nargs="*")
+    parser.add_argument("--maps", type=Path, nargs="+", default=[],
+                        help="pairs of long-render reports: maps throughout, rays from a pass")
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("-o", "--output", type=Path, default=ERROR_MODEL_FILE)
     args = parser.parse_args()
+    if len(args.maps) % 2:
+        parser.error("--maps takes pairs of reports")
+    maps_source = f"tools/fit_error_model.py --maps {' '.join(str(p) for p in args.maps)}"
+    pairs = [tuple(json.loads(p.read_text()) for p in args.maps[i:i + 2])
+             for i in range(0, len(args.maps), 2)]
+    if not args.reports:
+        if not pairs:
+            parser.error("give the reports to fit, or --maps pairs")
+        model = json.loads(args.output.read_text())
+        model.update(maps=fit_maps(pairs), maps_source=maps_source)
+        args.output.write_text(json.dumps(model, indent=2) + "\n")
+        print(json.dumps(model, indent=2))
+        return
     reports = [json.loads(p.read_text()) for p in args.reports]
     noise, floors, factors = fit_noise(reports)
     for path, floor in zip(args.reports, floors, strict=True):
@@ -112,6 +169,8 @@ def main() -> None:
     model = {"source": f"tools/fit_error_model.py {' '.join(str(p) for p in args.reports)}",
              "floor": floors[0], "noise": noise, "interleave": factors,
              "ism": ism_errors(args.size)}
+    if pairs:
+        model.update(maps=fit_maps(pairs), maps_source=maps_source)
     args.output.write_text(json.dumps(model, indent=2) + "\n")
     print(json.dumps(model, indent=2))
 

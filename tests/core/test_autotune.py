@@ -14,7 +14,7 @@ from addon.core.settings import Settings, SettingsError
 
 COST = autotune.CostModel("test GL", paths=2e-5, splat=2e-9, texels=1e-9, gather=4e-9,
                           blur=1e-8, pixels=2e-6, maps=3e-5, pool=5e-7, frame=0.02,
-                          compensation=3e-7, probe=0.01, traced=3e-8)
+                          compensation=3e-7, probe=0.01, traced=3e-8, visibility_probe=0.02)
 WORK = autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
                          vpls_per_path=2.5, bounces=4)
 
@@ -40,6 +40,7 @@ def test_the_error_model_file_is_complete_and_plausible():
     assert 0 < model.floor < 1 and model.noise > 0
     assert model.ism["128/8192"] == 0.0  # the default pair is the reference of the ISM term
     assert all(0 <= e < 1 for e in model.ism.values())
+    assert 0 < model.maps < 1  # the maps' error in undersampled scenes (fitted on long renders)
     errors = [model.error(p, 4, 8192, 128) for p in autotune.PATHS]
     assert errors == sorted(errors, reverse=True)  # more paths, less error
 
@@ -76,10 +77,11 @@ def test_a_frame_costs_its_bias_compensation_at_its_ray_cost_and_what_it_spent_b
     assert autotune.fixed_seconds(COST, measured) == 1.5
 
 
-def test_a_pass_that_traces_costs_its_pairs_at_the_ray_cost_instead_of_its_maps():
+def test_a_pass_that_traces_costs_its_pairs_at_the_visibility_ray_cost_instead_of_its_maps():
     """Tracing a pass's VPL visibility costs c_traced per gathered pixel and VPL at the
-    scene's ray cost, in place of the maps (and the ISM area table, which it does not use)."""
-    work = replace(WORK, ray_cost=2.0)
+    scene's visibility ray cost (its probe of rays to VPLs against the calibration room's), in
+    place of the maps (and the ISM area table, which it does not use)."""
+    work = replace(WORK, visibility_cost=2.0, ray_cost=5.0)
     args = (1024, 4, 8192, 128, 4)
     vpls = 1024 * WORK.vpls_per_path
     maps = COST.pool * WORK.triangles + vpls * (COST.splat * 8192 + COST.texels * 128**2)
@@ -88,31 +90,40 @@ def test_a_pass_that_traces_costs_its_pairs_at_the_ray_cost_instead_of_its_maps(
         autotune.predict_seconds(COST, work, *args) - maps + rays)
 
 
-def test_passes_that_trace_are_planned_without_the_maps_error_and_priced_when_chosen_again():
-    """A budget's plan keeps its passes' count and size (pass 0's, the later ones are chosen
-    again from its measured time), credits the passes from ``ray_traced_from`` on with none of
-    the maps' error and predicts their time (its note says it); the later passes' choice with
-    a ``traced_share`` fits the budget at the share's mixed time."""
-    model = autotune.load_error_model()
+def test_a_plan_prices_its_traced_passes_and_counts_the_maps_error_they_remove(monkeypatch):
+    """A budget's passes from ``ray_traced_from`` on are priced as tracing: the plan fits the
+    budget at its passes' sum, each pass has at least the settings' light paths, and its error
+    counts the maps' error (``ErrorModel.maps`` in an undersampled scene) of the mapped passes
+    only, so a dear tracing buys fewer passes; the later passes' choice with a
+    ``traced_share`` fits its budget at the share's mixed time. Plans within PASSES_TIE of
+    the least error go to the most passes."""
+    model = replace(autotune.load_error_model(), maps=0.1)
     settings = replace(Settings(), auto_parameters="time", time_budget=40.0)
     dear = replace(COST, traced=1e-6)
     mapped = autotune.choose(settings, WORK, dear, model, split=2)
-    traced = autotune.choose(settings, replace(WORK, ray_traced_from=2), dear, model, split=2)
-    assert mapped.traced_seconds == 0.0 and traced.passes == mapped.passes > 2
+    work = replace(WORK, ray_traced_from=2, undersampled=True)
+    traced = autotune.choose(settings, work, dear, model, split=2)
+    assert mapped.traced_seconds == 0.0 and 2 < traced.passes < mapped.passes
     s = traced.settings
-    assert s == mapped.settings and traced.seconds == mapped.seconds
+    assert s.vpl_count >= settings.vpl_count
     args = (s.vpl_count, s.interleave, s.ism_points, s.ism_resolution, s.blur_radius)
+    assert traced.seconds == pytest.approx(autotune.predict_seconds(dear, work, *args))
     assert traced.traced_seconds == pytest.approx(
-        autotune.predict_seconds(dear, WORK, *args, traced=True))
+        autotune.predict_seconds(dear, work, *args, traced=True))
+    tracing = traced.passes - 2
+    assert 2 * traced.seconds + tracing * traced.traced_seconds <= 40.0
     assert traced.error == pytest.approx(model.error(
-        s.vpl_count, s.interleave, s.ism_points, s.ism_resolution, traced.passes,
-        traced.passes - 2))
+        s.vpl_count, s.interleave, s.ism_points, s.ism_resolution, traced.passes, tracing,
+        undersampled=True))
+    assert model.error(*args[:4], 8, 6, True) < model.error(*args[:4], 8, 0, True)
     assert "s ray traced)" in traced.describe() and "ray traced" not in mapped.describe()
     later = autotune.choose(replace(settings, time_budget=4.0),
-                            replace(WORK, traced_share=0.5), dear, model)
+                            replace(WORK, traced_share=0.5, pass_paths=512), dear, model)
     alike = autotune.choose(replace(settings, time_budget=4.0), WORK, dear, model)
     assert 0.5 * (later.seconds + later.traced_seconds) <= 4.0 < later.traced_seconds
-    assert later.settings.vpl_count < alike.settings.vpl_count
+    assert 512 <= later.settings.vpl_count < alike.settings.vpl_count
+    monkeypatch.setattr(autotune, "PASSES_TIE", 1e9)
+    assert autotune.choose(settings, WORK, dear, model, split=2).passes >= mapped.passes
 
 
 def test_larger_budgets_give_smaller_errors_and_targets_cost_less_when_looser():
@@ -164,6 +175,7 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
                 **table,
                 "vpl generation (camera-driven)": COST.paths * s.vpl_count * s.bounces,
                 "ray probe": COST.probe * (1.0 + 0.1 * (len(built) - 1)),
+                "visibility probe": COST.visibility_probe * (1.0 + 0.1 * (len(built) - 1)),
                 "ism upload": allocation,
                 "indirect light maps": COST.splat * vpls * s.ism_points
                 + 0.5 * COST.texels * vpls * s.ism_resolution**2 + allocation,
@@ -176,7 +188,7 @@ def test_calibration_recovers_the_coefficients_of_a_linear_machine():
 
     fitted = autotune.calibrate(render, "test GL", Settings(indirect_resolution="pixel"))
     for name in ("paths", "splat", "texels", "gather", "blur", "pixels", "maps", "pool",
-                 "frame", "compensation", "probe", "traced"):
+                 "frame", "compensation", "probe", "traced", "visibility_probe"):
         assert getattr(fitted, name) == pytest.approx(getattr(COST, name), rel=1e-6), name
 
 
@@ -330,3 +342,19 @@ def test_more_budget_never_chooses_more_error():
                                       time_budget=fastest * f), WORK, COST, model).error
               for f in np.linspace(0.5, 3.0, 51)]
     assert errors == sorted(errors, reverse=True)
+
+
+def test_the_maps_term_is_fitted_from_long_renders_with_and_without_rays():
+    """tools/fit_error_model.py --maps: K passes with the maps throughout against rays from
+    pass s differ in RMSE² by maps² (1 − ((s − 1) / K)²), averaged over scenes in squares."""
+    from tools.fit_error_model import fit_maps
+
+    def report(passes: int, switch: int, error: float) -> dict:
+        lines = [(1, 0.3), (passes, error)]
+        return {"renders": [{"settings": {"passes": p, "ray_traced_from_pass": switch},
+                             "metrics": {"relative_rmse_unbiased": e}} for p, e in lines]}
+
+    rest, maps = 0.04, [0.03, 0.15]
+    pairs = [(report(8, 0, np.hypot(rest, m)), report(8, 3, np.hypot(rest, m * 2 / 8)))
+             for m in maps]
+    assert fit_maps(pairs) == pytest.approx(np.sqrt(np.mean(np.square(maps))))

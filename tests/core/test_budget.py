@@ -99,12 +99,6 @@ def test_a_budgets_passes_trace_from_the_switch_priced_as_tracing(renderer, cach
     later, = (n for n in stats.notes if n.startswith("automatic parameters of passes 2+"))
     assert " s ray traced)" in later
     assert not stats.warnings, stats.warnings
-    # where tracing would cost more than EXACT_PASS_COST times the maps, the passes keep them
-    renderer.cost_cache.write_text(json.dumps(asdict(replace(cached_cost, traced=1e-3))))
-    renderer.forget_frames()
-    _, stats = renderer.render_progressive(busy, settings)
-    assert "over 2× its" in stats.skipped["ray-traced visibility from pass 2"]
-    assert not any("ray traced" in n for n in stats.notes), stats.notes
 
 
 def test_a_budget_below_the_cheapest_useful_frame_renders_that_and_says_so(renderer,

@@ -16,10 +16,9 @@ from addon.core.frame.progressive import (
     pass_camera,
     pass_settings,
     ray_traced_from,
-    render_passes,
 )
 from addon.core.frame.renderer import RenderCancelled
-from addon.core.frame.result import Frame, Stats
+from addon.core.frame.result import Frame
 from addon.core.scene.model import Instance, Material, Scene, World
 from addon.core.settings import Settings, SettingsError
 from tests.core.builders import inside_sphere_camera, quad, top_down_camera, translation
@@ -253,22 +252,3 @@ def test_rays_from_the_first_pass_render_every_pass_traced(renderer) -> None:
     assert "passes 1–2: VPL visibility ray traced (1024 ISM points for 1,280 triangles)" \
         in stats.notes
 
-
-def test_passes_keep_the_maps_where_asked_before_the_first_traced_one() -> None:
-    """``maps_kept`` (the time mode's: a traced pass would cost too much) turns the switch off
-    before its pass, with its reason among the skipped stages and no note of rays."""
-    seen: list[str] = []
-
-    def one_pass(_scene, settings, _index, _progress, _cancelled):
-        seen.append(settings.visibility)
-        return Frame(2, 2, {"Combined": np.ones((2, 2, 4), np.float32)}), Stats()
-
-    settings = replace(ISM, passes=4, ray_traced_from_pass=3)
-    _, stats = render_passes(one_pass, closed_sphere(), settings)
-    assert seen == ["ism", "ism", "exact", "exact"]
-    seen.clear()
-    _, stats = render_passes(one_pass, closed_sphere(), settings,
-                             maps_kept=lambda: "too dear" if seen else None)
-    assert seen == ["ism"] * 4
-    assert stats.skipped["ray-traced visibility from pass 3"] == "too dear"
-    assert not any("ray traced" in note for note in stats.notes)

@@ -8,6 +8,8 @@ from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from ..gpu.gl import GLUnavailableError
 from ..gpu.raytrace import RayTracer
 from ..scene.geometry import bounding_sphere, flatten_instances
@@ -18,7 +20,7 @@ from . import autotune
 from .gpu_session import GpuSession
 from .planner import reaches_bounds
 from .progressive import ray_traced_from
-from .ray_probe import ray_probe_seconds
+from .ray_probe import ray_probe_seconds, visibility_probe_seconds
 from .result import Frame, Stats
 from .reuse import KeptProducts
 from .stages import indirect_per_pixel, near_field_rays
@@ -92,7 +94,7 @@ class ChooseParameters(Stage):
         scale = min(max(chosen / modelled, 0.25), 8.0) if modelled > 0 and chosen > 0 else 1.0
         work = replace(work, fixed=fixed, scale=scale, spent=0.0,
                        area_table=self._ism_area_table(work.triangles), ray_traced_from=None,
-                       traced_share=traced_share)
+                       traced_share=traced_share, pass_paths=settings.vpl_count)
         return autotune.choose(replace(settings, time_budget=budget), work, cost,
                                self.error_model())
 
@@ -111,11 +113,12 @@ class ChooseParameters(Stage):
             rays = near_field_rays(settings)
             triangles = frame.geometry.vertex_count // 3
             switch = ray_traced_from(settings, triangles) if self.split > 1 else None
+            per_path, probe_vpls = self._vpls_per_path(frame, tracer)
             work = autotune.Workload(
                 pixels=camera.width * camera.height * settings.antialiasing**2,
                 triangles=triangles,
                 shadow_tiles=int(frame.light_samples.tiles_per_sample.sum()),
-                **self._vpls_per_path(frame, tracer),
+                **per_path,
                 bounces=settings.bounces,
                 gather_antialiasing=self._gather_antialiasing(settings,
                                                               frame.geometry.has_specular),
@@ -123,7 +126,10 @@ class ChooseParameters(Stage):
                 compensation_rays=rays,
                 ray_cost=(self._ray_cost(frame, tracer, cost) if rays or switch is not None
                           else 1.0),
-                ray_traced_from=switch)
+                ray_traced_from=switch,
+                visibility_cost=(self._visibility_cost(frame, tracer, cost, probe_vpls)
+                                 if switch is not None else 1.0),
+                undersampled=settings.visibility == "ism" and triangles > settings.ism_points)
         work = replace(work, spent=time.perf_counter() - frame.started)
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)
@@ -155,23 +161,35 @@ class ChooseParameters(Stage):
                                     frame.settings.clamp_distance * frame.radius)
         return seconds / cost.probe if seconds > 0.0 else 1.0
 
+    @staticmethod
+    def _visibility_cost(frame: FrameState, tracer: RayTracer | None,
+                         cost: autotune.CostModel, targets: np.ndarray) -> float:
+        """The frame's visibility probe (rays to the probe's VPLs) against the calibration
+        room's (1 where either is unmeasured)."""
+        if tracer is None or cost.visibility_probe <= 0.0:
+            return 1.0
+        seconds = visibility_probe_seconds(frame.camera, frame.geometry, tracer, frame.radius,
+                                           targets)
+        return seconds / cost.visibility_probe if seconds > 0.0 else 1.0
+
     def _vpls_per_path(self, frame: FrameState, tracer: RayTracer | None
-                       ) -> dict[str, float | None]:
+                       ) -> tuple[dict[str, float | None], np.ndarray]:
         """The workload's VPLs that can light the view per light path, from a probe of
         PROBE_PATHS paths, and with camera guidance the VPLs gathered per path: all of the
-        probe's (guidance keeps as many as the paths leave, chosen where the camera looks)."""
+        probe's (guidance keeps as many as the paths leave, chosen where the camera looks);
+        and the positions of the probe's VPLs that can light the view."""
         settings = frame.settings
         probe = replace(settings, vpl_count=PROBE_PATHS, incremental=False)
         if tracer is None:
-            return {"vpls_per_path": float(settings.bounces)}
+            return {"vpls_per_path": float(settings.bounces)}, np.zeros((0, 3))
         vpls = generate_vpls(frame.scene, frame.geometry, probe, tracer, frame.centre,
                              frame.radius)
         samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
-        in_view_count = int(reaches_bounds(samples, frame.in_view).sum()) \
-            if frame.in_view is not None else len(vpls)
+        in_view = reaches_bounds(samples, frame.in_view) if frame.in_view is not None \
+            else np.ones(len(vpls), bool)
         guided = len(vpls) / PROBE_PATHS if may_guide(settings) else None
-        return {"vpls_per_path": max(in_view_count, 1) / PROBE_PATHS,
-                "gathered_per_path": guided}
+        return ({"vpls_per_path": max(int(in_view.sum()), 1) / PROBE_PATHS,
+                 "gathered_per_path": guided}, vpls.position[in_view])
 
     def _calibration_frame(self, settings: Settings) -> dict[str, float | int]:
         """Stage timings and counts of one frame of the calibration scene."""
@@ -180,11 +198,16 @@ class ChooseParameters(Stage):
         _, stats = self.render(scene, settings)
         camera = scene.camera
         geometry = flatten_instances(scene, [])
-        _, radius = bounding_sphere(geometry.positions)
+        centre, radius = bounding_sphere(geometry.positions)
         tracer = upload_triangles(self.gpu, self.kept, geometry, stats)  # kept by the render
         probe = ray_probe_seconds(camera, geometry, tracer, radius,
                                   settings.clamp_distance * radius)
+        vpls = generate_vpls(scene, geometry, replace(settings, vpl_count=PROBE_PATHS,
+                                                      incremental=False),
+                             tracer, centre, radius)
+        visibility = visibility_probe_seconds(camera, geometry, tracer, radius, vpls.position)
         return {**stats.timings, "vpls": stats.counts["vpls"], "ray probe": probe,
+                "visibility probe": visibility,
                 "pixels": camera.width * camera.height * settings.antialiasing**2,
                 "triangles": stats.counts["triangles"],
                 "shadow_tiles": stats.counts["shadow_maps"],  # the room has no glossy material:

@@ -8,8 +8,8 @@ Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interl
     ISMs            c_splat · V · points + c_texels · V · resolution²
     ISM area table  c_pool · triangles, when the table of triangle areas must be built
     indirect light  c_gather · P · V / K²  (P and K of the pixels the VPLs are gathered at)
-                    + c_traced · P · V / K² · ray cost, instead of the ISMs, in a pass that
-                    traces its VPLs' visibility (a time budget's passes from
+                    + c_traced · P · V / K² · visibility ray cost, instead of the ISMs, in a
+                    pass that traces its VPLs' visibility (a time budget's passes from
                     ``ray_traced_from_pass`` on, progressive.py)
     blur            c_blur · P · radius (K > 1)
     the rest        c_frame + c_pixels · P + c_maps · shadow-map tiles  (not chosen here:
@@ -43,7 +43,8 @@ from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Sc
 from ..settings import Settings
 from .stages import blur_radius, pixel_interleave
 
-COST_MODEL_VERSION = 14  # 14: the cost of ray-traced VPL visibility (c_traced); 13:
+COST_MODEL_VERSION = 15  # 15: c_traced scaled by a probe of rays to VPLs (the short rays'
+# probe overstated them 1.3-1.6 times); 14: the cost of ray-traced VPL visibility; 13:
 # measured with numpy's BLAS on one thread (blas_threads.py:
 # a spinning BLAS thread slowed the ray probe by up to 60 % in streaks); 12: bias
 # compensation by the scene's ray cost, VPL generation under each of its stage names (none
@@ -68,6 +69,11 @@ SPLIT_COST = 1.1
 later ones are sized from it) only while the passes' predicted error is within this factor of
 one pass's over the whole budget: each pass repeats the work not chosen (on the Cornell box
 about 1.9 s of a 4.7 s budget: two passes measured 6.7 % in 2.7 s, one pass 3.7 % in 5.4 s)."""
+PASSES_TIE = 1.05
+"""Among plans predicted within this factor of the least error, the one of most passes: on the
+Cornell box's 40 s budget 8 passes of 1722 paths and 4 of 4096 were predicted within 2 % of
+each other and measured 1.65 % and 2.55-2.62 % (passes shrink the clamp's bias faster than the
+error model's floor says)."""
 ONE_PASS_SHARE = 0.9
 """A time budget planned as one pass is chosen for this share of it: nothing measured corrects
 that pass's prediction (on the Cornell box 1448 light paths predicted at 4.68 s took 5.5 s)."""
@@ -98,6 +104,7 @@ class CostModel:
     probe: float = 0.0  # seconds of the ray probe in the calibration room
     traced: float = 0.0  # per pixel and VPL gathered, of tracing their visibility (at the
     # calibration room's ray cost)
+    visibility_probe: float = 0.0  # seconds of the visibility probe in the calibration room
     version: int = COST_MODEL_VERSION
 
 
@@ -109,17 +116,21 @@ class ErrorModel:
     noise: float  # relative RMSE × sqrt(light paths)
     ism: dict[str, float]  # "resolution/points" -> ISM visibility error against exact
     interleave: dict[str, float]  # K -> factor on the noise term (with its blur)
+    maps: float = 0.0  # the default maps' visibility error in scenes with more triangles than
+    # an ISM has points, which passes do not remove (ray-traced passes do)
 
     def error(self, paths: int, interleave: int, points: int, resolution: int,
-              passes: int = 1, traced: int = 0) -> float:
+              passes: int = 1, traced: int = 0, undersampled: bool = False) -> float:
         """The error of ``passes`` passes of ``paths`` light paths each: their noise as one
         set's of all their paths, and the floor shrinking as passes^(-1/3), as the passes'
-        clamp schedule makes its bias (progressive.py); ``traced`` of them trace their VPLs'
-        visibility and add none of the maps' error."""
+        clamp schedule makes its bias (progressive.py); the maps' error (with ``maps`` where
+        the scene is ``undersampled``) is the mapped passes' share of it: ``traced`` of them
+        trace their VPLs' visibility."""
         noise = self.noise * self.interleave[str(interleave)] / math.sqrt(paths * passes)
-        ism = self.ism[f"{resolution}/{points}"] * (passes - traced) / passes
+        maps = math.hypot(self.ism[f"{resolution}/{points}"],
+                          self.maps if undersampled else 0.0) * (passes - traced) / passes
         floor = self.floor * passes ** -FLOOR_EXPONENT
-        return math.sqrt(floor**2 + noise**2 + ism**2)
+        return math.sqrt(floor**2 + noise**2 + maps**2)
 
     def options(self) -> list[tuple[int, int, int]]:
         """(interleave, points, resolution) triples the model has measurements for."""
@@ -147,10 +158,13 @@ class Workload:
     # (applied to the ISM area table's modelled time too)
     compensation_rays: int = 0  # per supersample, of bias compensation from the image
     ray_cost: float = 1.0  # the scene's ray probe / the calibration room's (cost.probe)
+    visibility_cost: float = 1.0  # the scene's visibility probe / the calibration room's
     spent: float = 0.0  # seconds the frame spent before the choice (counted in its time)
     ray_traced_from: int | None = None  # the first of a time budget's passes (from 0) that
     # traces its VPLs' visibility (progressive.ray_traced_from), None: none does
     traced_share: float = 0.0  # share of the passes chosen for that trace (the later passes)
+    undersampled: bool = False  # more triangles than an ISM has points (ErrorModel.maps)
+    pass_paths: int = 0  # the fewest light paths a pass of several is chosen with (0: any)
 
     def least_paths(self) -> int:
         """Light paths of the cheapest useful frame: the fewest of PATHS that leave
@@ -204,7 +218,7 @@ def chosen_seconds(cost: CostModel, work: Workload, paths: int, interleave: int,
     vpls = paths * (work.gathered_per_path or work.vpls_per_path)
     pixels, k = gathered_pixels(work.pixels, interleave, work.gather_antialiasing)
     pairs = pixels * vpls / k**2
-    visibility = (cost.traced * pairs * work.ray_cost if traced
+    visibility = (cost.traced * pairs * work.visibility_cost if traced
                   else cost.splat * vpls * points + cost.texels * vpls * resolution**2)
     return (cost.paths * paths * max(1, work.bounces) + visibility + cost.gather * pairs
             + (cost.blur * pixels * blur_radius if k > 1 else 0.0))
@@ -247,11 +261,17 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
     tries split, 2 × split, 4 × split … passes while the cheapest useful frame fits a share,
     and the choice is for one share of the count whose passes' predicted error is least, where
     that is within SPLIT_COST of one pass's over the whole budget, else for ONE_PASS_SHARE of
-    it, as ``Choice.passes`` says. A plan's passes are priced as pass 0 (the later ones are
-    chosen again from its measured time, see budget.py); those from ``work.ray_traced_from`` on
-    add none of the maps' error. With ``work.traced_share`` that share of the passes is priced
-    as tracing their VPLs' visibility (the later passes' choice)."""
+    it, as ``Choice.passes`` says; among plans within PASSES_TIE of the least error, the one of
+    most passes. A plan's passes have at least ``settings.vpl_count`` light paths each (the
+    error model's noise, fitted across scenes, under-predicts scenes few paths reach: Sponza's
+    40 s as 8 passes of 256 paths measured 19.0 %, of 1024 12.2 %); those from
+    ``work.ray_traced_from`` on are priced as tracing their VPLs' visibility and add none of the
+    maps' error. With ``work.traced_share`` that share of the passes is priced so (the later
+    passes' choice, whose passes have at least ``work.pass_paths``)."""
     candidates = _candidates(settings, work, cost, errors)
+    several = [c for c in candidates if c.paths >= settings.vpl_count] or candidates
+    if work.pass_paths:
+        candidates = [c for c in candidates if c.paths >= work.pass_paths] or candidates
     share = work.traced_share
 
     def mixed(c: Candidate) -> float:
@@ -263,18 +283,26 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
         priced = mixed(best)
         plans = []
         count = split
-        while split > 1 and min(candidates).seconds <= budget / count:
-            one = _least_error(candidates, budget / count)
+        while split > 1:
+            traced = traced_passes(count, work.ray_traced_from)
+
+            def mean(c: Candidate, count: int = count, traced: int = traced) -> float:
+                return ((count - traced) * c.seconds + traced * c.traced) / count
+
+            if min(map(mean, several)) > budget / count:
+                break  # the cheapest useful passes do not fit
+            one = _least_error(several, budget / count, mean)
             plans.append((errors.error(one.paths, one.interleave, one.points, one.resolution,
-                                       count, traced_passes(count, work.ray_traced_from)),
-                          count, one))
+                                       count, traced, work.undersampled), count, one))
             count *= 2
-        if plans and min(plans)[0] <= SPLIT_COST * best.error:
-            error, passes, best = min(plans)
+        least = min(plans)[0] if plans else math.inf
+        if least <= SPLIT_COST * best.error:
+            error, passes, best = max((p for p in plans if p[0] <= PASSES_TIE * least),
+                                      key=lambda p: p[1])
             best = best._replace(error=error)  # the error of all the passes
-            budget /= passes
-            priced = best.seconds
             tracing = traced_passes(passes, work.ray_traced_from)
+            priced = ((passes - tracing) * best.seconds + tracing * best.traced) / passes
+            budget /= passes
     else:
         fitting = [c for c in candidates if c.error <= settings.target_error]
         best = min(fitting) if fitting else min(candidates, key=lambda c: (c.error, c.seconds))
@@ -307,7 +335,7 @@ def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: Err
         blur = blur_radius(k, settings.blur_radius)
         seconds = predict_seconds(cost, work, paths, k, points, resolution, blur)
         traced = predict_seconds(cost, work, paths, k, points, resolution, blur, traced=True)
-        error = errors.error(paths, k, points, resolution)
+        error = errors.error(paths, k, points, resolution, undersampled=work.undersampled)
         candidates.append(Candidate(seconds, error, paths, k, points, resolution, blur, traced))
     return candidates
 
@@ -316,7 +344,8 @@ def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: Err
 
 def load_error_model(path: Path = ERROR_MODEL_FILE) -> ErrorModel:
     data = json.loads(path.read_text())
-    return ErrorModel(data["floor"], data["noise"], data["ism"], data["interleave"])
+    return ErrorModel(data["floor"], data["noise"], data["ism"], data["interleave"],
+                      data.get("maps", 0.0))
 
 
 # -- the cost model ----------------------------------------------------------------------------
@@ -325,7 +354,7 @@ Render = Callable[[Settings], dict[str, float | int]]
 """Renders the calibration scene with the given settings and returns its stage timings
 (seconds), counts (``vpls``, ``pixels``, ``triangles``, ``shadow_tiles``), the supersamples per
 pixel edge its VPLs were gathered once for (``gather_antialiasing``) and the seconds of the ray
-probe on it (``ray probe``)."""
+probes on it (``ray probe``, ``visibility probe``)."""
 
 CALIBRATION = (  # (paths, interleave, points, resolution, antialiasing): spread so each term
     # is separable (the two supersampled pixel counts part the pixel stages' cost per frame
@@ -357,7 +386,7 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     where ``base`` gathers them (indirect light per pixel or per supersample). Last, the
     TRACED_CALIBRATION frame traces its VPLs' visibility: what its gather takes beyond the
     mapped gather's cost is the cost of tracing."""
-    rows, probes = [], []
+    rows, probes, visibility_probes = [], [], []
 
     def settings_of(paths: int, k: int, points: int, resolution: int, aa: int,
                     visibility: str = "ism") -> Settings:
@@ -370,6 +399,8 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
         first = render(settings)  # builds the ISM area table (if new), compiles shaders
         again = render(settings)
         probes += [m["ray probe"] for m in (first, again) if "ray probe" in m]
+        visibility_probes += [m["visibility probe"] for m in (first, again)
+                              if "visibility probe" in m]
         # a frame allocates its ISM atlas, as the first render did, where the second found it
         # made (a new process pays it every frame: about 0.3-1 s for 1500-2500 VPLs of 128²
         # maps on llvmpipe, the textures' fresh pages)
@@ -421,7 +452,8 @@ def calibrate(render: Render, renderer_name: str, base: Settings) -> CostModel:
     traced = max(0.0, traced_row.get("indirect light", 0.0) / pairs - gather) if pairs else 0.0
     return CostModel(renderer_name, float(paths), float(splat), float(texels), float(gather),
                      float(blur), float(pixel), float(maps), float(pool), float(frame),
-                     float(compensation), probe, float(traced))
+                     float(compensation), probe, float(traced),
+                     float(min(visibility_probes, default=0.0)))
 
 
 def cached_cost_model(cache: Path | None, renderer_name: str,

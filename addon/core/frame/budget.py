@@ -15,13 +15,10 @@ fits (progressive.py's time limit). Passes are averaged weighted by their light 
 noise's variance goes as 1 / paths), so a smaller later pass adds to the image instead of
 diluting it. From ``ray_traced_from_pass`` on (the second pass at the earliest: the first
 measures the model) passes trace their VPLs' visibility where other final renders do
-(progressive.ray_traced_from), priced by the cost model's cost of a traced pair at the scene's
-ray cost, unless the later passes' choice would trace in more than EXACT_PASS_COST times its
-time with the maps (the cost other final renders' switch was measured at): the error model
-does not know what tracing gains, and Sponza's 40 s budget, whose later passes would have
-traced at 2.8 times their mapped time, measured 18.4 % with them against 17.2 % without. A
-budget below the cheapest useful frame still renders that frame, with one warning naming the
-time it took.
+(progressive.ray_traced_from): the plan and the later passes' choice price them by the cost
+model's cost of a traced pair at the scene's visibility ray cost (ray_probe.py), and the
+error model counts the maps' error they remove (autotune.py). A budget below the cheapest
+useful frame still renders that frame, with one warning naming the time it took.
 
 The chosen parameters depend on this machine's speed: frames of one job rendered on different
 machines differ. Render farms pin the parameters instead (auto_parameters = off)."""
@@ -36,7 +33,7 @@ from ..scene.model import Scene
 from ..settings import Settings
 from .automatic import ChooseParameters
 from .autotune import traced_passes
-from .progressive import EXACT_PASS_COST, PassReport, RenderPass, render_passes
+from .progressive import PassReport, RenderPass, render_passes
 from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
 
@@ -92,14 +89,13 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
     expected: float | None = None  # seconds of the first later pass (predicted)
     expected_traced: float | None = None  # of the first later pass that traces (predicted)
     walls: list[float] = []  # of the later passes that read maps
-    maps_kept: str | None = None  # why the later passes keep the maps after all
     paths: list[int] = []  # light paths of each pass: its weight (noise variance ∝ 1 / paths)
     notes: list[str] = []
     warnings: list[str] = []
 
     def one_pass(scene: Scene, pass_settings: Settings, index: int,
                  progress: ProgressCallback, cancelled: CancelCallback) -> tuple[Frame, Stats]:
-        nonlocal later, expected, expected_traced, maps_kept
+        nonlocal later, expected, expected_traced
         if index > 0 and later is not None:
             began = time.perf_counter()
             tracing = pass_settings.visibility == "exact"
@@ -128,12 +124,6 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         tracing = traced_passes(1 + others, chooser.last[1].ray_traced_from)
         again = chooser.rechoose(fixed, variable, PLAN_HEADROOM * rest / others,
                                  tracing / others)
-        if tracing and again is not None \
-                and again.traced_seconds > EXACT_PASS_COST * again.seconds:
-            maps_kept = (f"a pass of {again.settings.vpl_count} light paths would trace its "
-                         f"VPLs' visibility in {again.traced_seconds:.1f} s, over "
-                         f"{EXACT_PASS_COST:g}× its {again.seconds:.1f} s with the maps")
-            again = chooser.rechoose(fixed, variable, PLAN_HEADROOM * rest / others)
         later = replace(again.settings if again is not None else chosen.settings,
                         auto_parameters="off", time_budget=budget)
         if again is not None:
@@ -161,7 +151,7 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
     frame, stats = render_passes(
         one_pass, scene, replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget),
         progress, cancelled, on_pass, open_ended=True, next_seconds=next_seconds,
-        pass_weight=lambda index: paths[index], maps_kept=lambda: maps_kept)
+        pass_weight=lambda index: paths[index])
     stats.timings.update(calibration.timings)
     stats.notes.extend(notes)
     stats.warnings.extend(warnings)

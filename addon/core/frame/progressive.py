@@ -177,8 +177,7 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
                   on_pass: Callable[[PassReport], None] | None = None,
                   open_ended: bool = False,
                   next_seconds: Callable[[bool], float | None] | None = None,
-                  pass_weight: Callable[[int], float] | None = None,
-                  maps_kept: Callable[[], str | None] | None = None
+                  pass_weight: Callable[[int], float] | None = None
                   ) -> tuple[Frame, Stats]:
     """Render ``settings.passes`` passes (fewer when the time limit or the noise threshold is
     reached first) and return their average; ``on_pass`` sees the average after each pass.
@@ -186,8 +185,7 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
     ``next_seconds``: the expected time of the next pass, given whether it traces (None or
     absent: from the passes so far, see expected_pass_seconds); ``pass_weight``: each
     pass's weight in the average, by its index, after it rendered (absent: all alike).
-    Passes from ``ray_traced_from`` on trace their VPLs' visibility, unless ``maps_kept``,
-    asked after each pass before them, gives a reason they keep the maps. Cancelling raises
+    Passes from ``ray_traced_from`` on trace their VPLs' visibility. Cancelling raises
     RenderCancelled from inside the current pass."""
     report = progress or (lambda _f, _m: None)
     check = cancelled or (lambda: False)
@@ -220,10 +218,6 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
         elapsed = time.perf_counter() - start
         (traced if traces(switch, index) else mapped).append(
             time.perf_counter() - began)  # with the average shown
-        if switch is not None and not traces(switch, index) and maps_kept is not None \
-                and (reason := maps_kept()):
-            total.skipped[f"ray-traced visibility from pass {switch + 1}"] = reason
-            switch = None
         tracing = traces(switch, accumulator.count)
         expected = expected_pass_seconds(
             mapped, traced, tracing, next_seconds(tracing) if next_seconds is not None else None)

@@ -1,8 +1,11 @@
-"""The ray probe: what a short ray from a surface the camera sees costs in this scene, for the
+"""The ray probes: what a short ray from a surface the camera sees costs in this scene, for the
 automatic mode's prediction of the bias compensation (a ray of the clamp distance per
 supersample), whose cost per ray differs between scenes far more than the rasterised stages'
 do: at 640×360 the interior's took 1.3-1.5 and Sponza's 2.9 times the Cornell box's, and the
-probe measured 1.1-1.2 and 2.9 times (docs/measurements.md, *The time mode's prediction*)."""
+probe measured 1.1-1.2 and 2.9 times (docs/measurements.md, *The time mode's prediction*);
+and what a ray from such a surface to a VPL costs, for a pass that traces its VPLs'
+visibility (the short rays' probe put the interior's and Sponza's traced passes at 1.3 and
+1.6 times what they took)."""
 
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ from ..transport.guidance import camera_points
 from ..transport.ray_caster import RayCaster
 
 PROBE_POINTS = 4096  # camera points the probe's rays start from
+VISIBILITY_POINTS = 1024  # those of the visibility probe (its long rays cost more)
 RAYS_PER_POINT = 8
 PROBE_REPEATS = 2  # the least of these measurements counts (the first may wait on a driver)
 RAY_OFFSET = 1e-4  # × the scene's radius along the normal, off the surface
@@ -38,5 +42,32 @@ def ray_probe_seconds(camera: Camera, geometry: WorldGeometry, tracer: RayCaster
     for _ in range(PROBE_REPEATS):
         began = time.perf_counter()
         tracer.intersect(origin, direction, 0.0, length)
+        seconds.append(time.perf_counter() - began)
+    return min(seconds)
+
+
+def visibility_probe_seconds(camera: Camera, geometry: WorldGeometry, tracer: RayCaster,
+                             radius: float, targets: np.ndarray, seed: int = 0) -> float:
+    """Seconds the tracer takes for a shadow ray from each of VISIBILITY_POINTS points the
+    camera sees to each of RAYS_PER_POINT of the ``targets`` (VPL positions, (n, 3)) drawn at random
+    (the least of PROBE_REPEATS runs; 0 where the camera sees nothing or there is no target).
+    Every pair is traced, facing or not: tracing only facing pairs, as the gather does, put
+    the traced passes of the interior and Sponza below their time (the probe's VPLs, from
+    unguided paths, face the view less than a frame's guided ones)."""
+    points = camera_points(camera, geometry, tracer, VISIBILITY_POINTS, seed)
+    targets = np.asarray(targets, np.float64).reshape(-1, 3)
+    if len(points) == 0 or len(targets) == 0:
+        return 0.0
+    chosen = np.random.default_rng(seed).integers(len(targets),
+                                                  size=len(points) * RAYS_PER_POINT)
+    normal = np.repeat(points.normal, RAYS_PER_POINT, axis=0)
+    origin = np.repeat(points.position, RAYS_PER_POINT, axis=0) + normal * RAY_OFFSET * radius
+    offset = targets[chosen] - origin
+    distance = np.maximum(np.linalg.norm(offset, axis=1), 1e-12)
+    direction = offset / distance[:, None]
+    seconds = []
+    for _ in range(PROBE_REPEATS):
+        began = time.perf_counter()
+        tracer.occluded(origin, direction, distance * (1.0 - 1e-4))
         seconds.append(time.perf_counter() - began)
     return min(seconds)
