@@ -92,7 +92,7 @@ def test_a_pass_that_traces_costs_its_pairs_at_the_visibility_ray_cost_instead_o
 
 def test_a_plan_prices_its_traced_passes_and_counts_the_maps_error_they_remove(monkeypatch):
     """A budget's passes from ``ray_traced_from`` on are priced as tracing: the plan fits the
-    budget at its passes' sum, each pass has at least the settings' light paths, and its error
+    budget at its passes' sum, each pass has at least MIN_PASS_PATHS light paths, and its error
     counts the maps' error (``ErrorModel.maps`` in an undersampled scene) of the mapped passes
     only, so a dear tracing buys fewer passes; the later passes' choice with a
     ``traced_share`` fits its budget at the share's mixed time. Plans within PASSES_TIE of
@@ -105,7 +105,7 @@ def test_a_plan_prices_its_traced_passes_and_counts_the_maps_error_they_remove(m
     traced = autotune.choose(settings, work, dear, model, split=2)
     assert mapped.traced_seconds == 0.0 and 2 < traced.passes < mapped.passes
     s = traced.settings
-    assert s.vpl_count >= settings.vpl_count
+    assert s.vpl_count >= autotune.MIN_PASS_PATHS
     args = (s.vpl_count, s.interleave, s.ism_points, s.ism_resolution, s.blur_radius)
     assert traced.seconds == pytest.approx(autotune.predict_seconds(dear, work, *args))
     assert traced.traced_seconds == pytest.approx(

@@ -94,7 +94,7 @@ class ChooseParameters(Stage):
         scale = min(max(chosen / modelled, 0.25), 8.0) if modelled > 0 and chosen > 0 else 1.0
         work = replace(work, fixed=fixed, scale=scale, spent=0.0,
                        area_table=self._ism_area_table(work.triangles), ray_traced_from=None,
-                       traced_share=traced_share, pass_paths=settings.vpl_count)
+                       traced_share=traced_share, pass_paths=autotune.MIN_PASS_PATHS)
         return autotune.choose(replace(settings, time_budget=budget), work, cost,
                                self.error_model())
 

@@ -20,8 +20,9 @@ Cost of a frame, per stage (seconds; P supersampled pixels, V VPLs, K the interl
     (replaced by ``Workload.fixed``, their time measured in a pass, when it is known)
     plus what the pass spent before the choice (``Workload.spent``)
 Error (relative RMSE against a converged image):
-    sqrt(floor² + noise² / paths + ism(points, resolution)²)
-(over K passes, of which T trace: noise² / (K · paths), floor · K^(-1/3), ism · (K - T) / K)
+    sqrt(floor² + noise² / paths + ism(points, resolution)² + maps²)
+(maps: in scenes with more triangles than an ISM has points; over K passes, of which T trace:
+noise² / (K · paths), floor · K^(-1/3), and the last two terms times (K - T) / K)
 No choice has fewer light paths than the cheapest useful one: MIN_VIEW_VPLS VPLs lighting
 the view (fewer leave the image dark and blotchy whatever the budget).
 """
@@ -69,6 +70,10 @@ SPLIT_COST = 1.1
 later ones are sized from it) only while the passes' predicted error is within this factor of
 one pass's over the whole budget: each pass repeats the work not chosen (on the Cornell box
 about 1.9 s of a 4.7 s budget: two passes measured 6.7 % in 2.7 s, one pass 3.7 % in 5.4 s)."""
+MIN_PASS_PATHS = 1024
+"""The fewest light paths a pass of a time budget's several gets (the default frame's): the
+error model's noise, fitted across scenes, under-predicts scenes few paths reach (Sponza's 40 s
+as 8 passes of 256 paths was predicted at 4.5 % and measured 19.0 %; of 1024, 12.2 %)."""
 PASSES_TIE = 1.05
 """Among plans predicted within this factor of the least error, the one of most passes: on the
 Cornell box's 40 s budget 8 passes of 1722 paths and 4 of 4096 were predicted within 2 % of
@@ -262,14 +267,12 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
     and the choice is for one share of the count whose passes' predicted error is least, where
     that is within SPLIT_COST of one pass's over the whole budget, else for ONE_PASS_SHARE of
     it, as ``Choice.passes`` says; among plans within PASSES_TIE of the least error, the one of
-    most passes. A plan's passes have at least ``settings.vpl_count`` light paths each (the
-    error model's noise, fitted across scenes, under-predicts scenes few paths reach: Sponza's
-    40 s as 8 passes of 256 paths measured 19.0 %, of 1024 12.2 %); those from
+    most passes. A plan's passes have at least MIN_PASS_PATHS light paths each; those from
     ``work.ray_traced_from`` on are priced as tracing their VPLs' visibility and add none of the
     maps' error. With ``work.traced_share`` that share of the passes is priced so (the later
     passes' choice, whose passes have at least ``work.pass_paths``)."""
     candidates = _candidates(settings, work, cost, errors)
-    several = [c for c in candidates if c.paths >= settings.vpl_count] or candidates
+    several = [c for c in candidates if c.paths >= MIN_PASS_PATHS] or candidates
     if work.pass_paths:
         candidates = [c for c in candidates if c.paths >= work.pass_paths] or candidates
     share = work.traced_share
