@@ -138,6 +138,18 @@ def test_larger_budgets_give_smaller_errors_and_targets_cost_less_when_looser():
     assert [c.seconds for c in times] == sorted((c.seconds for c in times), reverse=True)
 
 
+def test_the_maps_term_leaves_single_frame_choices_and_targets_as_they_were():
+    """The maps' term (undersampled scenes) compares plans of traced passes with one pass; a
+    single frame's choice, whose candidates all carry it alike, does not count it, so the
+    'error' mode reaches the same targets."""
+    model = replace(autotune.load_error_model(), maps=0.1)
+    undersampled = replace(WORK, undersampled=True)
+    for mode, goal in (("error", {"target_error": 0.06}), ("time", {"time_budget": 2.0})):
+        settings = replace(Settings(), auto_parameters=mode, **goal)
+        assert autotune.choose(settings, undersampled, COST, model) == \
+            autotune.choose(settings, WORK, COST, model)
+
+
 def test_an_unreachable_target_takes_the_least_error():
     settings = replace(Settings(), auto_parameters="error", target_error=0.001)
     model = autotune.load_error_model()

@@ -269,7 +269,9 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
     it, as ``Choice.passes`` says; among plans within PASSES_TIE of the least error, the one of
     most passes. A plan's passes have at least MIN_PASS_PATHS light paths each; those from
     ``work.ray_traced_from`` on are priced as tracing their VPLs' visibility and add none of the
-    maps' error. With ``work.traced_share`` that share of the passes is priced so (the later
+    maps' error (which the plans are compared with one pass by; a single frame's choice, with
+    every candidate's maps alike, leaves it out, so that the 'error' mode's targets stay
+    reachable). With ``work.traced_share`` that share of the passes is priced so (the later
     passes' choice, whose passes have at least ``work.pass_paths``)."""
     candidates = _candidates(settings, work, cost, errors)
     several = [c for c in candidates if c.paths >= MIN_PASS_PATHS] or candidates
@@ -299,7 +301,9 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
                                        count, traced, work.undersampled), count, one))
             count *= 2
         least = min(plans)[0] if plans else math.inf
-        if least <= SPLIT_COST * best.error:
+        one_pass = errors.error(best.paths, best.interleave, best.points, best.resolution,
+                                undersampled=work.undersampled)  # with the maps' term
+        if least <= SPLIT_COST * one_pass:
             error, passes, best = max((p for p in plans if p[0] <= PASSES_TIE * least),
                                       key=lambda p: p[1])
             best = best._replace(error=error)  # the error of all the passes
@@ -338,7 +342,7 @@ def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: Err
         blur = blur_radius(k, settings.blur_radius)
         seconds = predict_seconds(cost, work, paths, k, points, resolution, blur)
         traced = predict_seconds(cost, work, paths, k, points, resolution, blur, traced=True)
-        error = errors.error(paths, k, points, resolution, undersampled=work.undersampled)
+        error = errors.error(paths, k, points, resolution)
         candidates.append(Candidate(seconds, error, paths, k, points, resolution, blur, traced))
     return candidates
 
