@@ -124,8 +124,7 @@ class ChooseParameters(Stage):
                                                               frame.geometry.has_specular),
                 area_table=self._ism_area_table(triangles),
                 compensation_rays=rays,
-                ray_cost=(self._ray_cost(frame, tracer, cost) if rays or switch is not None
-                          else 1.0),
+                ray_cost=self._ray_cost(frame, tracer, cost) if rays else 1.0,
                 ray_traced_from=switch,
                 visibility_cost=(self._visibility_cost(frame, tracer, cost, probe_vpls)
                                  if switch is not None else 1.0),
