@@ -14,7 +14,8 @@
   maps' visibility error that passes do not remove. From pairs of long-render reports of one
   scene, K passes with the maps throughout (``--set ray_traced_from_pass=0``) and with rays
   from pass s: their RMSE² differ by maps² (1 - ((s - 1) / K)²); averaged over the pairs in
-  squares. Alone (no positional reports) it updates that term of the stored model only.
+  squares. Alone (no positional reports) it updates that term of the stored model only; a
+  fit of the other terms without it keeps the stored one.
 
     .venv/bin/python tools/fit_error_model.py renders/fit_cornell_box/report.json \
         renders/fit_interior/report.json renders/fit_sponza/report.json
@@ -154,26 +155,23 @@ def main() -> None:
     maps_source = f"tools/fit_error_model.py --maps {' '.join(str(p) for p in args.maps)}"
     pairs = [tuple(json.loads(p.read_text()) for p in args.maps[i:i + 2])
              for i in range(0, len(args.maps), 2)]
-    if not args.reports:
-        if not pairs:
-            parser.error("give the reports to fit, or --maps pairs")
-        model = json.loads(args.output.read_text())
-        model.update(maps=fit_maps(pairs), maps_source=maps_source)
-        args.output.write_text(json.dumps(model, indent=2) + "\n")
-        print(json.dumps(model, indent=2))
-        return
-    reports = [json.loads(p.read_text()) for p in args.reports]
-    noise, floors, factors = fit_noise(reports)
-    for path, floor in zip(args.reports, floors, strict=True):
-        print(f"{path}: floor {floor * 100:.1f} %")
-    model = {"source": f"tools/fit_error_model.py {' '.join(str(p) for p in args.reports)}",
-             "floor": floors[0], "noise": noise, "interleave": factors,
-             "ism": ism_errors(args.size)}
+    if not args.reports and not pairs:
+        parser.error("give the reports to fit, or --maps pairs")
+    stored = json.loads(args.output.read_text()) if args.output.is_file() else {}
+    model = stored
+    if args.reports:
+        reports = [json.loads(p.read_text()) for p in args.reports]
+        noise, floors, factors = fit_noise(reports)
+        for path, floor in zip(args.reports, floors, strict=True):
+            print(f"{path}: floor {floor * 100:.1f} %")
+        model = {"source": f"tools/fit_error_model.py {' '.join(str(p) for p in args.reports)}",
+                 "floor": floors[0], "noise": noise, "interleave": factors,
+                 "ism": ism_errors(args.size),  # the maps' term kept unless fitted again:
+                 **{k: stored[k] for k in ("maps", "maps_source") if k in stored}}
     if pairs:
         model.update(maps=fit_maps(pairs), maps_source=maps_source)
     args.output.write_text(json.dumps(model, indent=2) + "\n")
     print(json.dumps(model, indent=2))
-
 
 if __name__ == "__main__":
     main()

@@ -12,14 +12,14 @@ import numpy as np
 
 from ..gpu.gl import GLUnavailableError
 from ..gpu.raytrace import RayTracer
-from ..scene.geometry import bounding_sphere, flatten_instances
+from ..scene.geometry import WorldGeometry, bounding_sphere, flatten_instances
 from ..scene.model import Scene
 from ..settings import Settings
-from ..transport.vpl import generate_vpls
+from ..transport.vpl import VPLs, generate_vpls
 from . import autotune
 from .gpu_session import GpuSession
 from .planner import reaches_bounds
-from .progressive import ray_traced_from
+from .progressive import maps_undersample, ray_traced_from
 from .ray_probe import ray_probe_seconds, visibility_probe_seconds
 from .result import Frame, Stats
 from .reuse import KeptProducts
@@ -124,11 +124,14 @@ class ChooseParameters(Stage):
                                                               frame.geometry.has_specular),
                 area_table=self._ism_area_table(triangles),
                 compensation_rays=rays,
-                ray_cost=self._ray_cost(frame, tracer, cost) if rays else 1.0,
+                ray_cost=_against(cost.probe, tracer, lambda t: ray_probe_seconds(
+                    camera, frame.geometry, t, frame.radius,
+                    settings.clamp_distance * frame.radius)) if rays else 1.0,
                 ray_traced_from=switch,
-                visibility_cost=(self._visibility_cost(frame, tracer, cost, probe_vpls)
-                                 if switch is not None else 1.0),
-                undersampled=settings.visibility == "ism" and triangles > settings.ism_points)
+                visibility_cost=_against(cost.visibility_probe, tracer, lambda t: (
+                    visibility_probe_seconds(camera, frame.geometry, t, frame.radius,
+                                             probe_vpls))) if switch is not None else 1.0,
+                undersampled=maps_undersample(settings, triangles))
         work = replace(work, spent=time.perf_counter() - frame.started)
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)
@@ -149,28 +152,6 @@ class ChooseParameters(Stage):
         """Whether the ISM area table of these triangles is built already."""
         return getattr(self.gpu.ism_if_made, "prepared_triangles", None) == triangles
 
-    @staticmethod
-    def _ray_cost(frame: FrameState, tracer: RayTracer | None, cost: autotune.CostModel
-                  ) -> float:
-        """The frame's ray probe against the calibration room's (1 where either is
-        unmeasured)."""
-        if tracer is None or cost.probe <= 0.0:
-            return 1.0
-        seconds = ray_probe_seconds(frame.camera, frame.geometry, tracer, frame.radius,
-                                    frame.settings.clamp_distance * frame.radius)
-        return seconds / cost.probe if seconds > 0.0 else 1.0
-
-    @staticmethod
-    def _visibility_cost(frame: FrameState, tracer: RayTracer | None,
-                         cost: autotune.CostModel, targets: np.ndarray) -> float:
-        """The frame's visibility probe (rays to the probe's VPLs) against the calibration
-        room's (1 where either is unmeasured)."""
-        if tracer is None or cost.visibility_probe <= 0.0:
-            return 1.0
-        seconds = visibility_probe_seconds(frame.camera, frame.geometry, tracer, frame.radius,
-                                           targets)
-        return seconds / cost.visibility_probe if seconds > 0.0 else 1.0
-
     def _vpls_per_path(self, frame: FrameState, tracer: RayTracer | None
                        ) -> tuple[dict[str, float | None], np.ndarray]:
         """The workload's VPLs that can light the view per light path, from a probe of
@@ -178,11 +159,10 @@ class ChooseParameters(Stage):
         probe's (guidance keeps as many as the paths leave, chosen where the camera looks);
         and the positions of the probe's VPLs that can light the view."""
         settings = frame.settings
-        probe = replace(settings, vpl_count=PROBE_PATHS, incremental=False)
         if tracer is None:
             return {"vpls_per_path": float(settings.bounces)}, np.zeros((0, 3))
-        vpls = generate_vpls(frame.scene, frame.geometry, probe, tracer, frame.centre,
-                             frame.radius)
+        vpls = _probe_vpls(frame.scene, frame.geometry, settings, tracer, frame.centre,
+                           frame.radius)
         samples = vpls.as_light_samples(settings.vpl_shadow_resolution)
         in_view = reaches_bounds(samples, frame.in_view) if frame.in_view is not None \
             else np.ones(len(vpls), bool)
@@ -201,9 +181,7 @@ class ChooseParameters(Stage):
         tracer = upload_triangles(self.gpu, self.kept, geometry, stats)  # kept by the render
         probe = ray_probe_seconds(camera, geometry, tracer, radius,
                                   settings.clamp_distance * radius)
-        vpls = generate_vpls(scene, geometry, replace(settings, vpl_count=PROBE_PATHS,
-                                                      incremental=False),
-                             tracer, centre, radius)
+        vpls = _probe_vpls(scene, geometry, settings, tracer, centre, radius)
         visibility = visibility_probe_seconds(camera, geometry, tracer, radius, vpls.position)
         return {**stats.timings, "vpls": stats.counts["vpls"], "ray probe": probe,
                 "visibility probe": visibility,
@@ -211,6 +189,23 @@ class ChooseParameters(Stage):
                 "triangles": stats.counts["triangles"],
                 "shadow_tiles": stats.counts["shadow_maps"],  # the room has no glossy material:
                 "gather_antialiasing": self._gather_antialiasing(settings, False)}
+
+
+def _probe_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tracer: RayTracer,
+                centre: np.ndarray, radius: float) -> VPLs:
+    """The VPLs of PROBE_PATHS light paths (not incremental): the automatic mode's probe."""
+    return generate_vpls(scene, geometry, replace(settings, vpl_count=PROBE_PATHS,
+                                                  incremental=False), tracer, centre, radius)
+
+
+def _against(reference: float, tracer: RayTracer | None,
+             probe: Callable[[RayTracer], float]) -> float:
+    """A probe's seconds in this frame against the calibration room's ``reference`` (1 where
+    either is unmeasured: the probe runs only where there is a tracer and a reference)."""
+    if tracer is None or reference <= 0.0:
+        return 1.0
+    seconds = probe(tracer)
+    return seconds / reference if seconds > 0.0 else 1.0
 
 
 def _file_stamp(path: Path | None) -> tuple[str, int, int] | None:

@@ -34,7 +34,6 @@ import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from itertools import product
-from operator import attrgetter
 from pathlib import Path
 from typing import NamedTuple
 
@@ -42,6 +41,7 @@ import numpy as np
 
 from ..scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene
 from ..settings import Settings
+from .progressive import traced_passes
 from .stages import blur_radius, pixel_interleave
 
 COST_MODEL_VERSION = 15  # 15: c_traced scaled by a probe of rays to VPLs (the short rays'
@@ -249,11 +249,9 @@ class Candidate(NamedTuple):
     blur: int
     traced: float  # seconds of a pass that traces its VPLs' visibility instead
 
-
-def traced_passes(passes: int, switch: int | None) -> int:
-    """Of ``passes`` passes, those that trace their VPLs' visibility: from pass ``switch``
-    (from 0) on, None: none."""
-    return 0 if switch is None else max(0, passes - switch)
+    def per_pass(self, traced_share: float) -> float:
+        """Mean seconds a pass where ``traced_share`` of the passes trace their visibility."""
+        return (1.0 - traced_share) * self.seconds + traced_share * self.traced
 
 
 def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel,
@@ -278,25 +276,16 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
     if work.pass_paths:
         candidates = [c for c in candidates if c.paths >= work.pass_paths] or candidates
     share = work.traced_share
-
-    def mixed(c: Candidate) -> float:
-        return (1.0 - share) * c.seconds + share * c.traced
-
-    budget, passes, tracing = settings.time_budget, 1, 0
+    budget, passes = settings.time_budget, 1
     if settings.auto_parameters == "time":
-        best = _least_error(candidates, ONE_PASS_SHARE * budget if split > 1 else budget, mixed)
-        priced = mixed(best)
+        best = _least_error(candidates, ONE_PASS_SHARE * budget if split > 1 else budget, share)
         plans = []
         count = split
         while split > 1:
             traced = traced_passes(count, work.ray_traced_from)
-
-            def mean(c: Candidate, count: int = count, traced: int = traced) -> float:
-                return ((count - traced) * c.seconds + traced * c.traced) / count
-
-            if min(map(mean, several)) > budget / count:
+            if min(c.per_pass(traced / count) for c in several) > budget / count:
                 break  # the cheapest useful passes do not fit
-            one = _least_error(several, budget / count, mean)
+            one = _least_error(several, budget / count, traced / count)
             plans.append((errors.error(one.paths, one.interleave, one.points, one.resolution,
                                        count, traced, work.undersampled), count, one))
             count *= 2
@@ -307,29 +296,28 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
             error, passes, best = max((p for p in plans if p[0] <= PASSES_TIE * least),
                                       key=lambda p: p[1])
             best = best._replace(error=error)  # the error of all the passes
-            tracing = traced_passes(passes, work.ray_traced_from)
-            priced = ((passes - tracing) * best.seconds + tracing * best.traced) / passes
+            share = traced_passes(passes, work.ray_traced_from) / passes
             budget /= passes
     else:
         fitting = [c for c in candidates if c.error <= settings.target_error]
         best = min(fitting) if fitting else min(candidates, key=lambda c: (c.error, c.seconds))
-        priced = best.seconds
     chosen = replace(settings, vpl_count=best.paths, interleave=best.interleave,
                      ism_points=best.points, ism_resolution=best.resolution,
                      blur_radius=max(1, best.blur or settings.blur_radius), visibility="ism")
     return Choice(chosen, best.seconds, best.error,
-                  useful=settings.auto_parameters != "time" or priced <= budget, passes=passes,
-                  traced_seconds=best.traced if share > 0 or tracing else 0.0)
+                  useful=settings.auto_parameters != "time" or best.per_pass(share) <= budget,
+                  passes=passes, traced_seconds=best.traced if share > 0 else 0.0)
 
 
 def _least_error(candidates: list[Candidate], budget: float,
-                 seconds: Callable[[Candidate], float] = attrgetter("seconds")) -> Candidate:
-    """The candidate of least predicted error within ``budget`` seconds (by ``seconds``), or
-    within OVERRUN of the cheapest useful frame's where that is more (so that a budget just
-    above that frame does not get a worse choice than one just below it)."""
-    limit = max(budget, OVERRUN * min(map(seconds, candidates)))
-    return min((c for c in candidates if seconds(c) <= limit),
-               key=lambda c: (c.error, seconds(c)))
+                 traced_share: float = 0.0) -> Candidate:
+    """The candidate of least predicted error within ``budget`` seconds a pass (where
+    ``traced_share`` of the passes trace), or within OVERRUN of the cheapest useful frame's
+    where that is more (so that a budget just above that frame does not get a worse choice
+    than one just below it)."""
+    limit = max(budget, OVERRUN * min(c.per_pass(traced_share) for c in candidates))
+    return min((c for c in candidates if c.per_pass(traced_share) <= limit),
+               key=lambda c: (c.error, c.per_pass(traced_share)))
 
 
 def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel

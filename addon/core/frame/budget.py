@@ -32,8 +32,7 @@ from dataclasses import replace
 from ..scene.model import Scene
 from ..settings import Settings
 from .automatic import ChooseParameters
-from .autotune import traced_passes
-from .progressive import PassReport, RenderPass, render_passes
+from .progressive import PassReport, RenderPass, render_passes, traced_passes
 from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
 
@@ -98,10 +97,9 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         nonlocal later, expected, expected_traced
         if index > 0 and later is not None:
             began = time.perf_counter()
-            tracing = pass_settings.visibility == "exact"
             result = render_pass(scene, replace(later, visibility=pass_settings.visibility),
                                  index, progress, cancelled)
-            if not tracing:
+            if pass_settings.visibility != "exact":  # traced passes: render_passes' mean
                 walls.append(time.perf_counter() - began)
             paths.append(later.vpl_count)
             return result

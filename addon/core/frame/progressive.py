@@ -52,6 +52,13 @@ def pass_settings(settings: Settings, index: int) -> Settings:
                    clamp_distance=settings.clamp_distance / (index + 1) ** CLAMP_EXPONENT)
 
 
+def maps_undersample(settings: Settings, triangles: int) -> bool:
+    """Whether the frame reads imperfect shadow maps and its ``triangles`` outnumber each
+    map's points: the maps' visibility error, which passes keep (ray_traced_from; the
+    automatic mode's autotune.ErrorModel.maps)."""
+    return settings.visibility == "ism" and triangles > settings.ism_points
+
+
 def ray_traced_from(settings: Settings, triangles: int) -> int | None:
     """The first pass (from 0) of a final render that traces its VPLs' visibility instead of
     reading imperfect shadow maps, or None: from ``ray_traced_from_pass`` (from 1) on where
@@ -60,8 +67,7 @@ def ray_traced_from(settings: Settings, triangles: int) -> int | None:
     throughout and 4.3 % with rays from pass 3 (docs/measurements.md, *Long renders*). Where
     every triangle gets points the maps' error was the smaller: the Cornell box (34 triangles)
     measured 1.5 % and 1.7 % (rays from pass 5)."""
-    if settings.visibility != "ism" or settings.ray_traced_from_pass == 0 \
-            or triangles <= settings.ism_points:
+    if settings.ray_traced_from_pass == 0 or not maps_undersample(settings, triangles):
         return None
     return settings.ray_traced_from_pass - 1
 
@@ -69,6 +75,11 @@ def ray_traced_from(settings: Settings, triangles: int) -> int | None:
 def traces(switch: int | None, index: int) -> bool:
     """Whether pass ``index`` traces its VPLs' visibility, ``switch`` being ray_traced_from's."""
     return switch is not None and index >= switch
+
+
+def traced_passes(passes: int, switch: int | None) -> int:
+    """Of ``passes`` passes, those that trace their VPLs' visibility (``traces``)."""
+    return 0 if switch is None else max(0, passes - switch)
 
 
 def pass_camera(camera: Camera, index: int, aa: int) -> Camera:
@@ -227,7 +238,7 @@ def render_passes(render_pass: RenderPass, scene: Scene, settings: Settings,
                 and accumulator.count >= MIN_PASSES_FOR_NOISE and noise <= settings.noise_threshold:
             break
     total.counts["passes"] = accumulator.count
-    if planned > 1 and settings.visibility == "ism" and triangles <= settings.ism_points \
+    if planned > 1 and switch is None and settings.visibility == "ism" \
             and 0 < settings.ray_traced_from_pass <= accumulator.count:
         total.skipped[f"ray-traced visibility from pass {settings.ray_traced_from_pass}"] = (
             f"{triangles:,} triangles: each ISM's {settings.ism_points} points hold them")
