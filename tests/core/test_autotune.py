@@ -356,6 +356,60 @@ def test_more_budget_never_chooses_more_error():
     assert errors == sorted(errors, reverse=True)
 
 
+def test_the_visibility_cost_is_measured_only_where_a_plan_could_trace():
+    """autotune.may_trace: a plan reaches the switch (pass 3: four passes of a split of two)
+    only where four of the cheapest passes of MIN_PASS_PATHS paths fit the budget."""
+    model = autotune.load_error_model()
+    work = replace(WORK, ray_traced_from=2, visibility_cost=0.0)
+    settings = replace(Settings(), auto_parameters="time")
+    least = min(min(c.seconds, c.traced) for c in autotune._candidates(settings, work, COST, model)
+                if c.paths >= autotune.MIN_PASS_PATHS)
+
+    def may(budget: float, split: int = 2, switch: int | None = 2) -> bool:
+        return autotune.may_trace(replace(settings, time_budget=budget),
+                                  replace(work, ray_traced_from=switch), COST, model, split)
+
+    assert may(4 * least * 1.01) and not may(4 * least * 0.99)
+    assert not may(100 * least, split=1)  # a single frame's choice: no plan of passes
+    assert not may(100 * least, switch=None)  # maps hold the scene: nothing traces
+    assert not autotune.may_trace(replace(settings, auto_parameters="error", time_budget=100),
+                                  work, COST, model, 2)
+
+
+@pytest.mark.parametrize("traced_share", [0.0, 0.5, 1.0])
+def test_a_later_pass_is_filled_to_its_budget_between_the_ladders_rungs(traced_share):
+    """autotune.fill raises the chosen light paths, short of the next of PATHS, until a pass
+    (of that share traced) is predicted at its budget; a budget the choice already fills
+    leaves it as it was."""
+    model = autotune.load_error_model()
+    work = replace(WORK, traced_share=traced_share, visibility_cost=1.0)
+    settings = replace(Settings(), auto_parameters="time", interleave=8, ism_points=8192,
+                       ism_resolution=128, blur_radius=4)
+
+    def choice(paths: int) -> autotune.Choice:
+        args = (paths, 8, 8192, 128, 4)
+        return autotune.Choice(replace(settings, vpl_count=paths),
+                               autotune.predict_seconds(COST, work, *args),
+                               model.error(*args[:4]),
+                               traced_seconds=autotune.predict_seconds(COST, work, *args,
+                                                                       traced=True))
+
+    def per_pass(c: autotune.Choice) -> float:
+        return (1 - traced_share) * c.seconds + traced_share * c.traced_seconds
+
+    rung = autotune.PATHS.index(1024)
+    low, high = choice(1024), choice(autotune.PATHS[rung + 1])
+    budget = (per_pass(low) + per_pass(high)) / 2
+    filled = autotune.fill(low, work, COST, model, budget)
+    assert 1024 < filled.settings.vpl_count < high.settings.vpl_count
+    assert per_pass(filled) == pytest.approx(budget, rel=0.01)
+    assert per_pass(filled) <= budget
+    assert filled.error < low.error
+    assert autotune.fill(low, work, COST, model, per_pass(low)) == low
+    assert autotune.fill(low, work, COST, model, 10 * per_pass(high)).settings.vpl_count == \
+        high.settings.vpl_count - 1  # the next rung would have been chosen where it fitted
+
+
 def test_the_maps_term_is_fitted_from_long_renders_with_and_without_rays():
     """tools/fit_error_model.py --maps: K passes with the maps throughout against rays from
     pass s differ in RMSE² by maps² (1 − ((s − 1) / K)²), averaged over scenes in squares."""

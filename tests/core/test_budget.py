@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from addon.core.frame import autotune
+from addon.core.frame.automatic import ChooseParameters
 from addon.core.frame.budget import split_seconds
 from addon.core.frame.image import SUPERSAMPLE_BLUR
 from addon.core.frame.result import Stats
@@ -101,11 +102,37 @@ def test_a_budgets_passes_trace_from_the_switch_priced_as_tracing(renderer, cach
     assert not stats.warnings, stats.warnings
 
 
+def test_the_first_traced_pass_sizes_the_traced_passes_after_it(renderer, cached_cost):
+    """The first traced pass's measured time rescales the visibility cost, so that the model
+    predicts that pass at its time, and the traced passes after it are chosen again for their
+    share of the rest: an over-predicted first traced pass gets larger passes after it, an
+    under-predicted one smaller."""
+    chooser = ChooseParameters(renderer.gpu, renderer.kept, renderer.render)
+    chooser.cost_cache = renderer.cost_cache
+    work = replace(autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
+                                     vpls_per_path=2.5, bounces=4),
+                   fixed=0.5, visibility_cost=1.0, traced_share=1.0, pass_paths=1024)
+    chooser.later = (BASE, work)
+    traced = replace(BASE, vpl_count=1024)
+    s = (1024, traced.interleave, traced.ism_points, traced.ism_resolution, traced.blur_radius)
+    modelled = autotune.predict_seconds(cached_cost, work, *s, traced=True)
+    for seconds, larger in ((0.7 * modelled, True), (1.3 * modelled, False)):
+        chooser.later = (BASE, work)
+        again = chooser.rechoose_traced(seconds, traced, budget=modelled)
+        assert again is not None
+        _, rescaled = chooser.later
+        assert autotune.predict_seconds(cached_cost, rescaled, *s, traced=True) == \
+            pytest.approx(seconds)
+        assert (again.settings.vpl_count > 1024) is larger, again.describe()
+        assert again.traced_seconds <= modelled or again.settings.vpl_count == 1024
+
+
 def test_a_budget_below_the_cheapest_useful_frame_renders_that_and_says_so(renderer,
                                                                           cached_cost):
     renderer.forget_frames()
     frame, stats = renderer.render_progressive(scene(), replace(BASE, time_budget=0.01))
     assert stats.counts["passes"] == 1
+    assert not [n for n in stats.notes if "passes 2+" in n]  # no later pass rendered
     chosen = stats.counts["auto_vpl_count"]
     warning, = [w for w in stats.warnings if "below the cheapest useful frame" in w]
     assert f"({chosen} light paths" in warning and "auto_parameters off" in warning

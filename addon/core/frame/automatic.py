@@ -45,6 +45,8 @@ class ChooseParameters(Stage):
         """Where the measured cost model is kept (None: measure each time)."""
         self.last: tuple[Settings, autotune.Workload, autotune.Choice] | None = None
         """The last frame's settings, workload and choice (for :meth:`rechoose`)."""
+        self.later: tuple[Settings, autotune.Workload] | None = None
+        """The settings and workload of the later passes :meth:`rechoose` chose for."""
         self.split = 1
         """Passes the time mode would share the next frame's time_budget among (budget.py;
         the choice's ``passes`` says whether it did, see autotune.choose)."""
@@ -84,6 +86,7 @@ class ChooseParameters(Stage):
         """The last frame's choice made again for ``budget`` seconds a pass, from its measured
         seconds: ``fixed`` of the work it does not choose, ``chosen`` of the work it does (None:
         no frame chose yet); ``traced_share`` of the passes trace their VPLs' visibility."""
+        self.later = None
         if self.last is None:
             return None
         settings, work, last = self.last
@@ -95,8 +98,39 @@ class ChooseParameters(Stage):
         work = replace(work, fixed=fixed, scale=scale, spent=0.0,
                        area_table=self._ism_area_table(work.triangles), ray_traced_from=None,
                        traced_share=traced_share, pass_paths=autotune.MIN_PASS_PATHS)
-        return autotune.choose(replace(settings, time_budget=budget), work, cost,
-                               self.error_model())
+        self.later = (settings, work)
+        return self._filled(settings, work, cost, budget)
+
+    def rechoose_traced(self, wall: float, traced: Settings, budget: float
+                        ) -> autotune.Choice | None:
+        """The traced passes' choice made again for ``budget`` seconds a pass, after one of
+        ``traced`` settings took ``wall`` seconds: the visibility cost is scaled so that the
+        model predicts that pass's time (the visibility probe traces every pair, the gather
+        only facing ones: Sponza's traced passes took 8.0 s where 12.6 s was predicted). None
+        where :meth:`rechoose` has not measured the later passes."""
+        if self.later is None:
+            return None
+        cost = self.cost_model(Stats(), lambda _f, _m: None)
+        settings, work = self.later
+        s = (traced.vpl_count, traced.interleave, traced.ism_points, traced.ism_resolution,
+             traced.blur_radius)
+        untraced = autotune.predict_seconds(cost, replace(work, visibility_cost=0.0), *s,
+                                            traced=True)
+        modelled = autotune.predict_seconds(cost, work, *s, traced=True)
+        if modelled <= untraced:
+            return None
+        scale = min(max((wall - untraced) / (modelled - untraced), 0.25), 4.0)
+        work = replace(work, visibility_cost=work.visibility_cost * scale, traced_share=1.0)
+        self.later = (settings, work)
+        return self._filled(settings, work, cost, budget)
+
+    def _filled(self, settings: Settings, work: autotune.Workload, cost: autotune.CostModel,
+                budget: float) -> autotune.Choice:
+        """The choice of least predicted error for ``budget`` seconds a pass, its light paths
+        raised to fill them (autotune.fill)."""
+        errors = self.error_model()
+        choice = autotune.choose(replace(settings, time_budget=budget), work, cost, errors)
+        return autotune.fill(choice, work, cost, errors, budget)
 
     def run(self, frame: FrameState) -> None:
         self.last = None
@@ -128,10 +162,15 @@ class ChooseParameters(Stage):
                     camera, frame.geometry, t, frame.radius,
                     settings.clamp_distance * frame.radius)) if rays else 1.0,
                 ray_traced_from=switch,
-                visibility_cost=_against(cost.visibility_probe, tracer, lambda t: (
-                    visibility_probe_seconds(camera, frame.geometry, t, frame.radius,
-                                             probe_vpls))) if switch is not None else 1.0,
                 undersampled=maps_undersample(settings, triangles))
+            if autotune.may_trace(settings, work, cost, self.error_model(), self.split):
+                work = replace(work, visibility_cost=_against(
+                    cost.visibility_probe, tracer, lambda t: visibility_probe_seconds(
+                        camera, frame.geometry, t, frame.radius, probe_vpls)))
+            elif switch is not None:
+                stats.skipped["visibility probe"] = (
+                    f"no plan of passes that trace from pass {switch + 1} fits "
+                    f"{settings.time_budget:g} s")
         work = replace(work, spent=time.perf_counter() - frame.started)
         choice = autotune.choose(settings, work, cost, self.error_model(), self.split)
         self.last = (settings, work, choice)

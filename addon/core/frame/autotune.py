@@ -309,6 +309,50 @@ def choose(settings: Settings, work: Workload, cost: CostModel, errors: ErrorMod
                   passes=passes, traced_seconds=best.traced if share > 0 else 0.0)
 
 
+def may_trace(settings: Settings, work: Workload, cost: CostModel, errors: ErrorModel,
+              split: int) -> bool:
+    """Whether a time budget's plan of ``split``, 2 × ``split`` … passes could reach
+    ``work.ray_traced_from`` (see :func:`choose`): its passes of MIN_PASS_PATHS light paths fit
+    at the least of a mapped pass's seconds and a traced pass's without its rays. Where not,
+    the visibility cost is not needed."""
+    if work.ray_traced_from is None or split <= 1 or settings.auto_parameters != "time":
+        return False
+    count = split
+    while count <= work.ray_traced_from:
+        count *= 2
+    least = min((min(c.seconds, c.traced) for c in
+                 _candidates(settings, replace(work, visibility_cost=0.0), cost, errors)
+                 if c.paths >= MIN_PASS_PATHS), default=math.inf)
+    return count * least <= settings.time_budget
+
+
+def fill(choice: Choice, work: Workload, cost: CostModel, errors: ErrorModel,
+         budget: float) -> Choice:
+    """``choice`` with its light paths raised, short of the next of PATHS, so that a pass (of
+    ``work.traced_share`` traced) is predicted at ``budget`` seconds: a time budget's later
+    passes, sized from measured times, would otherwise leave up to the ladder's step (19 %)
+    of each unused."""
+    s = choice.settings
+    args = (s.interleave, s.ism_points, s.ism_resolution, s.blur_radius)
+
+    def per_pass(paths: int) -> float:
+        mapped = predict_seconds(cost, work, paths, *args)
+        traced = predict_seconds(cost, work, paths, *args, traced=True)
+        return (1.0 - work.traced_share) * mapped + work.traced_share * traced
+
+    now = per_pass(s.vpl_count)
+    slope = (per_pass(2 * s.vpl_count) - now) / s.vpl_count
+    rung = next((p for p in PATHS if p > s.vpl_count), s.vpl_count + 1)
+    paths = min(s.vpl_count + int((budget - now) / slope), rung - 1) if slope > 0 else 0
+    if paths <= s.vpl_count:
+        return choice
+    return replace(choice, settings=replace(s, vpl_count=paths),
+                   seconds=predict_seconds(cost, work, paths, *args),
+                   error=errors.error(paths, *args[:3]),
+                   traced_seconds=(predict_seconds(cost, work, paths, *args, traced=True)
+                                   if choice.traced_seconds else 0.0))
+
+
 def _least_error(candidates: list[Candidate], budget: float,
                  traced_share: float = 0.0) -> Candidate:
     """The candidate of least predicted error within ``budget`` seconds a pass (where

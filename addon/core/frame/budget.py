@@ -84,25 +84,50 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
     calibration = Stats()
     chooser.cost_model(calibration, progress or (lambda _f, _m: None))  # not in the budget
     start = time.perf_counter()
-    later: Settings | None = None
+    later: Settings | None = None  # the later passes' settings
+    traced: Settings | None = None  # of the traced passes after the first (chosen again)
     expected: float | None = None  # seconds of the first later pass (predicted)
-    expected_traced: float | None = None  # of the first later pass that traces (predicted)
+    expected_traced: float | None = None  # of the next pass that traces (predicted)
     walls: list[float] = []  # of the later passes that read maps
+    traced_walls: list[float] = []  # of the traced passes chosen again
     paths: list[int] = []  # light paths of each pass: its weight (noise variance ∝ 1 / paths)
     notes: list[str] = []
+    later_note: list[str] = []  # the later passes' choice, noted once one of them renders
     warnings: list[str] = []
+
+    def later_pass(scene: Scene, pass_settings: Settings, index: int,
+                   progress: ProgressCallback, cancelled: CancelCallback) -> tuple[Frame, Stats]:
+        nonlocal traced, expected_traced
+        notes.extend(later_note)
+        later_note.clear()
+        tracing = pass_settings.visibility == "exact"
+        these = traced if tracing and traced is not None else later
+        began = time.perf_counter()
+        result = render_pass(scene, replace(these, visibility=pass_settings.visibility), index,
+                             progress, cancelled)
+        wall = time.perf_counter() - began
+        paths.append(these.vpl_count)
+        if not tracing:
+            walls.append(wall)
+        elif traced is not None:
+            traced_walls.append(wall)
+        else:  # the first traced pass: its time sizes the traced passes after it
+            rest = PLAN_HEADROOM * max(budget - (time.perf_counter() - start), 0.0)
+            fitting = int(rest // wall)  # passes of its size that fit the rest
+            again = chooser.rechoose_traced(wall, these, rest / fitting) if fitting else None
+            traced = these if again is None else replace(
+                again.settings, auto_parameters="off", time_budget=budget)
+            expected_traced = wall if again is None else again.traced_seconds
+            if again is not None:
+                notes.append(f"automatic parameters of the traced passes after pass {index + 1}: "
+                             f"{again.describe()} (pass {index + 1} traced in {wall:.2f} s)")
+        return result
 
     def one_pass(scene: Scene, pass_settings: Settings, index: int,
                  progress: ProgressCallback, cancelled: CancelCallback) -> tuple[Frame, Stats]:
         nonlocal later, expected, expected_traced
         if index > 0 and later is not None:
-            began = time.perf_counter()
-            result = render_pass(scene, replace(later, visibility=pass_settings.visibility),
-                                 index, progress, cancelled)
-            if pass_settings.visibility != "exact":  # traced passes: render_passes' mean
-                walls.append(time.perf_counter() - began)
-            paths.append(later.vpl_count)
-            return result
+            return later_pass(scene, pass_settings, index, progress, cancelled)
         began = time.perf_counter()
         chooser.split = BUDGET_SPLIT
         try:
@@ -127,7 +152,7 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         if again is not None:
             expected = again.seconds
             expected_traced = again.traced_seconds or None
-            notes.append(f"automatic parameters of passes 2+: {again.describe()} (measured "
+            later_note.append(f"automatic parameters of passes 2+: {again.describe()} (measured "
                          f"{fixed:.2f} s per pass of work not chosen)")
         repeated = wall - once_seconds(stats)
         if repeated > budget and not chosen.useful:
@@ -142,9 +167,10 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         return frame, stats
 
     def next_seconds(tracing: bool) -> float | None:
-        if tracing:
-            return expected_traced
-        return sum(walls) / len(walls) if walls else expected
+        measured = traced_walls if tracing else walls
+        if measured:
+            return sum(measured) / len(measured)
+        return expected_traced if tracing else expected
 
     frame, stats = render_passes(
         one_pass, scene, replace(settings, passes=MAX_BUDGET_PASSES, time_limit=budget),

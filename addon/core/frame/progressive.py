@@ -154,15 +154,15 @@ class Accumulator:
 
 def expected_pass_seconds(mapped: list[float], traced: list[float], tracing: bool,
                           predicted: float | None = None) -> float:
-    """The expected time of the next pass, from the times of the passes before the switch to
-    ray-traced visibility (``mapped``) and after it (``traced``): the mean of the traced
-    passes so far where it is ``tracing`` and one has, else ``predicted`` (the expected time
-    of a pass like it), else the mean of the mapped passes, times EXACT_PASS_COST where it
-    is ``tracing``."""
-    if tracing and traced:
-        return float(np.mean(traced))
+    """The expected time of the next pass: ``predicted`` where given (the caller's expectation
+    of a pass like it), else from the times of the passes before the switch to ray-traced
+    visibility (``mapped``) and after it (``traced``): the mean of the traced passes so far
+    where it is ``tracing`` and one has, else the mean of the mapped passes, times
+    EXACT_PASS_COST where it is ``tracing``."""
     if predicted is not None:
         return predicted
+    if tracing and traced:
+        return float(np.mean(traced))
     like_before = float(np.mean(mapped))
     return EXACT_PASS_COST * like_before if tracing else like_before
 
