@@ -12,7 +12,7 @@ import pytest
 
 from addon.core.frame import autotune
 from addon.core.frame.automatic import ChooseParameters
-from addon.core.frame.budget import split_seconds
+from addon.core.frame.budget import split_seconds, traced_passes_after
 from addon.core.frame.image import SUPERSAMPLE_BLUR
 from addon.core.frame.result import Stats
 from addon.core.settings import Settings
@@ -118,13 +118,39 @@ def test_the_first_traced_pass_sizes_the_traced_passes_after_it(renderer, cached
     modelled = autotune.predict_seconds(cached_cost, work, *s, traced=True)
     for seconds, larger in ((0.7 * modelled, True), (1.3 * modelled, False)):
         chooser.later = (BASE, work)
-        again = chooser.rechoose_traced(seconds, traced, budget=modelled)
+        chooser.rescale_traced(seconds, traced)
+        again = chooser.rechoose_traced(budget=modelled)
         assert again is not None
         _, rescaled = chooser.later
         assert autotune.predict_seconds(cached_cost, rescaled, *s, traced=True) == \
             pytest.approx(seconds)
         assert (again.settings.vpl_count > 1024) is larger, again.describe()
         assert again.traced_seconds <= modelled or again.settings.vpl_count == 1024
+
+
+class FakeChooser:
+    """A chooser whose traced passes take their budget, but no less than ``least`` seconds
+    (the light-path floor)."""
+
+    def __init__(self, least: float) -> None:
+        self.least, self.rescaled = least, []
+
+    def rescale_traced(self, wall: float, first: Settings) -> None:
+        self.rescaled.append(wall)
+
+    def rechoose_traced(self, budget: float) -> autotune.Choice:
+        return autotune.Choice(BASE, 1.0, 0.1, traced_seconds=max(budget, self.least))
+
+
+@pytest.mark.parametrize("least, each", [(5.0, 20 / 3), (7.8, 10.0), (25.0, 25.0)])
+def test_the_traced_passes_after_the_first_fill_the_rest_where_they_fit(least, each):
+    """After a first traced pass of 8 s with 20 s left: three passes of 6.7 s where passes may
+    shrink so far, else two of 10 s; one that does not fit at all is chosen as the smallest
+    (progressive.py's time limit then does not start it)."""
+    chooser = FakeChooser(least)
+    again = traced_passes_after(chooser, BASE, wall=8.0, rest=20.0)
+    assert chooser.rescaled == [8.0]
+    assert again.traced_seconds == pytest.approx(each)
 
 
 def test_a_budget_below_the_cheapest_useful_frame_renders_that_and_says_so(renderer,

@@ -101,15 +101,14 @@ class ChooseParameters(Stage):
         self.later = (settings, work)
         return self._filled(settings, work, cost, budget)
 
-    def rechoose_traced(self, wall: float, traced: Settings, budget: float
-                        ) -> autotune.Choice | None:
-        """The traced passes' choice made again for ``budget`` seconds a pass, after one of
-        ``traced`` settings took ``wall`` seconds: the visibility cost is scaled so that the
-        model predicts that pass's time (the visibility probe traces every pair, the gather
-        only facing ones: Sponza's traced passes took 8.0 s where 12.6 s was predicted). None
-        where :meth:`rechoose` has not measured the later passes."""
+    def rescale_traced(self, wall: float, traced: Settings) -> None:
+        """Scale the later passes' visibility cost so that the model predicts a traced pass of
+        ``traced`` settings at ``wall`` seconds, its measured time (the visibility probe
+        traces every pair, the gather only facing ones: Sponza's traced passes took 8.0 s
+        where 12.6 s was predicted). Nothing where :meth:`rechoose` has not measured the later
+        passes."""
         if self.later is None:
-            return None
+            return
         cost = self.cost_model(Stats(), lambda _f, _m: None)
         settings, work = self.later
         s = (traced.vpl_count, traced.interleave, traced.ism_points, traced.ism_resolution,
@@ -117,12 +116,21 @@ class ChooseParameters(Stage):
         untraced = autotune.predict_seconds(cost, replace(work, visibility_cost=0.0), *s,
                                             traced=True)
         modelled = autotune.predict_seconds(cost, work, *s, traced=True)
-        if modelled <= untraced:
+        if modelled > untraced:
+            scale = min(max((wall - untraced) / (modelled - untraced), 0.25), 4.0)
+            self.later = (settings, replace(work, visibility_cost=work.visibility_cost * scale,
+                                            traced_share=1.0))
+
+    def rechoose_traced(self, budget: float) -> autotune.Choice | None:
+        """The traced passes' choice made again for ``budget`` seconds a pass (after
+        :meth:`rescale_traced`); None where :meth:`rechoose` has not measured the later
+        passes."""
+        if self.later is None:
             return None
-        scale = min(max((wall - untraced) / (modelled - untraced), 0.25), 4.0)
-        work = replace(work, visibility_cost=work.visibility_cost * scale, traced_share=1.0)
-        self.later = (settings, work)
-        return self._filled(settings, work, cost, budget)
+        settings, work = self.later
+        work = replace(work, traced_share=1.0)
+        return self._filled(settings, work, self.cost_model(Stats(), lambda _f, _m: None),
+                            budget)
 
     def _filled(self, settings: Settings, work: autotune.Workload, cost: autotune.CostModel,
                 budget: float) -> autotune.Choice:

@@ -38,6 +38,7 @@ from dataclasses import replace
 from ..scene.model import Scene
 from ..settings import Settings
 from .automatic import ChooseParameters
+from .autotune import Choice
 from .progressive import PassReport, RenderPass, render_passes, traced_passes
 from .result import Frame, Stats
 from .state import CancelCallback, ProgressCallback
@@ -77,6 +78,22 @@ def split_seconds(wall: float, stats: Stats) -> tuple[float, float]:
     chosen = sum(v for k, v in stats.timings.items()
                  if k.startswith(CHOSEN_STAGES) and k not in ONCE_STAGES)
     return max(0.0, wall - chosen - once), chosen
+
+
+def traced_passes_after(chooser: ChooseParameters, first: Settings, wall: float, rest: float
+                        ) -> Choice | None:
+    """The choice for the traced passes after the first (of ``first`` settings, ``wall``
+    seconds), with the visibility cost rescaled to that pass: as many as fill ``rest``
+    seconds, each at most its size, where they fit (the light-path floor may not let them
+    shrink), else one fewer."""
+    chooser.rescale_traced(wall, first)
+    again = None
+    for count in (math.ceil(rest / wall), math.floor(rest / wall)):
+        if count >= 1:
+            again = chooser.rechoose_traced(rest / count)
+            if again is None or again.traced_seconds * count <= rest:
+                break
+    return again
 
 
 def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Scene,
@@ -119,8 +136,7 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
             traced_walls.append(wall)
         else:  # the first traced pass: its time sizes the traced passes after it
             rest = PLAN_HEADROOM * max(budget - (time.perf_counter() - start), 0.0)
-            count = math.ceil(rest / wall)  # passes of at most its size that fill the rest
-            again = chooser.rechoose_traced(wall, these, rest / count) if count else None
+            again = traced_passes_after(chooser, these, wall, rest)
             traced = these if again is None else replace(
                 again.settings, auto_parameters="off", time_budget=budget)
             expected_traced = wall if again is None else again.traced_seconds
