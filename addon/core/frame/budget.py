@@ -174,8 +174,8 @@ def render_budget(render_pass: RenderPass, chooser: ChooseParameters, scene: Sce
         if again is not None:
             expected = again.seconds
             expected_traced = again.traced_seconds or None
-            later_note.append(f"automatic parameters of passes 2+: {again.describe()} (measured "
-                         f"{fixed:.2f} s per pass of work not chosen)")
+            later_note.append(f"automatic parameters of passes 2+: {again.describe()} "
+                              f"(measured {fixed:.2f} s per pass of work not chosen)")
         repeated = wall - once_seconds(stats)
         if repeated > budget and not chosen.useful:
             warnings.append(f"time budget {budget:g} s is below the cheapest useful frame of "
