@@ -17,6 +17,7 @@ from addon.core.frame.image import SUPERSAMPLE_BLUR
 from addon.core.frame.result import Stats
 from addon.core.settings import Settings
 from tests.core.builders import floor_scene, icosphere, light, translation
+from tests.core.test_autotune import WORK
 from tests.core.test_planner import wall
 
 COST = autotune.CostModel("", paths=2e-5, splat=5e-7, texels=3e-7, gather=2e-7, blur=2.5e-7,
@@ -109,10 +110,7 @@ def test_the_first_traced_pass_sizes_the_traced_passes_after_it(renderer, cached
     under-predicted one smaller."""
     chooser = ChooseParameters(renderer.gpu, renderer.kept, renderer.render)
     chooser.cost_cache = renderer.cost_cache
-    work = replace(autotune.Workload(pixels=256 * 256, triangles=30_000, shadow_tiles=6,
-                                     vpls_per_path=2.5, bounces=4),
-                   fixed=0.5, visibility_cost=1.0, traced_share=1.0, pass_paths=1024)
-    chooser.later = (BASE, work)
+    work = replace(WORK, fixed=0.5, visibility_cost=1.0, traced_share=1.0, pass_paths=1024)
     traced = replace(BASE, vpl_count=1024)
     s = (1024, traced.interleave, traced.ism_points, traced.ism_resolution, traced.blur_radius)
     modelled = autotune.predict_seconds(cached_cost, work, *s, traced=True)

@@ -74,6 +74,10 @@ class ChooseParameters(Stage):
         self._cost = ((name, _file_stamp(self.cost_cache)), model)  # the file may be new
         return model
 
+    def _measured_cost(self) -> autotune.CostModel:
+        """The cost model, measured already (by the frame whose choice is made again)."""
+        return self.cost_model(Stats(), lambda _f, _m: None)
+
     def error_model(self) -> autotune.ErrorModel:
         """The error model (autotune.ERROR_MODEL_FILE), read again only when it changed."""
         key = _file_stamp(autotune.ERROR_MODEL_FILE)
@@ -90,7 +94,7 @@ class ChooseParameters(Stage):
         if self.last is None:
             return None
         settings, work, last = self.last
-        cost = self.cost_model(Stats(), lambda _f, _m: None)
+        cost = self._measured_cost()
         s = last.settings
         modelled = autotune.chosen_seconds(cost, work, s.vpl_count, s.interleave, s.ism_points,
                                            s.ism_resolution, s.blur_radius)
@@ -109,7 +113,7 @@ class ChooseParameters(Stage):
         passes."""
         if self.later is None:
             return
-        cost = self.cost_model(Stats(), lambda _f, _m: None)
+        cost = self._measured_cost()
         settings, work = self.later
         s = (traced.vpl_count, traced.interleave, traced.ism_points, traced.ism_resolution,
              traced.blur_radius)
@@ -118,8 +122,7 @@ class ChooseParameters(Stage):
         modelled = autotune.predict_seconds(cost, work, *s, traced=True)
         if modelled > untraced:
             scale = min(max((wall - untraced) / (modelled - untraced), 0.25), 4.0)
-            self.later = (settings, replace(work, visibility_cost=work.visibility_cost * scale,
-                                            traced_share=1.0))
+            self.later = (settings, replace(work, visibility_cost=work.visibility_cost * scale))
 
     def rechoose_traced(self, budget: float) -> autotune.Choice | None:
         """The traced passes' choice made again for ``budget`` seconds a pass (after
@@ -128,8 +131,7 @@ class ChooseParameters(Stage):
         if self.later is None:
             return None
         settings, work = self.later
-        work = replace(work, traced_share=1.0)
-        return self._filled(settings, work, self.cost_model(Stats(), lambda _f, _m: None),
+        return self._filled(settings, replace(work, traced_share=1.0), self._measured_cost(),
                             budget)
 
     def _filled(self, settings: Settings, work: autotune.Workload, cost: autotune.CostModel,

@@ -333,24 +333,21 @@ def fill(choice: Choice, work: Workload, cost: CostModel, errors: ErrorModel,
     passes, sized from measured times, would otherwise leave up to the ladder's step (19 %)
     of each unused."""
     s = choice.settings
-    args = (s.interleave, s.ism_points, s.ism_resolution, s.blur_radius)
 
-    def per_pass(paths: int) -> float:
-        mapped = predict_seconds(cost, work, paths, *args)
-        traced = predict_seconds(cost, work, paths, *args, traced=True)
-        return (1.0 - work.traced_share) * mapped + work.traced_share * traced
+    def candidate(paths: int) -> Candidate:
+        return _candidate(work, cost, errors, paths, s.interleave, s.ism_points,
+                          s.ism_resolution, s.blur_radius)
 
-    now = per_pass(s.vpl_count)
-    slope = (per_pass(2 * s.vpl_count) - now) / s.vpl_count
+    now = candidate(s.vpl_count).per_pass(work.traced_share)
+    slope = (candidate(2 * s.vpl_count).per_pass(work.traced_share) - now) / s.vpl_count
     rung = next((p for p in PATHS if p > s.vpl_count), s.vpl_count + 1)
     paths = min(s.vpl_count + int((budget - now) / slope), rung - 1) if slope > 0 else 0
     if paths <= s.vpl_count:
         return choice
-    return replace(choice, settings=replace(s, vpl_count=paths),
-                   seconds=predict_seconds(cost, work, paths, *args),
-                   error=errors.error(paths, *args[:3]),
-                   traced_seconds=(predict_seconds(cost, work, paths, *args, traced=True)
-                                   if choice.traced_seconds else 0.0))
+    filled = candidate(paths)
+    return replace(choice, settings=replace(s, vpl_count=paths), seconds=filled.seconds,
+                   error=filled.error,
+                   traced_seconds=filled.traced if choice.traced_seconds else 0.0)
 
 
 def _least_error(candidates: list[Candidate], budget: float,
@@ -371,12 +368,18 @@ def _candidates(settings: Settings, work: Workload, cost: CostModel, errors: Err
     least = work.least_paths()
     for paths, (k, points, resolution) in product([p for p in PATHS if p >= least],
                                                   errors.options()):
-        blur = blur_radius(k, settings.blur_radius)
-        seconds = predict_seconds(cost, work, paths, k, points, resolution, blur)
-        traced = predict_seconds(cost, work, paths, k, points, resolution, blur, traced=True)
-        error = errors.error(paths, k, points, resolution)
-        candidates.append(Candidate(seconds, error, paths, k, points, resolution, blur, traced))
+        candidates.append(_candidate(work, cost, errors, paths, k, points, resolution,
+                                     blur_radius(k, settings.blur_radius)))
     return candidates
+
+
+def _candidate(work: Workload, cost: CostModel, errors: ErrorModel, paths: int, k: int,
+               points: int, resolution: int, blur: int) -> Candidate:
+    """One choice with its predicted seconds (mapped and traced) and error (of one pass)."""
+    return Candidate(predict_seconds(cost, work, paths, k, points, resolution, blur),
+                     errors.error(paths, k, points, resolution), paths, k, points, resolution,
+                     blur, predict_seconds(cost, work, paths, k, points, resolution, blur,
+                                           traced=True))
 
 
 # -- the error model ---------------------------------------------------------------------------
