@@ -17,6 +17,7 @@ from ..gpu.texture_array import upload as upload_textures
 from ..gpu.upsample import upsample
 from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
+from . import ism_maps
 from .compose import COMPOSED_PASSES, compose
 from .denoise import DenoisingData
 from .gather import RAY_OFFSET, LightPass, gather, new_accumulator, read_accumulator
@@ -198,6 +199,16 @@ class GatherStage(TileStage):
         return hints, aa
 
 
+def vpls_at_unseen_hits(frame: FrameState) -> bool:
+    """Whether the bias compensation's unseen hits can take the VPLs' light: every indirect
+    pass has imperfect shadow maps that the frame keeps from the gather (one atlas, or several
+    within ism_maps.KEPT_ATLAS_BYTES). Triangle maps would be made again, and ray-traced
+    visibility would trace a ray per VPL at every hit of every compensation ray."""
+    indirect = [p for p in frame.light_passes if p.indirect]
+    return bool(indirect) and frame.ism_maps is not None and frame.ism_maps.keeps_all \
+        and all(type(p.visibility) is ImperfectVisibility for p in indirect)
+
+
 class NearFieldStage(TileStage):
     """Bias compensation from the image: the near surfaces' light, read from what the gather
     put in the direct and indirect accumulators, added to the indirect light before its
@@ -210,6 +221,15 @@ class NearFieldStage(TileStage):
         if frame.near_field is None or data.scene is None:
             return
         frame.check_cancelled()
+        if frame.near_field.indirect_at_hits and frame.ism_maps is not None \
+                and not frame.ism_maps.keeps_all:
+            note = (f"bias compensation without the VPLs' light at hits the camera does not "
+                    f"see: the {len(frame.ism_maps.batches)} ISM atlases "
+                    f"({frame.ism_maps.atlas_bytes >> 20} MiB) exceed what a frame keeps "
+                    f"({ism_maps.KEPT_ATLAS_BYTES >> 20} MiB; fewer light paths a pass "
+                    f"keep them)")
+            if note not in frame.stats.notes:
+                frame.stats.notes.append(note)
         target = work.indirect if work.near is None else work.near
         with frame.stats.timed(self.name):
             self.gpu.tracer.bind()
@@ -223,14 +243,11 @@ class NearFieldStage(TileStage):
                   target: moderngl.Framebuffer) -> None:
         """Every direct light pass's light at the surface samples, shadowed by rays, and
         where the hits' light may bounce once more (bounces > 1) the VPLs' light: an
-        off-screen ceiling lit only by VPLs gives the wall below it its near light. Only
-        with imperfect shadow maps in one atlas, kept from the gather: triangle maps or
-        several atlases would be made again, and ray-traced visibility would trace a ray
-        per VPL at every hit of every compensation ray."""
+        off-screen ceiling lit only by VPLs gives the wall below it its near light (without
+        it, the Cornell box's ceiling along the image's edge was 33 % dark). Only where
+        :func:`vpls_at_unseen_hits` says so."""
         traced = RayTracedVisibility()
-        indirect = [p for p in frame.light_passes if p.indirect]
-        with_vpls = frame.near_field.indirect_at_hits and len(indirect) == 1 \
-            and type(indirect[0].visibility) is ImperfectVisibility
+        with_vpls = frame.near_field.indirect_at_hits and vpls_at_unseen_hits(frame)
         for light_pass in frame.light_passes:
             if not light_pass.indirect:
                 gather(self.gpu.ctx, self.gpu.programs, replace(light_pass, visibility=traced),
@@ -374,6 +391,8 @@ class RenderImage(Stage):
                             stage.run(frame, data, work)
             finally:
                 atlases.release()
+                if frame.ism_maps is not None:
+                    frame.ism_maps.release()
                 self.kept.keep_shadow_atlases(kept.used)
         reused = [f"{kept.hits} atlas(es) of unchanged lights and triangles kept from the "
                   f"last frame"] if kept.hits else []

@@ -1,6 +1,7 @@
 """Imperfect shadow maps of one frame's batches: the area CDF their surface points are drawn
-from (on the GPU) uploaded once per geometry version, and the atlas kept between frames when the
-frame has a single ISM batch."""
+from (on the GPU) uploaded once per geometry version, the atlas kept between frames when the
+frame has a single ISM batch, and each batch's atlas kept for the frame when it has several
+(within KEPT_ATLAS_BYTES)."""
 
 from __future__ import annotations
 
@@ -20,13 +21,19 @@ from .state import RenderError
 
 ATLAS_FIELDS = ("ism_points", "ism_resolution", "pull_push_levels", "seed")
 """Settings the kept ISM atlas depends on (with the triangle positions' version)."""
+KEPT_ATLAS_BYTES = 1 << 30
+"""GPU memory a frame with several ISM atlases may keep them in (each up to 128 MiB,
+batches.ATLAS_TEXELS), so that the image's tiles and the bias compensation's unseen hits read
+them without rendering them again: 8 atlases, 16384 VPLs of 128² maps."""
 
 
 class ImperfectShadowMapFrame:
     """Renders the imperfect shadow maps of a frame's batches. With a single batch its atlas
     is kept between frames: ``keys`` identify the VPLs of ``keyed_batch``, and only maps of
-    VPLs with new keys are rendered. The points come from ``point_seed`` (the same in every
-    pass of a progressive render)."""
+    VPLs with new keys are rendered; with several, each batch's atlas is kept until
+    :meth:`release` where they fit KEPT_ATLAS_BYTES (``keeps_all``), else rendered whenever it
+    is asked for. The points come from ``point_seed`` (the same in every pass of a
+    progressive render)."""
 
     def __init__(self, ism: ImperfectShadowMaps, kept: KeptProducts, geometry: WorldGeometry,
                  settings: Settings, batches: list[Batch], sphere: tuple[np.ndarray, float],
@@ -49,7 +56,12 @@ class ImperfectShadowMapFrame:
         self.levels = min(settings.pull_push_levels, int(np.log2(settings.ism_resolution)))
         stats.counts["isms"] = sum(len(b.samples) for b in batches)
         self.atlas_key = (kept.versions.shape, *settings_key(settings, ATLAS_FIELDS))
+        self.atlas_bytes = 4 * sum(b.columns * b.rows * b.resolution**2 for b in batches)
+        """GPU memory of every batch's atlas."""
+        self.keeps_all = len(batches) == 1 or self.atlas_bytes <= KEPT_ATLAS_BYTES
+        """Whether every batch's atlas, once rendered, is kept for the frame."""
         self._rendered: dict[int, moderngl.Texture] = {}
+        self._taken: list[moderngl.Texture] = []  # the several batches' atlases this owns
 
     def atlas(self, batch: Batch) -> moderngl.Texture:
         """The batch's atlas of maps (tile k for sample k, or as the kept atlas assigns)."""
@@ -65,6 +77,10 @@ class ImperfectShadowMapFrame:
             texture = ism.render(self.triangles, s.position, s.axis, settings.ism_resolution,
                                  self.levels, s.kind == KIND_DIRECTIONAL, self.sphere)
             rendered = len(s)
+            if self.keeps_all:
+                texture = ism.take_atlas()
+                self._taken.append(texture)
+                self._rendered[id(batch)] = texture
         else:
             use = self.kept.ism_atlas.render(
                 ism, self.triangles, s, self.keys if batch is self.keyed_batch else None,
@@ -80,3 +96,10 @@ class ImperfectShadowMapFrame:
         for stage, seconds in ism.timings.items():
             stats.timings[f"ism {stage}"] = stats.timings.get(f"ism {stage}", 0) + seconds
         return texture
+
+    def release(self) -> None:
+        """Release the several batches' atlases kept for the frame."""
+        for texture in self._taken:
+            texture.release()
+        self._taken.clear()
+        self._rendered.clear()

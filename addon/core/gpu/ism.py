@@ -258,6 +258,16 @@ class ImperfectShadowMaps:
         """The atlas of the last ``render`` (None before the first)."""
         return self._atlas
 
+    def take_atlas(self) -> moderngl.Texture:
+        """Hand the last ``render``'s atlas to the caller, who releases it; the next render
+        fills a new one (a frame whose VPLs need several atlases keeps each)."""
+        if self._atlas is None:
+            raise RuntimeError("call render() before take_atlas()")
+        taken = self._atlas
+        self._atlas = self.ctx.texture(taken.size, 1, dtype="f4")
+        self._atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return taken
+
     def read_atlas(self) -> np.ndarray:
         """The last atlas as a (rows * resolution, columns * resolution) float32 array."""
         width, height = self._atlas.size
