@@ -101,6 +101,16 @@ def test_compensation_from_the_image_restores_what_the_camera_sees(renderer, bou
     assert compensated / unclamped == pytest.approx(1.0, abs=0.01)
 
 
+def narrow_view(albedo: float, size: int = 32) -> tuple[Scene, slice]:
+    """The sphere seen through a 20° view, and the rows (and columns) of the image's centre."""
+    scene = sphere_scene(albedo)
+    camera = inside_sphere_camera(size)
+    focal = 1.0 / np.tan(np.radians(10.0))
+    camera.projection_matrix[0, 0] = camera.projection_matrix[1, 1] = focal
+    scene.camera = camera
+    return scene, slice(size // 2 - 2, size // 2 + 2)
+
+
 @pytest.mark.parametrize(("bounces", "visibility"), [(1, "exact"), (3, "ism")])
 def test_compensation_gathers_light_where_the_camera_does_not_see(renderer, bounces,
                                                                   visibility):
@@ -110,13 +120,8 @@ def test_compensation_gathers_light_where_the_camera_does_not_see(renderer, boun
     more also their VPLs' light (with imperfect shadow maps). Measured (compensated /
     unclamped): 1.006 with one bounce; with 3, 1.008, where the hits' direct light alone gave
     0.991 (the clamped share of bounces 2 and 3 was missing)."""
-    rho, clamp, size = 0.5, 0.6, 32
-    scene = sphere_scene(rho)
-    camera = inside_sphere_camera(size)
-    focal = 1.0 / np.tan(np.radians(10.0))
-    camera.projection_matrix[0, 0] = camera.projection_matrix[1, 1] = focal
-    scene.camera = camera
-    centre = slice(size // 2 - 2, size // 2 + 2)
+    clamp = 0.6
+    scene, centre = narrow_view(0.5)
 
     def indirect(**settings) -> float:
         frame, _ = renderer.render(scene, Settings(
@@ -138,13 +143,8 @@ def test_unseen_hits_take_the_vpls_light_from_several_atlases(renderer, monkeypa
     from addon.core.frame import batches, ism_maps
 
     monkeypatch.setattr(batches, "ATLAS_TEXELS", 64 * 128 * 128)
-    rho, clamp, size = 0.5, 0.6, 32
-    scene = sphere_scene(rho)
-    camera = inside_sphere_camera(size)
-    focal = 1.0 / np.tan(np.radians(10.0))
-    camera.projection_matrix[0, 0] = camera.projection_matrix[1, 1] = focal
-    scene.camera = camera
-    centre = slice(size // 2 - 2, size // 2 + 2)
+    clamp = 0.6
+    scene, centre = narrow_view(0.5)
 
     def indirect(**settings) -> tuple[float, list[str]]:
         frame, stats = renderer.render(scene, Settings(
