@@ -137,9 +137,9 @@ def test_compensation_gathers_light_where_the_camera_does_not_see(renderer, boun
 def test_unseen_hits_take_the_vpls_light_from_several_atlases(renderer, monkeypatch):
     """The same 20° view with the VPLs' imperfect shadow maps in atlases of 64 maps: every
     atlas is kept for the frame, so the unseen hits still take the VPLs' light (before, a frame
-    of several atlases left it out: 0.991, and the Cornell box's ceiling along the image's
-    edge was 33 % dark at 4096 light paths). Where the atlases exceed what a frame keeps, the
-    hits take their direct light alone, and the stats say so."""
+    of several atlases left it out: 0.991, and the Cornell box's back wall below the
+    off-screen ceiling was 33 % dark at 4096 light paths). Where the atlases exceed what a
+    frame keeps, the hits take their direct light alone, and the stats say so."""
     from addon.core.frame import batches, ism_maps
 
     monkeypatch.setattr(batches, "ATLAS_TEXELS", 64 * 128 * 128)

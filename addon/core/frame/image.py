@@ -244,7 +244,7 @@ class NearFieldStage(TileStage):
         """Every direct light pass's light at the surface samples, shadowed by rays, and
         where the hits' light may bounce once more (bounces > 1) the VPLs' light: an
         off-screen ceiling lit only by VPLs gives the wall below it its near light (without
-        it, the Cornell box's ceiling along the image's edge was 33 % dark). Only where
+        it, the Cornell box's back wall below the off-screen ceiling was 33 % dark). Only where
         :func:`vpls_at_unseen_hits` says so."""
         traced = RayTracedVisibility()
         with_vpls = frame.near_field.indirect_at_hits and vpls_at_unseen_hits(frame)
