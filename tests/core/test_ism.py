@@ -316,6 +316,26 @@ def test_partial_update_equals_a_full_render(maps):
     assert changed == [k in (2, 5) for k in range(8)]
 
 
+def test_a_taken_atlas_keeps_its_maps_while_the_next_render_fills_a_new_one(maps):
+    """A frame with several atlases takes each one after its render: the taken texture keeps
+    that render's maps, and the next render of the same layout fills a texture of its own."""
+    tris = occluder_scene()
+    normals = np.tile([0.0, 0.0, -1.0], (2, 1))
+    maps.prepare(tris, 2048, seed=12)
+    first = maps.render(tris, VPLS[:2], normals, 32, 5)
+    expected = maps.read_atlas()
+    taken = maps.take_atlas()
+    assert taken is first and maps.atlas is None
+    try:
+        second = maps.render(tris * 2, VPLS[:2] * 2, normals, 32, 5)
+        assert second is not taken
+        kept = np.frombuffer(taken.read(), np.float32).reshape(expected.shape)
+        np.testing.assert_array_equal(kept, expected)
+        assert not np.array_equal(maps.read_atlas(), expected)
+    finally:
+        taken.release()
+
+
 def tile_of(atlas: np.ndarray, k: int, resolution: int, columns: int) -> np.ndarray:
     row, column = divmod(k, columns)
     return atlas[row * resolution:(row + 1) * resolution,

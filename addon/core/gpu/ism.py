@@ -255,7 +255,7 @@ class ImperfectShadowMaps:
 
     @property
     def atlas(self) -> moderngl.Texture | None:
-        """The atlas of the last ``render`` (None before the first)."""
+        """The atlas of the last ``render`` (None before the first, or once taken)."""
         return self._atlas
 
     def take_atlas(self) -> moderngl.Texture:
@@ -263,9 +263,7 @@ class ImperfectShadowMaps:
         fills a new one (a frame whose VPLs need several atlases keeps each)."""
         if self._atlas is None:
             raise RuntimeError("call render() before take_atlas()")
-        taken = self._atlas
-        self._atlas = self.ctx.texture(taken.size, 1, dtype="f4")
-        self._atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        taken, self._atlas = self._atlas, None
         return taken
 
     def read_atlas(self) -> np.ndarray:
@@ -355,6 +353,8 @@ class ImperfectShadowMaps:
         self.resolution = resolution
         sizes = level_resolutions(resolution, levels)[1:]
         if self._layout == (width, height, resolution, tuple(sizes)):
+            if self._atlas is None:  # handed over by take_atlas
+                self._atlas = self._new_atlas(width, height)
             return
         self._release_images()
         self._layout = (width, height, resolution, tuple(sizes))
@@ -364,11 +364,15 @@ class ImperfectShadowMaps:
         for y in range(0, height, rows):
             count = min(rows, height - y)
             self._splat.write(strip[:width * count], viewport=(0, y, width, count))
-        self._atlas = self.ctx.texture((width, height), 1, dtype="f4")
-        self._atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._atlas = self._new_atlas(width, height)
         tiles = (width // resolution, height // resolution)
         self._levels = [self.ctx.texture((tiles[0] * s, tiles[1] * s), 1, dtype="f4")
                         for s in sizes]
+
+    def _new_atlas(self, width: int, height: int) -> moderngl.Texture:
+        atlas = self.ctx.texture((width, height), 1, dtype="f4")
+        atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return atlas
 
     def _release_images(self) -> None:
         for texture in (self._splat, self._atlas, *self._levels):
