@@ -106,7 +106,7 @@ def test_a_plan_prices_its_traced_passes_and_counts_the_maps_error_they_remove(m
     assert mapped.traced_seconds == 0.0 and 2 < traced.passes < mapped.passes
     s = traced.settings
     assert s.vpl_count >= autotune.MIN_PASS_PATHS
-    args = (s.vpl_count, s.interleave, s.ism_points, s.ism_resolution, s.blur_radius)
+    args = autotune.chosen_parameters(s)
     assert traced.seconds == pytest.approx(autotune.predict_seconds(dear, work, *args))
     assert traced.traced_seconds == pytest.approx(
         autotune.predict_seconds(dear, work, *args, traced=True))

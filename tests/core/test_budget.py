@@ -112,7 +112,7 @@ def test_the_first_traced_pass_sizes_the_traced_passes_after_it(renderer, cached
     chooser.cost_cache = renderer.cost_cache
     work = replace(WORK, fixed=0.5, visibility_cost=1.0, traced_share=1.0, pass_paths=1024)
     traced = replace(BASE, vpl_count=1024)
-    s = (1024, traced.interleave, traced.ism_points, traced.ism_resolution, traced.blur_radius)
+    s = autotune.chosen_parameters(traced)
     modelled = autotune.predict_seconds(cached_cost, work, *s, traced=True)
     for seconds, larger in ((0.7 * modelled, True), (1.3 * modelled, False)):
         chooser.later = (BASE, work)

@@ -95,9 +95,8 @@ class ChooseParameters(Stage):
             return None
         settings, work, last = self.last
         cost = self._measured_cost()
-        s = last.settings
-        modelled = autotune.chosen_seconds(cost, work, s.vpl_count, s.interleave, s.ism_points,
-                                           s.ism_resolution, s.blur_radius)
+        modelled = autotune.chosen_seconds(cost, work,
+                                           *autotune.chosen_parameters(last.settings))
         scale = min(max(chosen / modelled, 0.25), 8.0) if modelled > 0 and chosen > 0 else 1.0
         work = replace(work, fixed=fixed, scale=scale, spent=0.0,
                        area_table=self._ism_area_table(work.triangles), ray_traced_from=None,
@@ -115,8 +114,7 @@ class ChooseParameters(Stage):
             return
         cost = self._measured_cost()
         settings, work = self.later
-        s = (traced.vpl_count, traced.interleave, traced.ism_points, traced.ism_resolution,
-             traced.blur_radius)
+        s = autotune.chosen_parameters(traced)
         untraced = autotune.predict_seconds(cost, replace(work, visibility_cost=0.0), *s,
                                             traced=True)
         modelled = autotune.predict_seconds(cost, work, *s, traced=True)

@@ -199,6 +199,13 @@ class Choice:
                 f"{self.seconds:.2f} s{plan} relative RMSE {self.error * 100:.1f} %")
 
 
+def chosen_parameters(settings: Settings) -> tuple[int, int, int, int, int]:
+    """The settings the automatic mode chooses, in :func:`predict_seconds`' order: light
+    paths, interleave, ISM points, ISM resolution and blur radius."""
+    return (settings.vpl_count, settings.interleave, settings.ism_points,
+            settings.ism_resolution, settings.blur_radius)
+
+
 def predict_seconds(cost: CostModel, work: Workload, paths: int, interleave: int, points: int,
                     resolution: int, blur_radius: int, traced: bool = False) -> float:
     """Predicted wall time of one frame with these parameters (``traced``: tracing its VPLs'
@@ -333,10 +340,10 @@ def fill(choice: Choice, work: Workload, cost: CostModel, errors: ErrorModel,
     passes, sized from measured times, would otherwise leave up to the ladder's step (19 %)
     of each unused."""
     s = choice.settings
+    _, *kept = chosen_parameters(s)  # all but the light paths
 
     def candidate(paths: int) -> Candidate:
-        return _candidate(work, cost, errors, paths, s.interleave, s.ism_points,
-                          s.ism_resolution, s.blur_radius)
+        return _candidate(work, cost, errors, paths, *kept)
 
     now = candidate(s.vpl_count).per_pass(work.traced_share)
     slope = (candidate(2 * s.vpl_count).per_pass(work.traced_share) - now) / s.vpl_count
