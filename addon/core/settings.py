@@ -259,8 +259,8 @@ class Settings:
         applies=when("vpl_source", "paths"))
     guidance_candidates: int = setting(
         16, "Most Candidates", "light_paths",
-        "With camera guidance, at most this many light paths are traced per path's worth of "
-        "VPLs kept (4 first, more when few of them light the view)",
+        "With camera guidance, this many light paths are traced per path's worth of VPLs "
+        "kept, as candidates to keep them from",
         low=2, high=64, soft_high=32, applies=when("vpl_guidance", "camera"))
     vpl_source: str = setting(
         "paths", "VPL Source", "light_paths", "Where VPLs come from",

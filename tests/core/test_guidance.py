@@ -12,10 +12,14 @@ from addon.core.scene.vectors import unit
 from addon.core.settings import Settings
 from addon.core.transport.guidance import (
     MIN_ACCEPTANCE,
+    UNLIT_SHARE,
     CameraPoints,
     acceptance,
     contributions,
+    guide,
+    least_acceptance,
     refined_contributions,
+    systematic,
 )
 from addon.core.transport.vpl import LUMINANCE, VPLs
 from devtools import metrics
@@ -116,18 +120,54 @@ def test_candidates_the_first_points_miss_are_estimated_at_more_points() -> None
 
 
 def test_acceptance_spends_the_budget_on_contribution() -> None:
-    contribution = np.r_[np.zeros(900), np.linspace(1, 2, 100)]
-    chance = acceptance(contribution, 120.0)  # at most 100 + 0.05 × 900 = 145 are possible
-    assert abs(chance.sum() - 120) < 0.01
-    assert np.all(chance[:900] == MIN_ACCEPTANCE) and np.all(chance[900:] > MIN_ACCEPTANCE)
-    assert np.all(np.diff(chance[900:]) >= 0)  # more contribution, more chance
+    contribution = np.r_[np.zeros(90), np.linspace(1, 2, 100)]
+    chance = acceptance(contribution, 120.0)  # at most 100 + 0.05 × 90 = 104.5 are possible
+    assert np.all(chance == np.r_[np.full(90, MIN_ACCEPTANCE), np.ones(100)])
+    chance = acceptance(contribution, 100.0)
+    assert abs(chance.sum() - 100) < 0.01
+    assert np.all(chance[:90] == MIN_ACCEPTANCE) and np.all(chance[90:] > MIN_ACCEPTANCE)
+    assert np.all(np.diff(chance[90:]) >= 0)  # more contribution, more chance
     assert np.all(acceptance(contribution, 2000.0) == 1.0)  # fewer candidates than wanted
+
+
+def test_candidates_that_light_no_camera_point_take_a_bounded_share() -> None:
+    """Where many candidates light no camera point (Sponza: 8700 of 10,400) the least chance
+    falls so that they take UNLIT_SHARE of the VPLs kept; where those that light a point are
+    too few for the rest, the others fill it (up to MIN_ACCEPTANCE each)."""
+    many_unlit = np.r_[np.zeros(8000), np.linspace(1, 2, 2000)]
+    chance = acceptance(many_unlit, 600.0)
+    assert least_acceptance(many_unlit, 600.0) == chance[0] < MIN_ACCEPTANCE
+    assert abs(chance[:8000].sum() - UNLIT_SHARE * 600) < 1e-6
+    assert abs(chance.sum() - 600) < 0.01
+    few_lit = np.r_[np.zeros(8000), np.linspace(1, 2, 300)]
+    chance = acceptance(few_lit, 600.0)
+    assert np.all(chance[8000:] == 1.0) and abs(chance[:8000].sum() - 300) < 1e-6
+    assert least_acceptance(np.r_[np.zeros(100), np.ones(900)], 600.0) == MIN_ACCEPTANCE
+
+
+def test_the_draw_spreads_the_kept_candidates_over_the_scene() -> None:
+    """Candidates in light-path order alternate between two halves of the scene, as a Halton
+    dimension's base-2 digit does; a systematic draw of half of them along that order keeps
+    one half of the scene only, along the Morton order both halves alike, each kept VPL
+    weighted by 1/chance."""
+    n = 256
+    index = np.arange(n)
+    position = np.stack([np.where(index % 2 == 0, 0.25, 0.75), index / n, np.zeros(n)], axis=1)
+    normal = np.tile([0.0, 0.0, 1.0], (n, 1))
+    candidates = VPLs(position, normal, np.ones((n, 3)), np.ones(n, int), index)
+    along_paths = systematic(np.full(n, 0.5), 0.3)
+    assert len(set(index[along_paths] % 2)) == 1  # the failure the order avoids
+    for seed in range(4):
+        kept = guide(candidates, np.ones(n), n / 2, seed).vpls
+        left = int(np.sum(kept.position[:, 0] < 0.5))
+        assert len(kept) == n // 2 and abs(left - n // 4) <= 2, (seed, left)
+        assert np.allclose(kept.intensity, 2.0)
 
 
 def test_the_decision_costs_a_small_probe_not_a_round_of_candidates(renderer, monkeypatch):
     """Whether guidance pays is decided from DECISION_PATHS light paths: where most VPLs light
-    the view the frame traces only those and its plain paths (no FIRST_ROUND × vpl_count round),
-    and where few do the guided rounds follow."""
+    the view the frame traces only those and its plain paths (no guidance_candidates ×
+    vpl_count candidates), and where few do the candidates follow."""
     from addon.core.frame import vpl_stage
 
     traced: list[int] = []
@@ -149,4 +189,4 @@ def test_the_decision_costs_a_small_probe_not_a_round_of_candidates(renderer, mo
     renderer.forget_frames()
     _, stats = renderer.render(mostly_wasted_scene(), settings)
     assert "vpl guidance" not in stats.skipped and stats.counts["vpls_in_view_pct"] >= 50
-    assert traced[:2] == [vpl_stage.DECISION_PATHS, vpl_stage.FIRST_ROUND * 512]
+    assert traced == [vpl_stage.DECISION_PATHS, settings.guidance_candidates * 512]

@@ -2,8 +2,10 @@
 sampling of virtual point lights"): light paths are traced for several times the VPLs wanted,
 each candidate VPL's contribution to a few points the camera sees is estimated (unclamped
 geometry term, visibility by ray), and each is kept with probability p = min(1, Φ / τ) (at
-least MIN_ACCEPTANCE), its intensity divided by p. τ is chosen so that about as many VPLs are
-kept as the candidates' share would give: the same VPL count, spent where the camera looks.
+least a floor, :func:`least_acceptance`), its intensity divided by p. τ is chosen so that about
+as many VPLs are kept as the candidates' share would give: the same VPL count, spent where the
+camera looks. The draw runs along a space-filling curve through the candidates' positions, so
+the kept ones are spread over the scene like the candidates.
 The estimator stays unbiased: every VPL keeps p > 0 and its expected weight is one."""
 
 from __future__ import annotations
@@ -19,8 +21,12 @@ from .ray_caster import RayCaster
 from .vpl import LUMINANCE, VPLs
 
 MIN_ACCEPTANCE = 0.05
-"""The least chance a candidate is kept: VPLs that light no sampled camera point may still
-light the image between the points."""
+"""The least chance a candidate is kept, where few candidates light no sampled camera point:
+VPLs that light none may still light the image between the points."""
+UNLIT_SHARE = 0.2
+"""Where many candidates light no camera point, their least chance is lowered so that they
+take about this share of the VPLs kept (what MIN_ACCEPTANCE gave Sponza's 4 candidate paths
+per kept path), and the rest go to the candidates that light the view."""
 USEFUL_SHARE = 0.25
 """Guidance is used only when fewer than this share of the first candidates light the view: the
 plain light paths are stratified, and selecting among them adds variance that only a large
@@ -122,8 +128,9 @@ def refined_contributions(vpls: VPLs, points: CameraPoints, more_points: CameraP
                           tracer: RayCaster, epsilon: float) -> np.ndarray:
     """``contributions`` at ``points``; those that light none of them estimated again at
     ``more_points`` (scaled to as many points as ``points``). A VPL that lights the view
-    between the few points would otherwise be kept at MIN_ACCEPTANCE and weighted by its
-    inverse (twentyfold): on Sponza two such VPLs made the brightest blotch of a seed."""
+    between the few points would otherwise be kept at the least chance and weighted by its
+    inverse (twentyfold or more): on Sponza two such VPLs made the brightest blotch of a
+    seed."""
     value = contributions(vpls, points, tracer, epsilon)
     unlit = np.flatnonzero(value == 0)
     if len(unlit) and len(more_points):
@@ -132,36 +139,32 @@ def refined_contributions(vpls: VPLs, points: CameraPoints, more_points: CameraP
     return value
 
 
+def least_acceptance(contribution: np.ndarray, kept: float) -> float:
+    """The least chance of a candidate: MIN_ACCEPTANCE, or lower where the candidates that
+    light no camera point would otherwise take more than UNLIT_SHARE of the ``kept``, or more
+    than the ones that light a point leave."""
+    unlit = int(np.count_nonzero(contribution <= 0))
+    if unlit == 0:
+        return MIN_ACCEPTANCE
+    share = max(UNLIT_SHARE * kept, kept - (len(contribution) - unlit))
+    return min(MIN_ACCEPTANCE, share / unlit)
+
+
 def acceptance(contribution: np.ndarray, kept: float) -> np.ndarray:
-    """Chances min(1, Φ / τ), at least MIN_ACCEPTANCE, with τ set so that they add up to about
-    ``kept`` (all ones when there are no more candidates than that)."""
+    """Chances min(1, Φ / τ), at least :func:`least_acceptance`, with τ set so that they add
+    up to about ``kept`` (all ones when there are no more candidates than that)."""
     n = len(contribution)
     if n <= kept or not np.any(contribution > 0):
         return np.ones(n)
+    least = least_acceptance(contribution, kept)
     low, high = 1e-30, float(contribution.max()) * n
     for _ in range(100):  # bisection on log τ: the expected count falls as τ grows
         tau = np.sqrt(low * high)
-        expected = np.clip(contribution / tau, MIN_ACCEPTANCE, 1.0).sum()
+        expected = np.clip(contribution / tau, least, 1.0).sum()
         low, high = (tau, high) if expected > kept else (low, tau)
         if high / low < 1 + 1e-6:
             break
-    return np.clip(contribution / np.sqrt(low * high), MIN_ACCEPTANCE, 1.0)
-
-
-def merge(rounds: list[tuple[VPLs, int]]) -> VPLs:
-    """Candidates of several rounds of light paths (VPLs, paths traced) as one estimate: each
-    round's intensities weighted by its share of all paths."""
-    total = sum(paths for _, paths in rounds)
-    return VPLs.concatenate([v.scaled(slice(None), paths / total) for v, paths in rounds])
-
-
-def kept_per_candidate(contribution: np.ndarray) -> float:
-    """The most VPLs a candidate can yield on average: one for each that lights a camera
-    point, MIN_ACCEPTANCE for the others."""
-    if len(contribution) == 0:
-        return 1.0
-    lights = float(np.mean(contribution > 0))
-    return lights + MIN_ACCEPTANCE * (1.0 - lights)
+    return np.clip(contribution / np.sqrt(low * high), least, 1.0)
 
 
 def systematic(chance: np.ndarray, offset: float) -> np.ndarray:
@@ -173,11 +176,32 @@ def systematic(chance: np.ndarray, offset: float) -> np.ndarray:
     return np.floor(edges[1:]) > np.floor(edges[:-1])
 
 
+def morton_order(position: np.ndarray, bits: int = 10) -> np.ndarray:
+    """Indices that put ``position`` ((n, 3)) in Z order (Morton codes of ``bits`` bits per
+    axis over their bounding box): near points come near each other. Systematic selection
+    along the light paths' own order kept strided subsets of the Halton sequence instead, whose
+    base-2 digits repeat with the stride (tests/core/test_guidance.py's wall bleeding onto a
+    floor, seeds 0-5: guided 4.9-12.1 % error along the paths' order, unguided 5.8-12.0 %,
+    guided along this order 1.6-3.5 %)."""
+    if len(position) == 0:
+        return np.zeros(0, int)
+    low, high = position.min(axis=0), position.max(axis=0)
+    scale = ((1 << bits) - 1) / np.maximum(high - low, 1e-30)
+    cell = np.clip(((position - low) * scale).astype(np.int64), 0, (1 << bits) - 1)
+    code = np.zeros(len(position), np.int64)
+    for bit in range(bits):
+        for axis in range(3):
+            code |= ((cell[:, axis] >> bit) & 1) << (3 * bit + axis)
+    return np.argsort(code, kind="stable")
+
+
 def guide(candidates: VPLs, contribution: np.ndarray, wanted: float, seed: int) -> Guidance:
     """Keep about ``wanted`` of the candidate VPLs by their contribution to the camera points,
     reweighted so that the estimate stays unbiased."""
     chance = acceptance(contribution, wanted)
-    keep = systematic(chance, np.random.default_rng(seed).random())
+    order = morton_order(candidates.position)
+    keep = np.zeros(len(chance), bool)
+    keep[order] = systematic(chance[order], np.random.default_rng(seed).random())
     chosen = candidates.scaled(keep, 1.0 / chance[keep])
     lights = contribution > 0
     return Guidance(chosen, len(candidates), float(lights.mean()) if len(lights) else 0.0,
