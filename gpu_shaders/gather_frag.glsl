@@ -56,6 +56,10 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
     vec3 irradiance = vec3(0.0);
     glossy = vec3(0.0);
     ivec2 px = ivec2(gl_FragCoord.xy);
+#ifdef SPREAD_EDGE_RAYS
+    g_spread_first = u_first;
+    g_spread_count = u_count;
+#endif
 #ifdef AREA_SHAPES
     int run = 0;  // the draw's samples, and their unshadowed and shadowed sums
     float open = 0.0, shaded = 0.0;
@@ -75,6 +79,9 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
         LightSample s = light_sample(i);
 #ifdef SHADOW_HINTS
         g_hint_bit = interleave_size() > 1 ? 0 : i;
+#endif
+#ifdef SPREAD_EDGE_RAYS
+        g_spread_index = i;
 #endif
         if (s.generation > max_generation) continue;
         vec3 e = unshadowed_irradiance(s, world, normal);

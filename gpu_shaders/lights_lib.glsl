@@ -228,6 +228,15 @@ const vec2 EDGE_OFFSETS[EDGE_RAYS] = vec2[](vec2(-0.25, -0.25), vec2(0.25, -0.25
 uint g_hints_agreed = 0u;   // bits of samples the 3×3 pixels agree on
 uint g_hints_lit = 0u;      // their visibility
 int g_hint_bit = -1;        // the sample being gathered: its bit, or -1 (no hint: one ray)
+#ifdef SPREAD_EDGE_RAYS
+// A sun's angle samples, interleaved (one a supersample): where a supersample traces its edge
+// rays, ray k takes the draw's sample EDGE_RAYS apart from the last one's, so a penumbra gets
+// four of the sun's directions per supersample instead of one, for no more rays. The samples
+// differ in direction only (a sun's light is the same from each).
+int g_spread_first = 0;     // the draw's first sample, how many it holds, and the one gathered
+int g_spread_count = 1;
+int g_spread_index = 0;
+#endif
 bool g_footprint_known = false;
 vec3 g_footprint_x = vec3(0.0);  // one supersample's step across the tangent plane, in x
 vec3 g_footprint_y = vec3(0.0);  //   and in y (zero where the camera grazes the surface)
@@ -316,7 +325,14 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
         for (int k = 0; k < EDGE_RAYS; ++k) {
             vec3 at = world + g_footprint_x * EDGE_OFFSETS[k].x
                       + g_footprint_y * EDGE_OFFSETS[k].y;
+#ifdef SPREAD_EDGE_RAYS
+            int step = max(g_spread_count / EDGE_RAYS, 1);
+            LightSample spread = light_sample(g_spread_first + (g_spread_index - g_spread_first
+                                                                + k * step) % g_spread_count);
+            lit += traced_visibility(spread, at, geometric_normal);
+#else
             lit += traced_visibility(s, at, geometric_normal);
+#endif
         }
         return lit / float(EDGE_RAYS);
 #endif

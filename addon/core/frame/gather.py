@@ -39,6 +39,7 @@ class LightPass:
     visibility: Visibility
     interleave: int = 1
     blurred: bool = False  # direct light: into the accumulator the blur smooths (world light)
+    spread: bool = False  # a sun's angle samples: edge rays take several of them (lights_lib)
 
     @property
     def indirect(self) -> bool:
@@ -132,6 +133,8 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
             uniforms.update(u_area_shapes=AREA_SHAPES_UNIT)
         if hints is not None:
             defines.update(SHADOW_HINTS=1)
+            if light_pass.spread and light_pass.interleave > 1:
+                defines.update(SPREAD_EDGE_RAYS=1)
             hints[0].use(HINTS_UNIT)
             uniforms.update(u_shadow_hints=HINTS_UNIT, u_hint_factor=hints[1],
                             u_inverse_view_projection=inverse_mat4(gbuffer.view_projection),

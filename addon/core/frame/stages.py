@@ -268,7 +268,7 @@ class PlanLightPasses(Stage):
         sun_samples = samples.subset(np.flatnonzero(traced & sun_disc))
         if len(sun_samples):  # the smallest pattern that gives each supersample one sample
             k = next((k for k in (1, 2, 4) if k * k >= len(sun_samples)), 8)
-            passes += [LightPass("direct light", b, near, ray_traced, k)
+            passes += [LightPass("direct light", b, near, ray_traced, k, spread=True)
                        for b in ray_traced.batches(sun_samples, settings, 0)]
         mapped = self._reaching_view(frame, samples.subset(np.flatnonzero(~traced)))
         soft_ism = settings.soft_light_ism and mapped.kind.size > 0

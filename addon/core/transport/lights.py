@@ -278,7 +278,7 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
                   shadow=light.cast_shadow, resolution=s.shadow_resolution)
             return
         n = s.light_samples
-        u = stratified_square(n, rng)
+        u = fibonacci_square(n, rng)
         cos_t = 1.0 - u[:, 0] * (1.0 - np.cos(half))
         sin_t, phi = np.sqrt(np.maximum(0.0, 1 - cos_t**2)), 2 * np.pi * u[:, 1]
         local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), -cos_t], axis=1)
