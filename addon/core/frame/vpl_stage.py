@@ -158,8 +158,8 @@ class MakeVPLs(Stage):
         are kept as vpl_count paths leave. All the candidates are traced, not only as many as
         the kept count needs (4 × vpl_count paths, more where few light the view, until stop
         48): the rare paths that light the view (Sponza's bay behind the camera) then come
-        many times lighter, and Sponza's error over seeds 0-7 fell from 38.5 to 31 % (RMS;
-        its worst seed 68.8 → 35.3 %) for about 80 ms (docs/measurements.md)."""
+        many times lighter, and Sponza's error over seeds 0-15 fell from 37.2 to 30.7 % (RMS;
+        its worst seed 68.8 → 38.4 %) for about 80 ms (docs/measurements.md)."""
         settings, stats, epsilon = frame.settings, frame.stats, 1e-5 * frame.radius
 
         def candidates(paths: int, round_index: int) -> VPLs:
