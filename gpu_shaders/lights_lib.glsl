@@ -230,9 +230,9 @@ uint g_hints_lit = 0u;      // their visibility
 int g_hint_bit = -1;        // the sample being gathered: its bit, or -1 (no hint: one ray)
 #ifdef SPREAD_EDGE_RAYS
 // A sun's angle samples, interleaved (one a supersample): where a supersample traces its edge
-// rays, ray k takes the draw's sample EDGE_RAYS apart from the last one's, so a penumbra gets
-// four of the sun's directions per supersample instead of one, for no more rays. The samples
-// differ in direction only (a sun's light is the same from each).
+// rays, ray k takes the sample k quarters of the draw's count after the gathered one (cyclic),
+// so a penumbra gets four of the sun's directions per supersample instead of one, for no more
+// rays. The samples differ in direction only (a sun's light is the same from each).
 int g_spread_first = 0;     // the draw's first sample, how many it holds, and the one gathered
 int g_spread_count = 1;
 int g_spread_index = 0;
