@@ -1,4 +1,4 @@
-"""Benchmark of addon/core/raytrace.py: BVH build and upload time, node count and depth, and
+"""Benchmark of addon/core/gpu/raytrace.py: BVH build and upload time, node count and depth, and
 rays/s of closest-hit and any-hit queries, on a random triangle soup and a tessellated closed
 box (rays from inside, so every ray hits).
 
@@ -16,8 +16,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from addon.core.gpu.bvh import build_bvh
 from addon.core.gpu.gl import ProgramCache, shared_context
-from addon.core.gpu.raytrace import RayTracer, build_bvh
+from addon.core.gpu.raytrace import RayTracer
 
 
 def soup(count: int, rng: np.random.Generator) -> np.ndarray:

@@ -5,6 +5,7 @@ report_tables.py) and the reference cache key on synthetic input."""
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import os
@@ -17,6 +18,7 @@ import pytest
 
 from devtools import report_tables
 from devtools.curves import TimeAtError, time_at_error, time_ratio
+from tests.core.test_tools import NEEDS_BLENDER
 
 REPO = Path(__file__).resolve().parents[2]
 CORNELL = REPO / "sample_scenes" / "cornell_box.blend"
@@ -273,3 +275,9 @@ def test_markdown_section_has_the_table_the_lookups_and_the_reference():
     assert ("- Cycles + OIDN 4 p: 20.0 % in 3 s; VPL GI does not reach it by its slowest render "
             "(10 s; speed-up <0.3×).") in text
     assert "raw Cycles (no denoiser), 128 samples × 2 (seeds 1, 2), 600 + 610 s" in text
+
+
+
+@pytest.mark.parametrize("name", sorted(NEEDS_BLENDER))
+def test_the_tools_that_need_blender_import_and_have_a_main(name):
+    assert callable(getattr(importlib.import_module(f"tools.{name}"), "main", None))
