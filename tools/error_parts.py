@@ -29,19 +29,11 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from tools.bench_denoise import parse_size  # noqa: E402
+
 BLOCKS = (1, 4, 8, 40)
 """Block edges (pixels) the direct light's error is measured at: averaging blocks keeps the
 error of areas and removes that of edges inside a block."""
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    width, _, height = text.partition("x")
-    return int(width), int(height or width)
-
-
-def squared_error(image: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> float:
-    """mean((x − r1)(x − r2)): the squared error against the converged image."""
-    return float(np.mean((image[..., :3] - r1[..., :3]) * (image[..., :3] - r2[..., :3])))
 
 
 def block_mean(image: np.ndarray, edge: int) -> np.ndarray:
@@ -82,6 +74,7 @@ def main() -> int:
     from addon import register, unregister
     from addon.cli import parse_overrides
     from devtools import report
+    from devtools.metrics import unbiased_squared_error as squared_error
 
     register()
     try:
@@ -153,6 +146,9 @@ def main() -> int:
                 print("  their average in blocks of " + ", ".join(
                     f"{b} px {percent(e, mean)}" for b, e in zip(BLOCKS, blocks, strict=True)),
                     flush=True)
+    except report.ReportError as exc:  # a scene that cannot be opened or has no camera
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     finally:
         unregister()
     return 0

@@ -25,7 +25,8 @@ def test_the_tool_imports_and_has_a_main(name):
 
 def test_error_parts_splits_a_frames_error_into_noise_and_the_rest():
     """tools/error_parts.py: frames of a known bias plus independent noise split into both."""
-    from tools.error_parts import block_mean, split, squared_error
+    from devtools.metrics import unbiased_squared_error as squared_error
+    from tools.error_parts import block_mean, split
 
     rng = np.random.default_rng(0)
     truth = np.zeros((64, 64, 3))

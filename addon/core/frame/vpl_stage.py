@@ -162,10 +162,10 @@ class MakeVPLs(Stage):
         its worst seed 68.8 → 38.4 %) for about 80 ms (docs/measurements.md)."""
         settings, stats, epsilon = frame.settings, frame.stats, 1e-5 * frame.radius
 
-        def candidates(paths: int, round_index: int) -> VPLs:
-            round_settings = replace(settings, vpl_count=paths,
-                                     seed=(settings.seed + round_index * 7919) % 2**31)
-            return generate_vpls(frame.scene, frame.geometry, round_settings, tracer,
+        def candidates(paths: int, stream: int) -> VPLs:  # stream: the candidates' own seed
+            stream_settings = replace(settings, vpl_count=paths,
+                                      seed=(settings.seed + stream * 7919) % 2**31)
+            return generate_vpls(frame.scene, frame.geometry, stream_settings, tracer,
                                  frame.centre, frame.radius)
 
         points = camera_points(frame.camera, frame.geometry, tracer, GUIDE_POINTS, settings.seed)

@@ -28,7 +28,7 @@ UNLIT_SHARE = 0.2
 take about this share of the VPLs kept (what MIN_ACCEPTANCE gave Sponza's 4 candidate paths
 per kept path), and the rest go to the candidates that light the view."""
 USEFUL_SHARE = 0.25
-"""Guidance is used only when fewer than this share of the first candidates light the view: the
+"""Guidance is used only when fewer than this share of a probe's candidates light the view: the
 plain light paths are stratified, and selecting among them adds variance that only a large
 gain repays (measured on a wall bleeding onto a floor, 56 % useful: guided 1-4 % noise across
 seeds against 0.2-0.9 % plain; on the interior sample scene 7 % are useful)."""
