@@ -277,7 +277,6 @@ def test_markdown_section_has_the_table_the_lookups_and_the_reference():
     assert "raw Cycles (no denoiser), 128 samples × 2 (seeds 1, 2), 600 + 610 s" in text
 
 
-
 @pytest.mark.parametrize("name", sorted(NEEDS_BLENDER))
 def test_the_tools_that_need_blender_import_and_have_a_main(name):
     assert callable(getattr(importlib.import_module(f"tools.{name}"), "main", None))
