@@ -4,7 +4,8 @@ relative RMSE against the report's two cached Cycles references (see ``devtools 
 render them first with ``--references-only``), and the choice and passes it made.
 
     .venv/bin/python tools/bench_budget.py sample_scenes/interior.blend --budgets 4.5,9 \\
-        --splits 1,2,4 [--resolution 640x360] [--reference-samples 128] [--cache DIR]
+        --splits 1,2,4 [--resolution 640x360] [--reference-samples 128] [--cache DIR] \\
+        [--set bounces=4]
 
 ``--repo PATH`` renders with another checkout's add-on (one without frame/budget.py: each
 budget once, the single frame the automatic mode chose before passes).
@@ -29,11 +30,14 @@ def main() -> None:
     parser.add_argument("--reference-samples", type=int, default=128)
     parser.add_argument("--cache", type=Path, default=REPO / ".cache" / "references")
     parser.add_argument("--repo", type=Path, default=REPO)
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="a VPL GI setting for every render, as the report's --set")
     args = parser.parse_args()
     sys.path.insert(0, str(args.repo))
     sys.path.insert(1, str(REPO))
 
     from addon import register, unregister
+    from addon.cli import parse_overrides
     from addon.engine import monitor
     from devtools import report
 
@@ -41,6 +45,8 @@ def main() -> None:
     register()
     try:
         scene = report.open_scene(args.scene, (width, height))
+        overrides = parse_overrides(args.set)
+        scene.vpl_gi.assign(overrides)
         options = report.Options(report.LADDERS["test"], (width, height),
                                  reference_samples=args.reference_samples, cache_dir=args.cache)
         with tempfile.TemporaryDirectory() as tmp:
@@ -48,7 +54,7 @@ def main() -> None:
             references = report.render_references(scene, report.file_digest(args.scene),
                                                   options, scene.vpl_gi.bounces, exr)
             (r1, *_), (r2, *_) = references
-            values = report.vpl_values({}, {})
+            values = report.vpl_values({}, overrides)
             report.render_auto(scene, values, 1.0, exr)  # warm-up: shaders, the cost model
             try:  # a checkout from before the budget module (--repo) has one split
                 from addon.core.frame import budget as budget_module

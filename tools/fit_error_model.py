@@ -6,10 +6,11 @@
   a large floor, does not decide the noise), per scene with a shared noise constant; the
   stored floor is that of the first report's scene.
   The interleave factor compares the first report's lines with and without interleaving.
-- ISM term: on the sample scenes, VPL GI with imperfect shadow maps against exact (ray-traced)
-  visibility, the same VPLs (256 light paths, one bounce, no interleaving), for each
-  resolution/points pair; stored as the error beyond the default pair's, averaged over the
-  scenes in squares.
+- ISM term (``--ism`` alone: only it): on the sample scenes, VPL GI's indirect light with
+  imperfect shadow maps against exact (ray-traced) visibility, the same VPLs (256 light paths,
+  four bounces as the reports, no interleaving, seeds 0 and 1), for each resolution/points pair, relative to the
+  exact frame's whole image (the model's other terms are errors of the whole image); stored as
+  the error beyond the default pair's, averaged over the scenes and seeds in squares.
 - Maps' term (``maps``, ``--maps``): in scenes with more triangles than an ISM has points, the
   maps' visibility error that passes do not remove. From pairs of long-render reports of one
   scene, K passes with the maps throughout (``--set ray_traced_from_pass=0``) and with rays
@@ -39,6 +40,7 @@ import argparse
 import json
 import sys
 from dataclasses import replace
+from itertools import product
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +51,9 @@ sys.path.insert(0, str(REPO))
 from addon.core.frame.autotune import ERROR_MODEL_FILE  # noqa: E402
 from tools.bench_visibility import export  # noqa: E402
 
-ISM_PAIRS = ((64, 1024), (64, 8192), (128, 1024), (128, 8192), (256, 1024), (256, 8192))
+ISM_PAIRS = ((64, 1024), (64, 2048), (64, 4096), (64, 8192), (128, 1024), (128, 2048),
+             (128, 4096), (128, 8192), (256, 1024), (256, 8192))
+ISM_SEEDS = (0, 1)
 DEFAULT_PAIR = (128, 8192)
 
 
@@ -96,17 +100,19 @@ def ism_errors(size: int) -> dict[str, float]:
 
     renderer = Renderer()
     squares: dict[tuple[int, int], list[float]] = {pair: [] for pair in ISM_PAIRS}
-    for name in ("cornell_box", "interior"):
+    for name, seed in product(("cornell_box", "interior"), ISM_SEEDS):
         scene = export(REPO / "sample_scenes" / f"{name}.blend", size)
-        base = Settings(bounces=1, antialiasing=1, vpl_count=256, interleave=1)
-        exact = renderer.render(scene, replace(base, visibility="exact"))[0].passes["DiffInd"]
+        base = Settings(bounces=4, antialiasing=1, vpl_count=256, interleave=1, seed=seed)
+        passes = renderer.render(scene, replace(base, visibility="exact"))[0].passes
+        exact, whole = passes["DiffInd"], passes["Combined"][..., :3]
         for resolution, points in ISM_PAIRS:
             frame, _ = renderer.render(scene, replace(base, ism_resolution=resolution,
                                                       ism_points=points))
             image = frame.passes["DiffInd"]
-            error2 = ((image - exact) ** 2).mean() / (exact**2).mean()
+            error2 = ((image - exact) ** 2).mean() / (whole**2).mean()
             squares[(resolution, points)].append(float(error2))
-            print(f"{name} {resolution}²/{points}: {np.sqrt(error2) * 100:.1f} %", flush=True)
+            print(f"{name} seed {seed} {resolution}²/{points}: {np.sqrt(error2) * 100:.2f} %",
+                  flush=True)
     renderer.release()
     default = np.mean(squares[DEFAULT_PAIR])
     return {f"{r}/{p}": float(np.sqrt(max(0.0, np.mean(v) - default)))
@@ -147,6 +153,8 @@ def main() -> None:
     parser.add_argument("reports", type=Path, nargs="*")
     parser.add_argument("--maps", type=Path, nargs="+", default=[],
                         help="pairs of long-render reports: maps throughout, rays from a pass")
+    parser.add_argument("--ism", action="store_true",
+                        help="fit the ISM term only, keeping the stored model's others")
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("-o", "--output", type=Path, default=ERROR_MODEL_FILE)
     args = parser.parse_args()
@@ -155,8 +163,8 @@ def main() -> None:
     maps_source = f"tools/fit_error_model.py --maps {' '.join(str(p) for p in args.maps)}"
     pairs = [tuple(json.loads(p.read_text()) for p in args.maps[i:i + 2])
              for i in range(0, len(args.maps), 2)]
-    if not args.reports and not pairs:
-        parser.error("give the reports to fit, or --maps pairs")
+    if not args.reports and not pairs and not args.ism:
+        parser.error("give the reports to fit, --maps pairs, or --ism")
     stored = json.loads(args.output.read_text()) if args.output.is_file() else {}
     model = stored
     if args.reports:
@@ -168,6 +176,9 @@ def main() -> None:
                  "floor": floors[0], "noise": noise, "interleave": factors,
                  "ism": ism_errors(args.size),  # the maps' term kept unless fitted again:
                  **{k: stored[k] for k in ("maps", "maps_source") if k in stored}}
+    elif args.ism:
+        model.update(ism=ism_errors(args.size), ism_source=f"tools/fit_error_model.py --ism "
+                     f"--size {args.size}")
     if pairs:
         model.update(maps=fit_maps(pairs), maps_source=maps_source)
     args.output.write_text(json.dumps(model, indent=2) + "\n")
