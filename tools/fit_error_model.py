@@ -8,9 +8,10 @@
   The interleave factor compares the first report's lines with and without interleaving.
 - ISM term (``--ism`` alone: only it): on the sample scenes, VPL GI's indirect light with
   imperfect shadow maps against exact (ray-traced) visibility, the same VPLs (256 light paths,
-  four bounces as the reports, no interleaving, seeds 0 and 1), for each resolution/points pair, relative to the
-  exact frame's whole image (the model's other terms are errors of the whole image); stored as
-  the error beyond the default pair's, averaged over the scenes and seeds in squares.
+  four bounces as the reports, no interleaving, seeds 0 and 1), for each resolution/points
+  pair, relative to the exact frame's whole image (the model's other terms are errors of the
+  whole image); stored as the error beyond the default pair's, averaged over the scenes and
+  seeds in squares. The stored term: ``--ism --size 360``.
 - Maps' term (``maps``, ``--maps``): in scenes with more triangles than an ISM has points, the
   maps' visibility error that passes do not remove. From pairs of long-render reports of one
   scene, K passes with the maps throughout (``--set ray_traced_from_pass=0``) and with rays
