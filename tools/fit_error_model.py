@@ -11,7 +11,7 @@
   four bounces as the reports, no interleaving, seeds 0 and 1), for each resolution/points
   pair, relative to the exact frame's whole image (the model's other terms are errors of the
   whole image); stored as the error beyond the default pair's, averaged over the scenes and
-  seeds in squares. The stored term: ``--ism --size 360``.
+  seeds in squares, at ``--size`` 360 (square frames of the report's 640×360 pixel scale).
 - Maps' term (``maps``, ``--maps``): in scenes with more triangles than an ISM has points, the
   maps' visibility error that passes do not remove. From pairs of long-render reports of one
   scene, K passes with the maps throughout (``--set ray_traced_from_pass=0``) and with rays
@@ -32,7 +32,8 @@ Cornell box with ``--reference-samples 256``, the interior 128, Sponza's OBJ 64)
 
 on reports made with ``--set bounces=4 --cycles-samples none --oidn-samples none --set
 ray_traced_from_pass=R --vpl-ladder passes=K -o renders/fit_maps_SCENE_raysR`` (R = 0 and 3; the
-interior with ``--reference-samples 128`` and K = 16, Sponza's OBJ 64 and 8).
+interior with ``--reference-samples 128`` and K = 16, Sponza's OBJ 64 and 8). The ISM term
+alone: ``.venv/bin/python tools/fit_error_model.py --ism``.
 """
 
 from __future__ import annotations
@@ -95,7 +96,8 @@ def fit_noise(reports: list[dict]) -> tuple[float, list[float], dict[str, float]
 
 
 def ism_errors(size: int) -> dict[str, float]:
-    """Per 'resolution/points': ISM visibility error beyond the default pair's."""
+    """Per 'resolution/points': ISM visibility error beyond the default pair's, relative to
+    the whole image."""
     from addon.core.frame.renderer import Renderer
     from addon.core.settings import Settings
 
@@ -156,7 +158,7 @@ def main() -> None:
                         help="pairs of long-render reports: maps throughout, rays from a pass")
     parser.add_argument("--ism", action="store_true",
                         help="fit the ISM term only, keeping the stored model's others")
-    parser.add_argument("--size", type=int, default=128)
+    parser.add_argument("--size", type=int, default=360)
     parser.add_argument("-o", "--output", type=Path, default=ERROR_MODEL_FILE)
     args = parser.parse_args()
     if len(args.maps) % 2:
