@@ -1,7 +1,8 @@
 """Benchmark of the automatic mode 'time' (frame/budget.py): a scene rendered at time budgets
 with the budget planned as 1, 2 or 4 passes (BUDGET_SPLIT), each render's time and noise-free
 relative RMSE against the report's two cached Cycles references (see ``devtools report``;
-render them first with ``--references-only``), and the choice and passes it made.
+render them first with ``--references-only``), and the choice (light paths, points and map
+size of pass 0 / the later passes) and passes it made.
 
     .venv/bin/python tools/bench_budget.py sample_scenes/interior.blend --budgets 4.5,9 \\
         --splits 1,2,4 [--resolution 640x360] [--reference-samples 128] [--cache DIR] \\
@@ -68,12 +69,12 @@ def main() -> None:
                     image, seconds = report.render_auto(scene, values, budget, exr)
                     m = report.error_metrics(image, r1, r2)
                     stats = monitor.last_stats
-                    chosen = [n.split(":")[1].split(",")[0].strip() for n in stats.notes
-                              if n.startswith("automatic parameters")]
+                    chosen = [", ".join(part.strip() for part in n.split(":")[1].split(",")[:3])
+                              for n in stats.notes if n.startswith("automatic parameters")]
                     print(f"budget {budget:5.1f} s  split {split}  {seconds:6.2f} s  "
                           f"error {m['relative_rmse_unbiased'] * 100:5.1f} %  energy "
                           f"{m['mean_relative_energy'] * 100:+5.1f} %  passes "
-                          f"{stats.counts.get('passes')}  paths {' / '.join(chosen)}"
+                          f"{stats.counts.get('passes')}  chosen {' / '.join(chosen)}"
                           + (f"  warning: {stats.warnings[0][:60]}…" if stats.warnings
                              else ""), flush=True)
     finally:
