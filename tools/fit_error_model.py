@@ -103,8 +103,9 @@ def ism_errors(size: int) -> dict[str, float]:
 
     renderer = Renderer()
     squares: dict[tuple[int, int], list[float]] = {pair: [] for pair in ISM_PAIRS}
-    for name, seed in product(("cornell_box", "interior"), ISM_SEEDS):
-        scene = export(REPO / "sample_scenes" / f"{name}.blend", size)
+    scenes = {name: export(REPO / "sample_scenes" / f"{name}.blend", size)
+              for name in ("cornell_box", "interior")}
+    for (name, scene), seed in product(scenes.items(), ISM_SEEDS):
         base = Settings(bounces=4, antialiasing=1, vpl_count=256, interleave=1, seed=seed)
         passes = renderer.render(scene, replace(base, visibility="exact"))[0].passes
         exact, whole = passes["DiffInd"], passes["Combined"][..., :3]
