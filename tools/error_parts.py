@@ -22,6 +22,7 @@ import argparse
 import math
 import sys
 import tempfile
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -102,9 +103,8 @@ def main() -> int:
 
             full = references(base["bounces"])
             mean = float(((full[0] + full[1]) / 2)[..., :3].mean())
-            scene.render.resolution_percentage = 25
-            report.render_vpl(scene, base, exr)  # warm-up: GL context and shaders
-            scene.render.resolution_percentage = 100
+            report.warm_up(scene, [report.Job({}, partial(report.render_vpl, scene, base),
+                                              warm_up=True)], exr)  # GL context, shaders
             lines = [("maps", base)]
             if args.exact:
                 lines.append(("rays", {**base, "visibility": "exact"}))
