@@ -74,6 +74,7 @@ class BakeCache:
     baked: list[tuple[str, Baked]] = field(default_factory=list)  # the last pass's new bakes
     problems: list[str] = field(default_factory=list)  # the last pass's failures
     failed: dict[tuple, str] = field(default_factory=dict)  # key -> why that bake failed
+    world_seconds: float = 0.0  # the last pass's world bake (world_bake.py); 0 if none
 
     @property
     def nbytes(self) -> int:
@@ -170,7 +171,7 @@ def _valid(entry: Baked | None, obj: bpy.types.Object) -> bool:
 
 # -- the bake -------------------------------------------------------------------------------
 
-class _Temporary:
+class Temporary:
     """Datablocks made for one bake, removed (in dependency order) on exit, whatever
     happens."""
 
@@ -181,7 +182,7 @@ class _Temporary:
         self.made.append((collection, datablock))
         return datablock
 
-    def __enter__(self) -> _Temporary:
+    def __enter__(self) -> Temporary:
         return self
 
     def __exit__(self, *_exc) -> None:
@@ -194,7 +195,7 @@ class _Temporary:
 
 
 def _copy(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
-          temporary: _Temporary) -> bpy.types.Mesh:
+          temporary: Temporary) -> bpy.types.Mesh:
     """A new mesh of the evaluated object, every attribute kept."""
     return temporary.add(bpy.data.meshes, bpy.data.meshes.new_from_object(
         obj, preserve_all_data_layers=True, depsgraph=depsgraph))
@@ -236,13 +237,14 @@ def _bake_uvs(mesh: bpy.types.Mesh, resolution: int) -> bool:
     return True
 
 
-def _run_bake(scene: bpy.types.Scene, obj: bpy.types.Object) -> None:
-    """Cycles' Emit bake of ``obj`` in the temporary ``scene`` into its materials' active
+def run_bake(scene: bpy.types.Scene, obj: bpy.types.Object, kind: str = "EMIT") -> None:
+    """Cycles' bake of ``kind`` (Emit: the surface's colour; Environment: the world in the
+    direction of each point) of ``obj`` in the temporary ``scene`` into its materials' active
     image nodes."""
     with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0],
                                    active_object=obj, object=obj, selected_objects=[obj],
                                    selected_editable_objects=[obj]):
-        result = bpy.ops.object.bake(type="EMIT", margin=BAKE_MARGIN, use_clear=True,
+        result = bpy.ops.object.bake(type=kind, margin=BAKE_MARGIN, use_clear=True,
                                      target="IMAGE_TEXTURES", save_mode="INTERNAL")
     if "FINISHED" not in result:
         raise RuntimeError(f"Cycles' bake returned {result}")
@@ -257,7 +259,7 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
 
     start = time.perf_counter()
     materials = [slot.material for slot in obj.material_slots]
-    with _Temporary() as temporary:
+    with Temporary() as temporary:
         mesh = _copy(obj, depsgraph, temporary)
         unwrapped = _bake_uvs(mesh, resolution)
         scene = temporary.add(bpy.data.scenes, bpy.data.scenes.new("VPL GI bake"))
@@ -278,7 +280,7 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
                 copy = temporary.add(bpy.data.materials, _channel_copy(material, channel))
                 bake_tree.show_channel(copy, channel, image)
                 mesh.materials.append(copy)
-            _run_bake(scene, proxy)
+            run_bake(scene, proxy)
             pixels = np.empty(resolution * resolution * 4, np.float32)
             image.pixels.foreach_get(pixels)
             pixels = np.nan_to_num(pixels.reshape(resolution, resolution, 4), posinf=0.0)
@@ -360,8 +362,10 @@ def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
 
 def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
     """Bake every mesh object of the evaluated scene whose materials need it and whose bake
-    is not cached; returns the cache, with this pass's bakes and problems."""
-    from .export import fallback_reasons  # the exporter imports this module
+    is not cached, and the world where its nodes need it (world_bake.py); returns the cache,
+    with this pass's object bakes and problems."""
+    from . import world_bake  # it imports this module
+    from .export import fallback_reasons, world_bake_reason  # the exporter imports this module
 
     resolution, cap = settings_of(depsgraph.scene)
     CACHE.generation += 1
@@ -397,6 +401,8 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
         entry.used = CACHE.generation
         CACHE.entries[key] = entry
         CACHE.baked.append((obj.original.name, entry))
+    world = depsgraph.scene_eval.world
+    CACHE.world_seconds = world_bake.bake_if_needed(world, world_bake_reason(world))
     return CACHE
 
 
@@ -458,8 +464,11 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
 
 def report(stats: Stats, notes: list[str]) -> None:
     """Put the export's bake notes and the bake pass's problems into a frame's stats, and the
-    time of the bakes made since
-    the last report as its 'material bake' stage (a frame that reused its bakes has none)."""
+    time of the bakes made since the last report as its 'material bake' and 'world bake'
+    stages (a frame that reused its bakes has none)."""
+    from . import world_bake  # it imports this module
+
+    world_bake.report(stats)
     stats.notes[:0] = [note for note in notes if note not in stats.notes]
     stats.warnings.extend(p for p in CACHE.problems if p not in stats.warnings)
     CACHE.problems = []
@@ -499,8 +508,8 @@ def _before_render(scene: bpy.types.Scene, *_args) -> None:
 
 
 class VPLGI_OT_bake_materials(bpy.types.Operator):
-    """Bake the material colours VPL GI cannot read from nodes (for the viewport and renders
-    started from this window, which cannot bake while they render)"""
+    """Bake the material colours and the world VPL GI cannot read from nodes (for the
+    viewport and renders started from this window, which cannot bake while they render)"""
 
     bl_idname = "vpl_gi.bake_materials"
     bl_label = "Bake Materials"
@@ -509,8 +518,10 @@ class VPLGI_OT_bake_materials(bpy.types.Operator):
         cache = bake_scene(context.evaluated_depsgraph_get())
         for problem in cache.problems:
             self.report({"WARNING"}, f"VPL GI: {problem}")
-        seconds = sum(entry.seconds for _, entry in cache.baked)
-        self.report({"INFO"}, f"VPL GI: baked {len(cache.baked)} object(s) in {seconds:.2f} s")
+        seconds = sum(entry.seconds for _, entry in cache.baked) + cache.world_seconds
+        world = " and the world" if cache.world_seconds else ""
+        self.report({"INFO"}, f"VPL GI: baked {len(cache.baked)} object(s){world} in "
+                              f"{seconds:.2f} s")
         return {"FINISHED"}
 
 
@@ -530,7 +541,7 @@ def bake_soon(on_baked: Callable[[], None], ready: Callable[[], bool] = lambda: 
             if not free:
                 return None
             cache = bake_scene(bpy.context.evaluated_depsgraph_get())
-        if cache.baked:
+        if cache.baked or cache.world_seconds:
             on_baked()
         return None
     bpy.app.timers.register(run, first_interval=0.0)
@@ -546,5 +557,8 @@ def register() -> None:
 def unregister() -> None:
     if _before_render in bpy.app.handlers.render_pre:
         bpy.app.handlers.render_pre.remove(_before_render)
+    from . import world_bake  # it imports this module
+
     bpy.utils.unregister_class(VPLGI_OT_bake_materials)
     CACHE.clear()
+    world_bake.clear()

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from . import bake
+from . import bake, world_bake
 from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, uses_nodes
 from .blender_read import (
     active_uvs,
@@ -509,7 +509,8 @@ def _map_rotation(texture) -> float:
 
 def _environment_world(texture, strength: float, warnings: list[str]) -> World:
     """A world lit by an equirectangular Environment Texture (magenta if its image is
-    missing, as in Cycles; its mean colour for mappings other than a Z rotation)."""
+    missing, as in Cycles; its mean colour, without a bake, for what world_bake_reason
+    names)."""
     image = texture.image
     pixels = _image_pixels(image, warnings) if image is not None else None
     if pixels is None:
@@ -521,16 +522,68 @@ def _environment_world(texture, strength: float, warnings: list[str]) -> World:
     mean = tuple(mean_radiance(env) / strength) if strength != 0 else (0.0, 0.0, 0.0)
     try:
         if texture.projection != "EQUIRECTANGULAR":
-            raise _Unsupported(f"its projection is {texture.projection.lower()}")
+            return World(mean, strength)
         env.rotation = _map_rotation(texture)
-    except _Unsupported as reason:
-        warnings.append(f"world: the Environment Texture is lit by its mean colour: {reason}")
+    except _Unsupported:
         return World(mean, strength)
     return World(mean, strength, env)
 
 
-def export_world(world: bpy.types.World | None, warnings: list[str]) -> World:
-    """The world's Background colour × strength, or its Environment Texture."""
+def world_bake_reason(world: bpy.types.World | None) -> str | None:
+    """Why the export cannot read the world's light from its nodes (Cycles then bakes it,
+    world_bake.py), or None where it can: a colour, or an Environment Texture of an
+    equirectangular image turned about Z at most."""
+    if world is None or not uses_nodes(world):
+        return None
+    node = surface_node(world.node_tree, "OUTPUT_WORLD")
+    if node is None:
+        return None
+    if node.type != "BACKGROUND":
+        return f"its surface is a '{node.bl_label}' node"
+    if node.inputs["Strength"].is_linked:
+        return "its Background strength comes from nodes"
+    color = node.inputs["Color"]
+    source = color.links[0].from_node if color.is_linked else None
+    if source is None:
+        return None
+    if source.type != "TEX_ENVIRONMENT":
+        return f"its Background colour comes from '{source.bl_label}'"
+    if source.projection != "EQUIRECTANGULAR":
+        return f"its Environment Texture's projection is {source.projection.lower()}"
+    try:
+        _map_rotation(source)
+    except _Unsupported as reason:
+        return f"its Environment Texture: {reason}"
+    return None
+
+
+def export_world(world: bpy.types.World | None, warnings: list[str],
+                 notes: list[str] | None = None, unbaked: set[str] | None = None) -> World:
+    """The world's Background colour × strength, its Environment Texture, or its bake where
+    the nodes are more than that (with a note; without a bake, one colour and a warning
+    naming why, and ``unbaked`` gets the world where a bake pass would make it)."""
+    reason = world_bake_reason(world)
+    if reason is None:
+        return _read_world(world, warnings)
+    name = world.original.name
+    baked = world_bake.cached(world)
+    if baked is not None:
+        if notes is not None:
+            height, width = baked.pixels.shape[:2]
+            notes.append(f"world '{name}' baked by Cycles ({width} × {height} px, "
+                         f"{baked.seconds:.2f} s): {reason}")
+        return baked.world()
+    why = world_bake.why_not_baked(world)
+    if unbaked is not None and why == bake.NOT_BAKED:
+        unbaked.add(f"world '{name}'")
+    warnings.append(f"world '{name}': {reason}; lit by one colour instead ({why})")
+    return _read_world(world, [])
+
+
+def _read_world(world: bpy.types.World | None, warnings: list[str]) -> World:
+    """The world's Background colour × strength, or its Environment Texture (for what
+    world_bake_reason names, one colour: the viewport colour for surfaces other than a
+    Background, the socket's colour for other colour nodes, the map's mean)."""
     if world is None:
         return World()
     node = surface_node(world.node_tree, "OUTPUT_WORLD") if uses_nodes(world) else None
@@ -541,9 +594,6 @@ def export_world(world: bpy.types.World | None, warnings: list[str]) -> World:
     source = color.links[0].from_node if color.is_linked else None
     if source is not None and source.type == "TEX_ENVIRONMENT":
         return _environment_world(source, strength, warnings)
-    if source is not None:
-        warnings.append(f"world: Background colour from '{source.bl_label}' is not supported: "
-                        f"using the socket's own colour")
     return World(_rgb(color.default_value), strength)
 
 
@@ -753,7 +803,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         else:
             result.instances.append(Instance(mesh, matrix, materials))
     cache._entries = state.used
-    result.world = export_world(scene_eval.world, result.warnings)
+    result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked)
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),
                                   result.warnings)

@@ -220,12 +220,12 @@ def test_cache_and_user_data(blender):
         raise KeyboardInterrupt
     math.inputs[1].default_value = 0.4
     state = datablock_names(bpy)
-    original, bake._run_bake = bake._run_bake, interrupted
+    original, bake.run_bake = bake.run_bake, interrupted
     try:
         with pytest.raises(KeyboardInterrupt):
             bake.bake_scene(bpy.context.evaluated_depsgraph_get())
     finally:
-        bake._run_bake = original
+        bake.run_bake = original
     assert datablock_names(bpy) == state
     bake.CACHE.clear()
 
