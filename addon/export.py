@@ -40,6 +40,7 @@ from .core.scene.model import (
     Scene,
     World,
 )
+from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, read_pixels
 
@@ -507,10 +508,12 @@ def _map_rotation(texture) -> float:
     return float(-rotation[2] if node.vector_type == "TEXTURE" else rotation[2])
 
 
-def _environment_world(texture, strength: float, warnings: list[str]) -> World:
+def _environment_world(texture, strength: float, warnings: list[str],
+                       lights: list[Light] | None = None, name: str = "") -> World:
     """A world lit by an equirectangular Environment Texture (magenta if its image is
     missing, as in Cycles; its mean colour, without a bake, for what world_bake_reason
-    names)."""
+    names); with ``lights``, its sun disc, if any, taken out of the map as a sun light
+    there (core/scene/sun_disc.py)."""
     image = texture.image
     pixels = _image_pixels(image, warnings) if image is not None else None
     if pixels is None:
@@ -526,6 +529,10 @@ def _environment_world(texture, strength: float, warnings: list[str]) -> World:
         env.rotation = _map_rotation(texture)
     except _Unsupported:
         return World(mean, strength)
+    sun = take_out_map_sun(env, f"{name} sun disc") if lights is not None else None
+    if sun is not None:
+        lights.append(sun)
+        mean = tuple(mean_radiance(env) / strength)
     return World(mean, strength, env)
 
 
@@ -558,20 +565,31 @@ def world_bake_reason(world: bpy.types.World | None) -> str | None:
 
 
 def export_world(world: bpy.types.World | None, warnings: list[str],
-                 notes: list[str] | None = None, unbaked: set[str] | None = None) -> World:
+                 notes: list[str] | None = None, unbaked: set[str] | None = None,
+                 lights: list[Light] | None = None) -> World:
     """The world's Background colour × strength, its Environment Texture, or its bake where
-    the nodes are more than that (with a note; without a bake, one colour and a warning
-    naming why, and ``unbaked`` gets the world where a bake pass would make it)."""
+    the nodes are more than that (with a note, and ``lights`` gets the sun disc the bake
+    took out; without a bake, one colour and a warning naming why, and ``unbaked`` gets the
+    world where a bake pass would make it)."""
     reason = world_bake_reason(world)
     if reason is None:
-        return _read_world(world, warnings)
+        suns = len(lights) if lights is not None else 0
+        read = _read_world(world, warnings, lights)
+        if notes is not None and lights is not None and len(lights) > suns:
+            notes.append(f"world '{world.original.name}': its map's sun disc "
+                         f"({np.degrees(lights[-1].sun_angle):.2f}°) as a sun light")
+        return read
     name = world.original.name
     baked = world_bake.cached(world)
     if baked is not None:
         if notes is not None:
             height, width = baked.pixels.shape[:2]
+            sun = "" if baked.sun is None else \
+                f"; its sun disc ({np.degrees(baked.sun.sun_angle):.2f}°) as a sun light"
             notes.append(f"world '{name}' baked by Cycles ({width} × {height} px, "
-                         f"{baked.seconds:.2f} s): {reason}")
+                         f"{baked.seconds:.2f} s{sun}): {reason}")
+        if lights is not None and baked.sun is not None:
+            lights.append(baked.sun)
         return baked.world()
     why = world_bake.why_not_baked(world)
     if unbaked is not None and why == bake.NOT_BAKED:
@@ -580,10 +598,12 @@ def export_world(world: bpy.types.World | None, warnings: list[str],
     return _read_world(world, [])
 
 
-def _read_world(world: bpy.types.World | None, warnings: list[str]) -> World:
-    """The world's Background colour × strength, or its Environment Texture (for what
-    world_bake_reason names, one colour: the viewport colour for surfaces other than a
-    Background, the socket's colour for other colour nodes, the map's mean)."""
+def _read_world(world: bpy.types.World | None, warnings: list[str],
+                lights: list[Light] | None = None) -> World:
+    """The world's Background colour × strength, or its Environment Texture (its sun disc
+    into ``lights``); for what world_bake_reason names, one colour: the viewport colour for
+    surfaces other than a Background, the socket's colour for other colour nodes, the map's
+    mean."""
     if world is None:
         return World()
     node = surface_node(world.node_tree, "OUTPUT_WORLD") if uses_nodes(world) else None
@@ -593,7 +613,7 @@ def _read_world(world: bpy.types.World | None, warnings: list[str]) -> World:
     color = node.inputs["Color"]
     source = color.links[0].from_node if color.is_linked else None
     if source is not None and source.type == "TEX_ENVIRONMENT":
-        return _environment_world(source, strength, warnings)
+        return _environment_world(source, strength, warnings, lights, world.original.name)
     return World(_rgb(color.default_value), strength)
 
 
@@ -803,7 +823,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         else:
             result.instances.append(Instance(mesh, matrix, materials))
     cache._entries = state.used
-    result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked)
+    result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
+                                result.lights)
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),
                                   result.warnings)

@@ -26,7 +26,8 @@ from .bake import CACHE, NOT_BAKED, Temporary, run_bake
 from .blender_compat import ensure_nodes
 from .core.frame.result import Stats
 from .core.scene.environment import mean_radiance
-from .core.scene.model import EnvironmentMap, World
+from .core.scene.model import EnvironmentMap, Light, World
+from .core.scene.sun_disc import map_power, peak_window, take_out_sun, window_ranges
 
 MAP_WIDTH = 1024  # texels around the horizon (height: half)
 BAKE_SAMPLES = 4  # Cycles samples per texel
@@ -38,10 +39,12 @@ KEPT_WORLDS = 4  # bakes kept (one per world and node tree; each MAP_WIDTH² × 
 
 @dataclass
 class WorldBake:
-    """One world's baked radiance: (height, width, 3) linear RGB, rows bottom-up."""
+    """One world's baked radiance: (height, width, 3) linear RGB, rows bottom-up, and the sun
+    disc taken out of it as a sun light, if any."""
 
     pixels: np.ndarray
     seconds: float
+    sun: Light | None = None
 
     def world(self) -> World:
         """The world as the renderer takes it: the map, its mean as the colour."""
@@ -154,21 +157,21 @@ def _average_blocks(pixels: np.ndarray, v_range: tuple[float, float], factor: in
 def bake_world(world: bpy.types.World) -> WorldBake:
     """Cycles' Environment bake of the world into a MAP_WIDTH × MAP_WIDTH / 2 map, the
     PEAK_TEXELS² texels around its brightest one baked again PEAK_FACTOR times finer (a sun
-    disc narrower than a texel). RuntimeError if Cycles refuses."""
+    disc narrower than a texel), and a sun disc found there taken out as a sun light.
+    RuntimeError if Cycles refuses."""
     start = time.perf_counter()
     width, height = MAP_WIDTH, MAP_WIDTH // 2
     rgb = _bake_patch(world, (0.0, 1.0), (0.0, 1.0), (width, height), SPHERE_QUADS)
-    row, column = np.unravel_index(np.argmax(rgb.sum(axis=2)), (height, width))
-    first_row = int(np.clip(row - PEAK_TEXELS // 2, 0, height - PEAK_TEXELS))
-    first_column = int(column) - PEAK_TEXELS // 2
-    u_range = (first_column / width, (first_column + PEAK_TEXELS) / width)
-    v_range = (first_row / height, (first_row + PEAK_TEXELS) / height)
+    rows, columns = peak_window(rgb, PEAK_TEXELS)
+    u_range, v_range = window_ranges(rows, columns, rgb.shape)
     fine = PEAK_TEXELS * PEAK_FACTOR
     peak = _bake_patch(world, u_range, v_range, (fine, fine), (PEAK_TEXELS, PEAK_TEXELS))
-    columns = np.arange(first_column, first_column + PEAK_TEXELS) % width
-    rgb[first_row:first_row + PEAK_TEXELS, columns] = _average_blocks(peak, v_range,
-                                                                      PEAK_FACTOR)
-    return WorldBake(rgb, time.perf_counter() - start)
+    rgb[rows, columns] = _average_blocks(peak, v_range, PEAK_FACTOR)
+    sun = take_out_sun(peak, u_range, v_range, map_power(EnvironmentMap(rgb)),
+                       f"{world.original.name} sun disc")
+    if sun is not None:
+        rgb[rows, columns] = _average_blocks(peak, v_range, PEAK_FACTOR)
+    return WorldBake(rgb, time.perf_counter() - start, sun)
 
 
 def bake_if_needed(world: bpy.types.World | None, reason: str | None) -> float:

@@ -168,6 +168,19 @@ def test_baked_materials_match_cycles(blender, tmp_path, kind):
     assert abs(old_energy) > ENERGY_BOUND or old_rmse > RMSE_BOUNDS[kind]
 
 
+def bake_interrupted(bpy, module) -> None:
+    """A bake pass with Ctrl-C inside ``module``'s Cycles bake (its ``run_bake`` raising
+    KeyboardInterrupt), which the pass lets through."""
+    def interrupted(*_args, **_kwargs):
+        raise KeyboardInterrupt
+    original, module.run_bake = module.run_bake, interrupted
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            bake.bake_scene(bpy.context.evaluated_depsgraph_get())
+    finally:
+        module.run_bake = original
+
+
 def datablock_names(bpy) -> dict[str, set[str]]:
     """Every datablock's name and the datablocks that use it, by collection, and each mesh's
     UV maps and material nodes. Users come from ``bpy.data.user_map()``: Blender 4.2's raw
@@ -216,16 +229,9 @@ def test_cache_and_user_data(blender):
     assert len(third.baked) == 1 and len(bake.CACHE.entries) == 2
     assert datablock_names(bpy) == {**before, "nodes": datablock_names(bpy)["nodes"]}
 
-    def interrupted(*_args, **_kwargs):
-        raise KeyboardInterrupt
     math.inputs[1].default_value = 0.4
     state = datablock_names(bpy)
-    original, bake.run_bake = bake.run_bake, interrupted
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            bake.bake_scene(bpy.context.evaluated_depsgraph_get())
-    finally:
-        bake.run_bake = original
+    bake_interrupted(bpy, bake)
     assert datablock_names(bpy) == state
     bake.CACHE.clear()
 
