@@ -8,7 +8,7 @@ unit is one metre for light falloff (measured with Cycles 4.5, tests/blender/tes
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import bpy
 import numpy as np
@@ -517,8 +517,8 @@ def _environment_world(texture, strength: float, warnings: list[str],
     image = texture.image
     pixels = _image_pixels(image, warnings) if image is not None else None
     if pixels is None:
-        name = f"'{image.name}'" if image is not None else "(none)"
-        warnings.append(f"world: the Environment Texture's image {name} could not be loaded: "
+        label = f"'{image.name}'" if image is not None else "(none)"
+        warnings.append(f"world: the Environment Texture's image {label} could not be loaded: "
                         f"rendered magenta, as Cycles does")
         return World(MISSING_COLOR, strength)
     env = EnvironmentMap(pixels * np.float32(strength))
@@ -589,7 +589,7 @@ def export_world(world: bpy.types.World | None, warnings: list[str],
             notes.append(f"world '{name}' baked by Cycles ({width} × {height} px, "
                          f"{baked.seconds:.2f} s{sun}): {reason}")
         if lights is not None and baked.sun is not None:
-            lights.append(baked.sun)
+            lights.append(replace(baked.sun))  # the scene's own copy: the bake is kept
         return baked.world()
     why = world_bake.why_not_baked(world)
     if unbaked is not None and why == bake.NOT_BAKED:
