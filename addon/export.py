@@ -533,7 +533,7 @@ def _environment_world(texture, strength: float, warnings: list[str],
     if sun is not None:
         lights.append(sun)
         mean = tuple(mean_radiance(env) / strength)
-    return World(mean, strength, env)
+    return World(mean, strength, env, sun)
 
 
 def world_bake_reason(world: bpy.types.World | None) -> str | None:

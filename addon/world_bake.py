@@ -49,7 +49,8 @@ class WorldBake:
     def world(self) -> World:
         """The world as the renderer takes it: the map, its mean as the colour."""
         environment = EnvironmentMap(self.pixels)
-        return World(tuple(float(c) for c in mean_radiance(environment)), 1.0, environment)
+        return World(tuple(float(c) for c in mean_radiance(environment)), 1.0, environment,
+                     self.sun)
 
 
 _BAKES: dict[tuple, WorldBake] = {}

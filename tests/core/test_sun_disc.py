@@ -1,6 +1,6 @@
 """Sun discs taken out of environment maps as sun lights: the light's direction, size and
-irradiance against the disc painted into a map, turned maps, the map's light kept once, and
-maps without a disc left alone."""
+irradiance against the disc painted into a map, turned maps, the map's light kept once, maps
+without a disc left alone, and the disc still seen by the camera."""
 
 from __future__ import annotations
 
@@ -9,9 +9,11 @@ import math
 import numpy as np
 import pytest
 
+from addon.core.scene import environment
 from addon.core.scene.environment import pixel_solid_angles
-from addon.core.scene.model import EnvironmentMap, LightKind
+from addon.core.scene.model import EnvironmentMap, LightKind, World
 from addon.core.scene.sun_disc import map_power, take_out_map_sun
+from tests.core.builders import inside_sphere_camera
 from tests.core.test_environment import pixel_directions
 
 ELEVATION, AZIMUTH = math.radians(30), math.radians(70)
@@ -64,3 +66,24 @@ def test_maps_without_a_disc_are_left_alone():
         before = env.radiance.copy()
         assert take_out_map_sun(env, "none") is None
         np.testing.assert_array_equal(env.radiance, before)
+
+
+def test_camera_rays_still_see_the_disc_taken_out():
+    """The background of a camera looking at the sun shows the disc's radiance inside its
+    angle (as the map did before the disc became a light) and the sky outside it."""
+    env = sky_map()
+    sun = take_out_map_sun(env, "Sky sun disc")
+    forward = towards(ELEVATION, AZIMUTH)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    camera_to_world = np.eye(4)
+    camera_to_world[:3, :3] = np.stack([right, np.cross(right, forward), -forward], axis=1)
+    camera = inside_sphere_camera(512)  # 90°: a pixel is about 0.18°, the disc 1°
+    camera.view_matrix = np.linalg.inv(camera_to_world)
+    world = World((1.0, 1.0, 1.0), 1.0, env, sun)
+    seen = environment.background(world, camera, 1, 0, 0, 512, 512)
+    np.testing.assert_allclose(seen[256, 256], SUN_RADIANCE * np.array([1.0, 0.9, 0.7]),
+                               rtol=0.02)
+    np.testing.assert_allclose(seen[256, 300], [1.0, 1.0, 1.0], rtol=1e-3)  # 8° off
+    without = environment.background(World((1.0, 1.0, 1.0), 1.0, env), camera, 1, 0, 0, 512, 512)
+    np.testing.assert_allclose(without[256, 256], [1.0, 1.0, 1.0], rtol=1e-3)

@@ -124,8 +124,16 @@ def camera_directions(camera: Camera, aa: int, x0: int, y0: int, width: int, hei
 def background(world: World, camera: Camera, aa: int, x0: int, y0: int, width: int,
                height: int) -> np.ndarray:
     """Radiance seen by the camera rays of a supersampled tile that miss every surface:
-    (height, width, 3) float32 from the environment map, or the world colour (3,)."""
+    (height, width, 3) float32 from the environment map and the sun disc taken out of it (its
+    light's irradiance over its solid angle), or the world colour (3,)."""
     if world.environment is None:
         return world.radiance.astype(np.float32)
     d = camera_directions(camera, aa, x0, y0, width, height).reshape(-1, 3)
-    return lookup(world.environment, d).reshape(height, width, 3).astype(np.float32)
+    radiance = lookup(world.environment, d)
+    sun = world.visible_sun
+    if sun is not None:
+        half = sun.sun_angle / 2
+        inside = d @ sun.matrix[:3, 2] > np.cos(half)
+        disc = np.asarray(sun.color) * sun.power / (2 * np.pi * (1 - np.cos(half)))
+        radiance[inside] = disc
+    return radiance.reshape(height, width, 3).astype(np.float32)

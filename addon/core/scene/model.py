@@ -196,11 +196,14 @@ class World:
     """The environment: background radiance = colour × strength, or an environment map.
 
     With a map, ``color`` × ``strength`` is the map's mean radiance over the sphere, so code
-    that needs one colour (skipping a black world, light-path allocation) works unchanged."""
+    that needs one colour (skipping a black world, light-path allocation) works unchanged.
+    ``visible_sun``: a sun disc taken out of the map as this sun light (scene/sun_disc.py),
+    which camera rays still see in the background."""
 
     color: tuple[float, float, float] = (0.0, 0.0, 0.0)
     strength: float = 1.0
     environment: EnvironmentMap | None = None
+    visible_sun: Light | None = None
 
     @property
     def radiance(self) -> np.ndarray:
