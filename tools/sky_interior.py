@@ -1,8 +1,13 @@
-"""The interior sample scene with a Sky Texture world (the sun lamp's direction; its sun disc
-off, strength 0.02; or with ``--sun-disc`` the disc on, strength 0.05, and the lamp removed),
-saved to a new .blend: a world VPL GI bakes with Cycles (addon/world_bake.py).
+"""The interior sample scene with its sky built as users build it, saved to a new .blend:
 
-    .venv/bin/python tools/sky_interior.py OUT.blend [--sun-disc]
+- ``sky`` (default): a Sky Texture world (the sun lamp's direction, its sun disc off,
+  strength 0.02), which VPL GI bakes with Cycles (addon/world_bake.py);
+- ``sun-disc``: the same with its sun disc on, strength 0.05, and the lamp removed;
+- ``hdri``: an equirectangular HDRI written beside OUT.blend (a sky gradient and a 0.53° sun
+  disc of the lamp's irradiance in its direction) through an Environment Texture, the lamp
+  removed: the disc becomes a sun light (core/scene/sun_disc.py).
+
+    .venv/bin/python tools/sky_interior.py OUT.blend [--world sky|sun-disc|hdri]
     .venv/bin/python -m devtools report OUT.blend --set bounces=4 --reference-samples 64
 """
 
@@ -10,36 +15,70 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
+import numpy as np
+
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
 SKY_STRENGTH = 0.02
 SUN_DISC_STRENGTH = 0.05  # the disc's light on the floor about the lamp's (4 W/m²)
+HDRI_SIZE = (2048, 1024)
+HDRI_SUN_ANGLE = math.radians(0.53)
+HDRI_ZENITH, HDRI_HORIZON, HDRI_GROUND = (0.02, 0.035, 0.08), (0.06, 0.065, 0.07), 0.02
+
+
+def hdri_pixels(towards: np.ndarray, irradiance: float) -> np.ndarray:
+    """(h, w, 4) RGBA rows bottom-up in Blender's equirectangular layout: a gradient from
+    the horizon to the zenith, a grey ground, and a disc of ``irradiance`` (W/m²) around
+    ``towards``."""
+    width, height = HDRI_SIZE
+    elevation = np.pi * ((np.arange(height) + 0.5) / height - 0.5)[:, None]
+    azimuth = 2 * np.pi * (0.5 - (np.arange(width) + 0.5) / width)[None, :]
+    d = np.stack(np.broadcast_arrays(np.cos(elevation) * np.cos(azimuth),
+                                     np.cos(elevation) * np.sin(azimuth), np.sin(elevation)), -1)
+    up = np.clip(d[..., 2:3], 0.0, 1.0)
+    sky = np.array(HDRI_HORIZON) * (1 - up) + np.array(HDRI_ZENITH) * up
+    rgb = np.where(d[..., 2:3] > 0, sky, HDRI_GROUND)
+    half = HDRI_SUN_ANGLE / 2
+    rgb[d @ towards > math.cos(half)] = irradiance / (2 * np.pi * (1 - math.cos(half))) * \
+        np.array([1.0, 0.95, 0.85])
+    return np.concatenate([rgb, np.ones((height, width, 1))], axis=-1).astype(np.float32)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("output", type=Path)
-    parser.add_argument("--sun-disc", action="store_true",
-                        help="the sky's sun disc instead of the sun lamp")
+    parser.add_argument("--world", choices=("sky", "sun-disc", "hdri"), default="sky")
     args = parser.parse_args()
     import bpy
     from mathutils import Vector
 
+    from devtools.hdr import write_hdr
+
     bpy.ops.wm.open_mainfile(filepath=str(REPO / "sample_scenes" / "interior.blend"))
     scene = bpy.context.scene
     tree = scene.world.node_tree
-    sky = tree.nodes.new("ShaderNodeTexSky")
-    sky.sun_disc = args.sun_disc
     sun = next(o for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN")
     towards = sun.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0))
-    sky.sun_elevation = math.asin(towards.z)
-    sky.sun_rotation = math.pi / 2 - math.atan2(towards.y, towards.x)  # from +Y towards +X
     background = tree.nodes["Background"]
-    tree.links.new(sky.outputs["Color"], background.inputs["Color"])
-    background.inputs["Strength"].default_value = SUN_DISC_STRENGTH if args.sun_disc \
-        else SKY_STRENGTH
-    if args.sun_disc:
+    if args.world == "hdri":
+        path = args.output.resolve().with_suffix(".hdr")
+        write_hdr(path, hdri_pixels(np.array(towards), sun.data.energy)[..., :3])
+        texture = tree.nodes.new("ShaderNodeTexEnvironment")
+        texture.image = bpy.data.images.load(str(path))
+        tree.links.new(texture.outputs["Color"], background.inputs["Color"])
+        background.inputs["Strength"].default_value = 1.0
+    else:
+        sky = tree.nodes.new("ShaderNodeTexSky")
+        sky.sun_disc = args.world == "sun-disc"
+        sky.sun_elevation = math.asin(towards.z)
+        sky.sun_rotation = math.pi / 2 - math.atan2(towards.y, towards.x)  # from +Y to +X
+        tree.links.new(sky.outputs["Color"], background.inputs["Color"])
+        background.inputs["Strength"].default_value = SUN_DISC_STRENGTH if sky.sun_disc \
+            else SKY_STRENGTH
+    if args.world != "sky":
         bpy.data.objects.remove(sun)
     bpy.ops.wm.save_as_mainfile(filepath=str(args.output.resolve()), copy=True)
 
