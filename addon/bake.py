@@ -186,8 +186,8 @@ class Temporary:
         return self
 
     def __exit__(self, *_exc) -> None:
-        for kind in (bpy.types.Scene, bpy.types.Object, bpy.types.Mesh, bpy.types.Material,
-                     bpy.types.Image):
+        for kind in (bpy.types.Scene, bpy.types.World, bpy.types.Object, bpy.types.Mesh,
+                     bpy.types.Material, bpy.types.Image):
             for collection, datablock in reversed(self.made):
                 if isinstance(datablock, kind):
                     collection.remove(datablock)

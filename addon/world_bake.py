@@ -39,18 +39,21 @@ KEPT_WORLDS = 4  # bakes kept (one per world and node tree; each MAP_WIDTH² × 
 
 @dataclass
 class WorldBake:
-    """One world's baked radiance: (height, width, 3) linear RGB, rows bottom-up, and the sun
-    disc taken out of it as a sun light, if any."""
+    """One world's baked radiance: (height, width, 3) linear RGB, rows bottom-up, the sun
+    disc taken out of it as a sun light, if any, and for a world that shows the camera
+    something else than its light (Light Path), what the camera sees."""
 
     pixels: np.ndarray
     seconds: float
     sun: Light | None = None
+    camera_pixels: np.ndarray | None = None
 
     def world(self) -> World:
         """The world as the renderer takes it: the map, its mean as the colour."""
         environment = EnvironmentMap(self.pixels)
+        shown = None if self.camera_pixels is None else EnvironmentMap(self.camera_pixels)
         return World(tuple(float(c) for c in mean_radiance(environment)), 1.0, environment,
-                     self.sun)
+                     self.sun if shown is None else None, shown)
 
 
 _BAKES: dict[tuple, WorldBake] = {}
@@ -64,16 +67,19 @@ def world_key(world: bpy.types.World) -> tuple:
     return original.name_full, bake_tree.tree_hash(original.node_tree)
 
 
-def _uses_ray_type(tree: bpy.types.NodeTree, seen: set[str] | None = None) -> bool:
-    """Whether a node tree (or a group inside it) reads the Light Path node."""
+def _reads_ray_type(tree: bpy.types.NodeTree) -> bool:
+    """Whether a world's own node tree holds a Light Path node."""
+    return any(node.type == "LIGHT_PATH" for node in tree.nodes)
+
+
+def _group_reads_ray_type(tree: bpy.types.NodeTree, seen: set[str] | None = None) -> bool:
+    """Whether a node group inside a tree (or inside those) holds a Light Path node."""
     seen = set() if seen is None else seen
     for node in tree.nodes:
-        if node.type == "LIGHT_PATH":
-            return True
         group = getattr(node, "node_tree", None)
         if node.type == "GROUP" and group is not None and group.name_full not in seen:
             seen.add(group.name_full)
-            if _uses_ray_type(group, seen):
+            if _reads_ray_type(group) or _group_reads_ray_type(group, seen):
                 return True
     return False
 
@@ -81,9 +87,26 @@ def _uses_ray_type(tree: bpy.types.NodeTree, seen: set[str] | None = None) -> bo
 def why_not_baked(world: bpy.types.World) -> str:
     """Why a world that needs a bake has none: it cannot be baked, its bake failed, or no
     bake pass has run since it changed."""
-    if _uses_ray_type(world.original.node_tree):
-        return "not baked: its nodes depend on the ray type (Light Path)"
+    if _group_reads_ray_type(world.original.node_tree):
+        return "not baked: a node group in it reads the ray type (Light Path)"
     return _FAILED.get(world_key(world), NOT_BAKED)
+
+
+def _viewed(world: bpy.types.World, temporary: Temporary, camera: bool) -> bpy.types.World:
+    """A temporary copy of the world whose Light Path nodes are constants: as a camera ray
+    that misses every surface sees it (Is Camera Ray 1), or as direct-light sampling
+    evaluates it (every output 0); the user's world is left as it is."""
+    copy = temporary.add(bpy.data.worlds, world.original.copy())
+    tree = copy.node_tree
+    for node in [n for n in tree.nodes if n.type == "LIGHT_PATH"]:
+        for output in node.outputs:
+            for link in list(output.links):
+                value = tree.nodes.new("ShaderNodeValue")
+                value.outputs[0].default_value = \
+                    1.0 if camera and output.identifier == "Is Camera Ray" else 0.0
+                tree.links.new(value.outputs[0], link.to_socket)
+        tree.nodes.remove(node)
+    return copy
 
 
 def cached(world: bpy.types.World) -> WorldBake | None:
@@ -158,21 +181,27 @@ def _average_blocks(pixels: np.ndarray, v_range: tuple[float, float], factor: in
 def bake_world(world: bpy.types.World) -> WorldBake:
     """Cycles' Environment bake of the world into a MAP_WIDTH × MAP_WIDTH / 2 map, the
     PEAK_TEXELS² texels around its brightest one baked again PEAK_FACTOR times finer (a sun
-    disc narrower than a texel), and a sun disc found there taken out as a sun light.
-    RuntimeError if Cycles refuses."""
+    disc narrower than a texel), and a sun disc found there taken out as a sun light; a
+    world reading the ray type (Light Path) is baked as its light and again as the camera
+    sees it. RuntimeError if Cycles refuses."""
     start = time.perf_counter()
     width, height = MAP_WIDTH, MAP_WIDTH // 2
-    rgb = _bake_patch(world, (0.0, 1.0), (0.0, 1.0), (width, height), SPHERE_QUADS)
-    rows, columns = peak_window(rgb, PEAK_TEXELS)
-    u_range, v_range = window_ranges(rows, columns, rgb.shape)
-    fine = PEAK_TEXELS * PEAK_FACTOR
-    peak = _bake_patch(world, u_range, v_range, (fine, fine), (PEAK_TEXELS, PEAK_TEXELS))
+    with Temporary() as temporary:
+        two_views = _reads_ray_type(world.original.node_tree)
+        light = _viewed(world, temporary, camera=False) if two_views else world
+        rgb = _bake_patch(light, (0.0, 1.0), (0.0, 1.0), (width, height), SPHERE_QUADS)
+        rows, columns = peak_window(rgb, PEAK_TEXELS)
+        u_range, v_range = window_ranges(rows, columns, rgb.shape)
+        fine = PEAK_TEXELS * PEAK_FACTOR
+        peak = _bake_patch(light, u_range, v_range, (fine, fine), (PEAK_TEXELS, PEAK_TEXELS))
+        camera = _bake_patch(_viewed(world, temporary, camera=True), (0.0, 1.0), (0.0, 1.0),
+                             (width, height), SPHERE_QUADS) if two_views else None
     rgb[rows, columns] = _average_blocks(peak, v_range, PEAK_FACTOR)
     sun = take_out_sun(peak, u_range, v_range, map_power(EnvironmentMap(rgb)),
                        f"{world.original.name} sun disc")
     if sun is not None:
         rgb[rows, columns] = _average_blocks(peak, v_range, PEAK_FACTOR)
-    return WorldBake(rgb, time.perf_counter() - start, sun)
+    return WorldBake(rgb, time.perf_counter() - start, sun, camera)
 
 
 def bake_if_needed(world: bpy.types.World | None, reason: str | None) -> float:
@@ -180,7 +209,7 @@ def bake_if_needed(world: bpy.types.World | None, reason: str | None) -> float:
     no bake of its current node tree is kept (a failure goes to the bake pass's problems);
     the bake's seconds, 0 if none was made."""
     if world is None or reason is None or cached(world) is not None or \
-            _uses_ray_type(world.original.node_tree):
+            _group_reads_ray_type(world.original.node_tree):
         return 0.0
     key = world_key(world)
     try:

@@ -125,11 +125,13 @@ def background(world: World, camera: Camera, aa: int, x0: int, y0: int, width: i
                height: int) -> np.ndarray:
     """Radiance seen by the camera rays of a supersampled tile that miss every surface:
     (height, width, 3) float32 from the environment map and the sun disc taken out of it (its
-    light's irradiance over its solid angle), or the world colour (3,)."""
-    if world.environment is None:
+    light's irradiance over its solid angle), or from what the world shows the camera instead
+    (``World.background``), or the world colour (3,)."""
+    shown = world.environment if world.background is None else world.background
+    if shown is None:
         return world.radiance.astype(np.float32)
     d = camera_directions(camera, aa, x0, y0, width, height).reshape(-1, 3)
-    radiance = lookup(world.environment, d)
+    radiance = lookup(shown, d)
     sun = world.visible_sun
     if sun is not None:
         half = sun.sun_angle / 2

@@ -198,12 +198,14 @@ class World:
     With a map, ``color`` × ``strength`` is the map's mean radiance over the sphere, so code
     that needs one colour (skipping a black world, light-path allocation) works unchanged.
     ``visible_sun``: a sun disc taken out of the map as this sun light (scene/sun_disc.py),
-    which camera rays still see in the background."""
+    which camera rays still see in the background. ``background``: what camera rays see
+    instead of the map, for a world that shows the camera something else than its light."""
 
     color: tuple[float, float, float] = (0.0, 0.0, 0.0)
     strength: float = 1.0
     environment: EnvironmentMap | None = None
     visible_sun: Light | None = None
+    background: EnvironmentMap | None = None
 
     @property
     def radiance(self) -> np.ndarray:
