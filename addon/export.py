@@ -573,11 +573,10 @@ def export_world(world: bpy.types.World | None, warnings: list[str],
     world where a bake pass would make it)."""
     reason = world_bake_reason(world)
     if reason is None:
-        suns = len(lights) if lights is not None else 0
         read = _read_world(world, warnings, lights)
-        if notes is not None and lights is not None and len(lights) > suns:
+        if notes is not None and read.visible_sun is not None:
             notes.append(f"world '{world.original.name}': its map's sun disc "
-                         f"({np.degrees(lights[-1].sun_angle):.2f}°) as a sun light")
+                         f"({np.degrees(read.visible_sun.sun_angle):.2f}°) as a sun light")
         return read
     name = world.original.name
     baked = world_bake.cached(world)

@@ -25,7 +25,7 @@ from . import bake_tree
 from .bake import CACHE, NOT_BAKED, Temporary, run_bake
 from .blender_compat import ensure_nodes
 from .core.frame.result import Stats
-from .core.scene.environment import mean_radiance
+from .core.scene.environment import equirect_directions, mean_radiance
 from .core.scene.model import EnvironmentMap, Light, World
 from .core.scene.sun_disc import map_power, peak_window, take_out_sun, window_ranges
 
@@ -117,15 +117,12 @@ def cached(world: bpy.types.World) -> WorldBake | None:
 def _sphere_patch(temporary: Temporary, u_range: tuple[float, float],
                   v_range: tuple[float, float], quads: tuple[int, int]) -> bpy.types.Object:
     """The part of a unit sphere about the origin that Cycles' equirectangular layout
-    (u = (π − azimuth) / 2π, v = 1 − polar angle / π) maps to ``u_range`` × ``v_range``,
+    (Blender's, core/scene/environment.py) maps to ``u_range`` × ``v_range``,
     smooth shaded, its UV map that rectangle stretched over the unit square."""
     around, up = quads
     s, t = np.meshgrid(np.linspace(0.0, 1.0, around + 1), np.linspace(0.0, 1.0, up + 1))
-    u = u_range[0] + s * (u_range[1] - u_range[0])
-    v = v_range[0] + t * (v_range[1] - v_range[0])
-    azimuth, polar = np.pi - 2 * np.pi * u, np.pi * (1.0 - v)
-    vertices = np.stack([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth),
-                         np.cos(polar)], -1).reshape(-1, 3)
+    vertices = equirect_directions(u_range[0] + s * (u_range[1] - u_range[0]),
+                                   v_range[0] + t * (v_range[1] - v_range[0])).reshape(-1, 3)
     first = (np.arange(up)[:, None] * (around + 1) + np.arange(around)[None, :]).ravel()
     faces = np.stack([first, first + 1, first + around + 2, first + around + 1], -1)
     mesh = temporary.add(bpy.data.meshes, bpy.data.meshes.new("VPL GI world bake"))
@@ -208,10 +205,11 @@ def bake_if_needed(world: bpy.types.World | None, reason: str | None) -> float:
     """Bake the scene's world where the exporter gives a ``reason`` it cannot read it and
     no bake of its current node tree is kept (a failure goes to the bake pass's problems);
     the bake's seconds, 0 if none was made."""
-    if world is None or reason is None or cached(world) is not None or \
-            _group_reads_ray_type(world.original.node_tree):
+    if world is None or reason is None or _group_reads_ray_type(world.original.node_tree):
         return 0.0
     key = world_key(world)
+    if key in _BAKES:
+        return 0.0
     try:
         entry = bake_world(world)
     except (RuntimeError, ValueError) as exc:

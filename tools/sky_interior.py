@@ -30,21 +30,21 @@ HDRI_ZENITH, HDRI_HORIZON, HDRI_GROUND = (0.02, 0.035, 0.08), (0.06, 0.065, 0.07
 
 
 def hdri_pixels(towards: np.ndarray, irradiance: float) -> np.ndarray:
-    """(h, w, 4) RGBA rows bottom-up in Blender's equirectangular layout: a gradient from
-    the horizon to the zenith, a grey ground, and a disc of ``irradiance`` (W/m²) around
+    """(h, w, 3) linear RGB rows bottom-up in Blender's equirectangular layout: a gradient
+    from the horizon to the zenith, a grey ground, and a disc of ``irradiance`` (W/m²) around
     ``towards``."""
+    from addon.core.scene.environment import equirect_directions
+
     width, height = HDRI_SIZE
-    elevation = np.pi * ((np.arange(height) + 0.5) / height - 0.5)[:, None]
-    azimuth = 2 * np.pi * (0.5 - (np.arange(width) + 0.5) / width)[None, :]
-    d = np.stack(np.broadcast_arrays(np.cos(elevation) * np.cos(azimuth),
-                                     np.cos(elevation) * np.sin(azimuth), np.sin(elevation)), -1)
+    d = equirect_directions(((np.arange(width) + 0.5) / width)[None, :],
+                            ((np.arange(height) + 0.5) / height)[:, None])
     up = np.clip(d[..., 2:3], 0.0, 1.0)
     sky = np.array(HDRI_HORIZON) * (1 - up) + np.array(HDRI_ZENITH) * up
     rgb = np.where(d[..., 2:3] > 0, sky, HDRI_GROUND)
     half = HDRI_SUN_ANGLE / 2
     rgb[d @ towards > math.cos(half)] = irradiance / (2 * np.pi * (1 - math.cos(half))) * \
         np.array([1.0, 0.95, 0.85])
-    return np.concatenate([rgb, np.ones((height, width, 1))], axis=-1).astype(np.float32)
+    return rgb.astype(np.float32)
 
 
 def main() -> None:
@@ -65,7 +65,7 @@ def main() -> None:
     background = tree.nodes["Background"]
     if args.world == "hdri":
         path = args.output.resolve().with_suffix(".hdr")
-        write_hdr(path, hdri_pixels(np.array(towards), sun.data.energy)[..., :3])
+        write_hdr(path, hdri_pixels(np.array(towards), sun.data.energy))
         texture = tree.nodes.new("ShaderNodeTexEnvironment")
         texture.image = bpy.data.images.load(str(path))
         tree.links.new(texture.outputs["Color"], background.inputs["Color"])

@@ -157,3 +157,17 @@ def test_world_light_paths_carry_the_map_flux_from_where_it_shines():
     from_sun = -paths.direction @ SUN > 0.999
     share = paths.flux[from_sun].sum() / paths.flux.sum()
     assert 0.2 < share < 0.35  # the blob's share of the map's power is 28 %
+
+
+def test_equirect_directions_invert_map_coordinates():
+    """Texel centres of a turned map, to directions and back: the same (u, v), and the
+    directions the test's own pixel_directions gives."""
+    u = (np.arange(64) + 0.5) / 64
+    v = (np.arange(32) + 0.5) / 32
+    d = environment.equirect_directions(u[None, :], v[:, None], 0.7)
+    np.testing.assert_allclose(d, pixel_directions(32, 64, 0.7), atol=1e-12)
+    back_u, back_v = environment.map_coordinates(EnvironmentMap(np.zeros((32, 64, 3)), 0.7),
+                                                 d.reshape(-1, 3))
+    np.testing.assert_allclose(back_u.reshape(32, 64), np.broadcast_to(u, (32, 64)), atol=1e-9)
+    np.testing.assert_allclose(back_v.reshape(32, 64), np.broadcast_to(v[:, None], (32, 64)),
+                               atol=1e-9)

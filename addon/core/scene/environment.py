@@ -40,6 +40,16 @@ def map_coordinates(env: EnvironmentMap, directions: np.ndarray) -> tuple[np.nda
     return u, v
 
 
+def equirect_directions(u: np.ndarray, v: np.ndarray, rotation: float = 0.0) -> np.ndarray:
+    """Unit world directions (..., 3) at map coordinates ``u``, ``v`` (broadcast together) of
+    a map turned by ``rotation``: the inverse of map_coordinates."""
+    azimuth = 2 * np.pi * (0.5 - np.asarray(u)) - rotation
+    elevation = np.pi * (np.asarray(v) - 0.5)
+    return np.stack(np.broadcast_arrays(np.cos(elevation) * np.cos(azimuth),
+                                        np.cos(elevation) * np.sin(azimuth),
+                                        np.sin(elevation)), -1)
+
+
 def lookup(env: EnvironmentMap, directions: np.ndarray) -> np.ndarray:
     """(n, 3) bilinearly interpolated radiance (Blender's default Linear interpolation)."""
     h, w, _ = env.radiance.shape

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .environment import mean_radiance
+from .environment import equirect_directions, mean_radiance
 from .model import EnvironmentMap, Light, LightKind
 
 SUN_CONTRAST = 100.0
@@ -51,11 +51,7 @@ def _patch_directions(u_range: tuple[float, float], v_range: tuple[float, float]
     height, width = shape
     u = u_range[0] + (np.arange(width) + 0.5) / width * (u_range[1] - u_range[0])
     v = v_range[0] + (np.arange(height) + 0.5) / height * (v_range[1] - v_range[0])
-    azimuth = 2 * np.pi * (0.5 - u[None, :]) - rotation
-    polar = np.pi * (1.0 - v[:, None])
-    directions = np.stack(np.broadcast_arrays(np.sin(polar) * np.cos(azimuth),
-                                              np.sin(polar) * np.sin(azimuth),
-                                              np.cos(polar)), -1)
+    directions = equirect_directions(u[None, :], v[:, None], rotation)
     texel = (2 * np.pi * (u_range[1] - u_range[0]) / width) * (np.pi * (v_range[1] - v_range[0])
                                                                / height)
     return directions, texel * np.sin(np.pi * v)[:, None]
