@@ -332,6 +332,36 @@ def _emissive(name: str, base, base_texture, color, color_texture, strength: flo
                     emission_texture=color_texture if strength != 0 else None, **values)
 
 
+CLEAR_SHADERS = ("BSDF_TRANSPARENT", "BSDF_GLASS", "BSDF_REFRACTION")
+"""Shaders that let light straight through (Glass and Refraction: their reflection, Fresnel
+and roughness are not rendered)."""
+
+
+def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
+    """A Principled BSDF that is all transmission (Alpha 0, or Transmission Weight 1 and not
+    metallic) as a clear material; None otherwise, with a warning where some Alpha or
+    Transmission (constant) is not rendered (the surface is rendered opaque)."""
+    def unlinked(label: str, default: float) -> float:
+        socket = node.inputs.get(label)
+        return default if socket is None or socket.is_linked else float(socket.default_value)
+
+    alpha = float(np.clip(unlinked("Alpha", 1.0), 0.0, 1.0))
+    weight = float(np.clip(unlinked("Transmission Weight", 0.0), 0.0, 1.0))
+    metallic = float(np.clip(unlinked("Metallic", 0.0), 0.0, 1.0))
+    transmitted = weight * (1.0 - metallic)
+    base = node.inputs["Base Color"]
+    if alpha == 0.0 or (transmitted == 1.0 and not base.is_linked):
+        tint = (1.0, 1.0, 1.0) if alpha == 0.0 else _rgb(base.default_value)
+        return Material(name, (0.0, 0.0, 0.0), roughness=1.0,
+                        transmission=tuple(float(1.0 - alpha + alpha * c) for c in tint))
+    if alpha < 1.0 or transmitted > 0.0:
+        message = (f"material '{name}': Principled BSDF's Alpha {alpha:g} and Transmission "
+                   f"Weight {weight:g} are not rendered (an opaque surface)")
+        if message not in warnings:
+            warnings.append(message)
+    return None
+
+
 def _shader(node, name: str, images: ImageReader) -> Material:
     """Values of a shader node (recursing through Mix and Add Shader): constants, or image
     textures linked to a colour; the Principled BSDF's specular inputs as constants.
@@ -342,6 +372,9 @@ def _shader(node, name: str, images: ImageReader) -> Material:
     if node.type == "REROUTE":
         return _shader(_linked_shader(node.inputs[0]), name, images)
     if node.type == "BSDF_PRINCIPLED":
+        clear = _principled_clear(node, name, images.warnings)
+        if clear is not None:
+            return clear
         return _emissive(name, *images.color(node, "Base Color", (0.8,) * 3, name),
                          *images.color(node, "Emission Color", (0, 0, 0), name),
                          float(_constant(node, "Emission Strength", 0.0)),
@@ -350,6 +383,9 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          ior=float(_constant(node, "IOR", 1.5)),
                          specular_ior_level=float(_constant(node, "Specular IOR Level", 0.5)),
                          specular_tint=_rgb(_constant(node, "Specular Tint", (1, 1, 1))))
+    if node.type in CLEAR_SHADERS:
+        return Material(name, (0.0, 0.0, 0.0), roughness=1.0,
+                        transmission=_rgb(_constant(node, "Color", (1, 1, 1))))
     if node.type == "BSDF_DIFFUSE":
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
         return Material(name, base, roughness=1.0, base_color_texture=texture)
@@ -362,6 +398,10 @@ def _shader(node, name: str, images: ImageReader) -> Material:
             if node.type == "MIX_SHADER" else (node.inputs[0], node.inputs[1])
         a = _shader(_linked_shader(first_socket), name, images)
         b = _shader(_linked_shader(second_socket), name, images)
+        if node.type == "MIX_SHADER" and node.inputs["Fac"].is_linked and a.is_clear \
+                and b.is_clear:  # e.g. glass for camera rays, transparent for shadow rays
+            return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission=tuple(
+                np.maximum(a.transmission, b.transmission)))
         if any((m.base_color_texture, m.emission_texture) != (None, None) for m in (a, b)):
             raise _Unsupported(f"image textures inside '{node.bl_label}' are not supported")
         if node.type == "ADD_SHADER":
@@ -370,10 +410,11 @@ def _shader(node, name: str, images: ImageReader) -> Material:
             wb = float(np.clip(_constant(node, "Fac", 0.5), 0.0, 1.0))
             wa = 1.0 - wb
         mix = [tuple(wa * np.array(x) + wb * np.array(y)) for x, y in
-               ((a.base_color, b.base_color), (a.emission, b.emission))]
+               ((a.base_color, b.base_color), (a.emission, b.emission),
+                (a.transmission, b.transmission))]
         weight = max(wa + wb, 1e-30)
         glossy = a if a.specular_ior_level >= b.specular_ior_level else b
-        return Material(name, mix[0], mix[1],
+        return Material(name, mix[0], mix[1], transmission=mix[2],
                         roughness=(wa * a.roughness + wb * b.roughness) / weight,
                         metallic=(wa * a.metallic + wb * b.metallic) / weight,
                         ior=glossy.ior, specular_tint=glossy.specular_tint,

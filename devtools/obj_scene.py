@@ -28,6 +28,10 @@ def _diffuse_only() -> bool:
                 node.inputs["Roughness"].default_value = 1.0
                 node.inputs["Specular IOR Level"].default_value = 0.0
                 node.inputs["Metallic"].default_value = 0.0
+                # the importer reads MTL transparency (Tf, d) as glass: Sibenik's stone walls
+                # came in with Transmission Weight 1
+                node.inputs["Transmission Weight"].default_value = 0.0
+                node.inputs["Alpha"].default_value = 1.0
                 color = node.inputs["Emission Color"].default_value
                 if node.inputs["Emission Strength"].default_value == 0 and max(color[:3]) > 1:
                     # Blender 4.2's importer puts Ke (17 12 4) in the colour and leaves the

@@ -31,8 +31,10 @@ import numpy as np
 
 from addon import ENGINE_ID
 from addon.core.gpu.gl import GLUnavailableError, shared_context
+from addon.core.scene.model import RENDERED_OBJECT_TYPES
 from addon.core.settings import Value
 from addon.engine import monitor, shared_renderer
+from addon.export import export_material
 
 from . import metrics
 from . import report_tables as tables
@@ -139,11 +141,13 @@ WARM_UP_PERCENTAGE = 25
 shaders, Cycles kernels, the denoiser's kernels) does not depend on it."""
 
 
-def cycles_settings(samples: int, bounces: int, seed: int, denoise: bool = False
-                    ) -> dict[str, object]:
+def cycles_settings(samples: int, bounces: int, seed: int, denoise: bool = False,
+                    clear: bool = False) -> dict[str, object]:
     """Cycles set up like VPL GI: CPU, diffuse bounces only, no adaptive sampling, clamping or
     light-sampling cut-off, a one-pixel box filter; no denoiser, or with ``denoise``
-    OpenImageDenoise with albedo and normal guides (Blender's defaults, as users render)."""
+    OpenImageDenoise with albedo and normal guides (Blender's defaults, as users render).
+    With ``clear`` (a scene with clear materials, which VPL GI lets light through),
+    Blender's default transparent (8) and transmission (12) bounces."""
     settings: dict[str, object] = {
         "device": "CPU", "samples": samples, "seed": seed,
         "max_bounces": bounces, "diffuse_bounces": bounces, "glossy_bounces": 0,
@@ -152,6 +156,8 @@ def cycles_settings(samples: int, bounces: int, seed: int, denoise: bool = False
         "sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0,
         "light_sampling_threshold": 0.0, "pixel_filter_type": "BOX", "filter_width": 1.0,
     }
+    if clear:
+        settings.update(transparent_max_bounces=8, transmission_bounces=12)
     if denoise:
         settings.update(use_denoising=True, denoiser="OPENIMAGEDENOISE",
                         denoising_input_passes="RGB_ALBEDO_NORMAL",
@@ -344,14 +350,15 @@ class Job:
     warm_up: bool = False  # also rendered once, untimed and smaller, before any timed render
 
 
-def ladder_jobs(scene: bpy.types.Scene, options: Options, bounces: int) -> list[Job]:
+def ladder_jobs(scene: bpy.types.Scene, options: Options, bounces: int, clear: bool = False
+                ) -> list[Job]:
     """Every render of the ladder, in order: raw Cycles, Cycles + OIDN, the VPL GI lines, the
     automatic mode. The first of each line is also its warm-up."""
     ladder, base = options.ladder, scene.vpl_gi.values()
     jobs = []
     for denoise, samples_list in ((False, ladder.cycles_samples), (True, ladder.oidn_samples)):
         for i, samples in enumerate(samples_list):
-            settings = cycles_settings(samples, bounces, LADDER_SEED + i, denoise)
+            settings = cycles_settings(samples, bounces, LADDER_SEED + i, denoise, clear)
             entry = {"engine": "CYCLES", "kind": "cycles_oidn" if denoise else "cycles",
                      "line": OIDN_LINE if denoise else CYCLES_LINE, "parameter": "samples",
                      "value": samples, "settings": settings}
@@ -431,11 +438,11 @@ def machine_info(scene: bpy.types.Scene) -> dict[str, object]:
 
 
 def render_references(scene: bpy.types.Scene, blend_digest: str, options: Options, bounces: int,
-                      exr: Path) -> list[tuple[np.ndarray, float, bool]]:
+                      exr: Path, clear: bool = False) -> list[tuple[np.ndarray, float, bool]]:
     """The references r1, r2: (image, seconds, cached) per seed of REFERENCE_SEEDS."""
     references = []
     for seed in REFERENCE_SEEDS:
-        settings = cycles_settings(options.reference_samples, bounces, seed)
+        settings = cycles_settings(options.reference_samples, bounces, seed, clear=clear)
         key = reference_key(blend_digest, options.resolution, settings, bpy.app.version_string)
         references.append(reference(scene, settings, key, options.cache_dir, exr))
         stop_if_cancelled()
@@ -485,6 +492,13 @@ REFERENCE_WHY = (
     "relative_rmse_unbiased_range of each render) is small against the errors compared")
 
 
+def has_clear_materials(scene: bpy.types.Scene) -> bool:
+    """Whether a rendered object of ``scene`` has a material VPL GI renders clear."""
+    materials = {slot.material for obj in scene.objects if obj.type in RENDERED_OBJECT_TYPES
+                 for slot in obj.material_slots if slot.material is not None}
+    return any(export_material(m, []).is_clear for m in materials)
+
+
 def run(scene_path: Path, out_dir: Path, options: Options) -> dict[str, object]:
     """Render the report of ``scene_path``, write ``out_dir``/report.json and
     error_vs_time.png, and return the report (with ``references_only``: render or load the
@@ -494,10 +508,11 @@ def run(scene_path: Path, out_dir: Path, options: Options) -> dict[str, object]:
     scene.vpl_gi.assign(options.overrides)
     bounces = scene.vpl_gi.bounces
     blend_digest = file_digest(scene_path)
-    jobs = ladder_jobs(scene, options, bounces)
+    clear = has_clear_materials(scene)
+    jobs = ladder_jobs(scene, options, bounces, clear)
     with tempfile.TemporaryDirectory(prefix="vpl_gi_report_") as tmp:
         exr = Path(tmp) / "render.exr"
-        references = render_references(scene, blend_digest, options, bounces, exr)
+        references = render_references(scene, blend_digest, options, bounces, exr, clear)
         report = {
             "scene": str(scene_path), "scene_sha256": blend_digest,
             "size": list(options.resolution), "bounces": bounces,

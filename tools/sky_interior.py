@@ -7,6 +7,9 @@
   disc of the lamp's irradiance in its direction) through an Environment Texture, the lamp
   removed: the disc becomes a sun light (core/scene/sun_disc.py).
 
+``--glass glass`` glazes the window with an 8 mm pane of Glass BSDF (IOR 1.5); ``--glass
+transparent`` with a pane of white Transparent BSDF.
+
     .venv/bin/python tools/sky_interior.py OUT.blend [--world sky|sun-disc|hdri]
     .venv/bin/python -m devtools report OUT.blend --set bounces=4 --reference-samples 64
 """
@@ -26,6 +29,7 @@ SKY_STRENGTH = 0.02
 SUN_DISC_STRENGTH = 0.05  # the disc's light on the floor about the lamp's (4 W/m²)
 HDRI_SIZE = (2048, 1024)
 HDRI_SUN_ANGLE = math.radians(0.53)
+WINDOW_X, WINDOW_Y, WINDOW_Z = (-0.4, 1.2), (-2.104, -2.096), (0.9, 2.3)  # build_scenes.py
 HDRI_ZENITH, HDRI_HORIZON, HDRI_GROUND = (0.02, 0.035, 0.08), (0.06, 0.065, 0.07), 0.02
 
 
@@ -47,10 +51,33 @@ def hdri_pixels(towards: np.ndarray, irradiance: float) -> np.ndarray:
     return rgb.astype(np.float32)
 
 
+def add_pane(kind: str) -> None:
+    """An 8 mm box filling the window, of Glass BSDF (IOR 1.5) or white Transparent BSDF."""
+    import bpy
+
+    centre = [sum(span) / 2 for span in (WINDOW_X, WINDOW_Y, WINDOW_Z)]
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=centre)
+    pane = bpy.context.active_object
+    pane.name = "Window.Pane"
+    pane.scale = [span[1] - span[0] for span in (WINDOW_X, WINDOW_Y, WINDOW_Z)]
+    material = bpy.data.materials.new(f"Window {kind}")
+    material.use_nodes = True
+    tree = material.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    shader = tree.nodes.new("ShaderNodeBsdfGlass" if kind == "glass" else
+                            "ShaderNodeBsdfTransparent")
+    if kind == "glass":
+        shader.inputs["IOR"].default_value = 1.5
+        shader.inputs["Roughness"].default_value = 0.0
+    tree.links.new(shader.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    pane.data.materials.append(material)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("output", type=Path)
     parser.add_argument("--world", choices=("sky", "sun-disc", "hdri"), default="sky")
+    parser.add_argument("--glass", choices=("none", "glass", "transparent"), default="none")
     args = parser.parse_args()
     import bpy
     from mathutils import Vector
@@ -80,6 +107,8 @@ def main() -> None:
             else SKY_STRENGTH
     if args.world != "sky":
         bpy.data.objects.remove(sun)
+    if args.glass != "none":
+        add_pane(args.glass)
     bpy.ops.wm.save_as_mainfile(filepath=str(args.output.resolve()), copy=True)
 
 

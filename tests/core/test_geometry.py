@@ -112,6 +112,30 @@ def test_runs_of_shared_meshes_are_listed_after_dropped_triangles():
     assert geometry.triangle_count == 2 * kept + 4 * 11 + 7
 
 
+def test_triangles_of_clear_materials_are_left_out_with_one_note():
+    """Instances of one mesh whose lists make a slot clear in some of them: those lose the
+    slot's triangles (and leave the shared-mesh runs), the others keep all."""
+    mesh = _indexed_mesh(np.random.default_rng(5))
+    glass = Material("glass", (0.0, 0.0, 0.0), transmission=(0.9, 0.9, 0.9))
+    assert glass.is_clear and not Material("veil", (0.4,) * 3, transmission=(0.5,) * 3).is_clear
+    full = _materials()[0]
+    glazed = [full[0], glass, full[2]]
+    scene = Scene([Instance(mesh, m, materials) for m, materials in
+                   zip(_transforms(), [full, glazed, full], strict=True)])
+    notes: list[str] = []
+    geometry = flatten_instances(scene, [], notes)
+    clear = int((mesh.material_slots == 1).sum())
+    assert geometry.triangle_count == 3 * mesh.triangle_count - clear
+    assert notes == [f"{clear} triangles of clear material(s) 'glass' let light straight "
+                     f"through as openings (their reflections, refraction, tint and Fresnel "
+                     f"loss are not rendered)"]
+    assert 4 not in geometry.triangle_material  # the glazed list's rows: 3, 4 (glass), 5
+    plain = flatten_instances(Scene([Instance(mesh, m, full) for m in _transforms()]), [])
+    kept = mesh.triangle_count
+    np.testing.assert_array_equal(geometry.positions[:3 * kept], plain.positions[:3 * kept])
+    assert geometry.instanced.size == 0
+
+
 def test_normals_are_unit_and_face_the_same_way_through_any_transform():
     """Similarities (turned, uniformly scaled, mirrored: their normals are not normalised
     again) and general maps (sheared, squashed) give each triangle's unit normal, on the side

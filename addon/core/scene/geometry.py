@@ -270,6 +270,8 @@ class _MaterialTable:
         self.warnings = warnings
         self.textures = tex.TextureSet()
         self.clamped: set[str] = set()
+        self.clear: list[bool] = []  # per row: a clear material (Material.is_clear)
+        self.clear_names: set[str] = set()
         self.blocks: list[np.ndarray] = []
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
@@ -281,6 +283,8 @@ class _MaterialTable:
             self._first[key] = self.row_count
             self.blocks.append(_material_rows(materials, self.warnings, self.textures,
                                               self.clamped))
+            self.clear.extend(m.is_clear for m in materials)
+            self.clear_names.update(m.name for m in materials if m.is_clear)
             self.row_count += len(materials)
         return self._first[key], len(materials)
 
@@ -341,12 +345,13 @@ class _Group:
 
 def _flatten_group(group: _Group, warnings: list[str], positions_out: np.ndarray,
                    normals_out: np.ndarray, uv_out: np.ndarray | None,
-                   material_out: np.ndarray) -> np.ndarray | None:
+                   material_out: np.ndarray, clear: np.ndarray) -> np.ndarray | None:
     """Write world positions and normals of every instance of one shared mesh into
     ``positions_out`` and ``normals_out`` (k·V, 3), transformed together in float32 as the GPU
     gets them (each stored point and normal once, then gathered per corner), UVs into
     ``uv_out`` (k·V, 2) if given, and each triangle's material row into ``material_out``
-    (k·T,). Returns the mask of vertices on finite triangles, or None when all are finite."""
+    (k·T,). Returns the mask of vertices on finite triangles whose material row is not
+    ``clear``, or None when that is all of them."""
     mesh = group.mesh
     k, triangles = len(group.matrices), mesh.triangle_count
     corners = 3 * triangles
@@ -396,6 +401,10 @@ def _flatten_group(group: _Group, warnings: list[str], positions_out: np.ndarray
     first, count = np.array(lists, np.int64).reshape(-1, 2).T
     material_out.reshape(k, triangles)[:] = first[:, None] + np.minimum(slots[None],
                                                                         count[:, None] - 1)
+    if clear.any():
+        opaque = np.repeat(~clear[material_out], 3)
+        if not opaque.all():
+            keep = opaque if keep is None else keep & opaque
     return keep
 
 
@@ -406,7 +415,8 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     by each mesh's first instance).
 
     Triangles whose world positions are not finite (NaN/Inf vertices or transforms) are left
-    out, with one warning per instance. Glossy materials smoother than
+    out, with one warning per instance; so are triangles of clear materials, which light and
+    camera rays pass (one line in ``notes``). Glossy materials smoother than
     principled.MIN_ROUGHNESS get one line in ``notes``."""
     table = _MaterialTable(warnings)
     found: dict[int, _Group] = {}
@@ -427,13 +437,15 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     normals = np.empty((3 * sum(sizes), 3), np.float32)
     uv = np.empty((3 * sum(sizes), 2), np.float32) if textured else None
     triangle_material = np.empty(sum(sizes), np.int32)
+    clear = np.array(table.clear, bool)
     masks, start = [], 0
     for group, size in zip(groups, sizes, strict=True):
         corners = slice(3 * start, 3 * (start + size))
         masks.append(_flatten_group(group, warnings, positions[corners], normals[corners],
                                     None if uv is None else uv[corners],
-                                    triangle_material[start:start + size]))
+                                    triangle_material[start:start + size], clear))
         start += size
+    clear_count = int(clear[triangle_material].sum()) if clear.any() else 0
     if any(mask is not None for mask in masks):
         keep = np.concatenate([np.ones(3 * size, bool) if mask is None else mask
                                for mask, size in zip(masks, sizes, strict=True)])
@@ -447,6 +459,11 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
                           for first, group, mask in zip(firsts, groups, masks, strict=True)
                           if mask is None and len(group.matrices) > 1], np.int64).reshape(-1, 3)
     textures = table.textures.textures
+    if clear_count and notes is not None:
+        notes.append(f"{clear_count} triangles of clear material(s) "
+                     f"{', '.join(repr(n) for n in sorted(table.clear_names))} let light "
+                     f"straight through as openings (their reflections, refraction, tint "
+                     f"and Fresnel loss are not rendered)")
     if table.clamped and notes is not None:
         notes.append(f"glossy roughness below {principled.MIN_ROUGHNESS:g} is rendered at "
                      f"{principled.MIN_ROUGHNESS:g}: {len(table.clamped)} material(s), e.g. "

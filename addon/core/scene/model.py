@@ -51,7 +51,9 @@ class Material:
     with ``emission_texture`` the emitted radiance is the texture times ``emission`` (the
     strength per channel). Roughness, metallic, IOR, specular IOR level and specular tint are
     the Principled BSDF's inputs; with level 0 and metallic 0 (the defaults here, as for a
-    Diffuse BSDF) the material is pure Lambert."""
+    Diffuse BSDF) the material is pure Lambert. ``transmission`` is the colour of the light
+    it lets straight through (Transparent, Glass and Refraction BSDFs, a Principled BSDF's
+    Alpha and Transmission); a material that does nothing else is clear (``is_clear``)."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
@@ -63,6 +65,14 @@ class Material:
     specular_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
     base_color_texture: Texture | None = None
     emission_texture: Texture | None = None
+    transmission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def is_clear(self) -> bool:
+        """Whether the surface only lets light through: no colour, emission or specular."""
+        return (max(self.transmission) > 0 and max(self.base_color) <= 0
+                and max(self.emission) <= 0 and self.specular_ior_level <= 0
+                and self.base_color_texture is None and self.emission_texture is None)
 
 
 RENDERED_OBJECT_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "FONT", "META"})
