@@ -337,6 +337,14 @@ CLEAR_SHADERS = ("BSDF_TRANSPARENT", "BSDF_GLASS", "BSDF_REFRACTION")
 and roughness are not rendered)."""
 
 
+def _mixed_ior(a: Material, b: Material) -> float:
+    """The Fresnel IOR of a mix of two shaders' transmission: none where either has none (a
+    Transparent BSDF: the shadow-ray side of the archviz glass, which Cycles' direct light
+    passes without loss)."""
+    iors = [m.transmission_ior for m in (a, b) if max(m.transmission) > 0]
+    return 0.0 if not iors or min(iors) == 0.0 else max(iors)
+
+
 def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
     """A Principled BSDF that is all transmission (Alpha 0, or Transmission Weight 1 and not
     metallic) as a clear material; None otherwise, with a warning where some Alpha or
@@ -353,7 +361,8 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
     if alpha == 0.0 or (transmitted == 1.0 and not base.is_linked):
         tint = (1.0, 1.0, 1.0) if alpha == 0.0 else _rgb(base.default_value)
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0,
-                        transmission=tuple(float(1.0 - alpha + alpha * c) for c in tint))
+                        transmission=tuple(float(1.0 - alpha + alpha * c) for c in tint),
+                        transmission_ior=0.0 if alpha < 1.0 else unlinked("IOR", 1.5))
     if alpha < 1.0 or transmitted > 0.0:
         message = (f"material '{name}': Principled BSDF's Alpha {alpha:g} and Transmission "
                    f"Weight {weight:g} are not rendered (an opaque surface)")
@@ -384,7 +393,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          specular_ior_level=float(_constant(node, "Specular IOR Level", 0.5)),
                          specular_tint=_rgb(_constant(node, "Specular Tint", (1, 1, 1))))
     if node.type in CLEAR_SHADERS:
-        return Material(name, (0.0, 0.0, 0.0), roughness=1.0,
+        ior = 0.0 if node.type == "BSDF_TRANSPARENT" else float(_constant(node, "IOR", 1.5))
+        return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission_ior=ior,
                         transmission=_rgb(_constant(node, "Color", (1, 1, 1))))
     if node.type == "BSDF_DIFFUSE":
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
@@ -401,7 +411,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         if node.type == "MIX_SHADER" and node.inputs["Fac"].is_linked and a.is_clear \
                 and b.is_clear:  # e.g. glass for camera rays, transparent for shadow rays
             return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission=tuple(
-                np.maximum(a.transmission, b.transmission)))
+                np.maximum(a.transmission, b.transmission)),
+                transmission_ior=_mixed_ior(a, b))
         if any((m.base_color_texture, m.emission_texture) != (None, None) for m in (a, b)):
             raise _Unsupported(f"image textures inside '{node.bl_label}' are not supported")
         if node.type == "ADD_SHADER":
@@ -415,6 +426,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         weight = max(wa + wb, 1e-30)
         glossy = a if a.specular_ior_level >= b.specular_ior_level else b
         return Material(name, mix[0], mix[1], transmission=mix[2],
+                        transmission_ior=_mixed_ior(a, b),
                         roughness=(wa * a.roughness + wb * b.roughness) / weight,
                         metallic=(wa * a.metallic + wb * b.metallic) / weight,
                         ior=glossy.ior, specular_tint=glossy.specular_tint,

@@ -287,18 +287,20 @@ void read_shadow_hints(ivec2 supersample) {
 // offset / tan(elevation): the interior's sun-patch edges lay 0.13 px into the shadow.
 const float SHADOW_RAY_NORMAL_SHARE = 0.1;
 
-// One ray: 1 if nothing blocks the segment from `world` to the sample (or its direction).
-float traced_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+// One ray: the light let through on the segment from `world` to the sample (or along its
+// direction): 1 where nothing is in the way, 0 where something opaque is, clear surfaces'
+// colour and Fresnel loss between.
+vec3 traced_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     vec3 origin = world + geometric_normal * (u_ray_offset * SHADOW_RAY_NORMAL_SHARE);
     float t_min = u_ray_offset;
     if (s.kind == KIND_DIRECTIONAL) {
-        return rt_occluded(origin, -s.axis, t_min, 3.0e38) ? 0.0 : 1.0;
+        return rt_transmittance(origin, -s.axis, t_min, 3.0e38);
     }
     vec3 to_light = s.position - origin;
     float distance = length(to_light);
     float t_max = distance * (1.0 - 1e-4) - u_ray_offset;
-    if (t_max <= t_min) return 1.0;
-    return rt_occluded(origin, to_light / distance, t_min, t_max) ? 0.0 : 1.0;
+    if (t_max <= t_min) return vec3(1.0);
+    return rt_transmittance(origin, to_light / distance, t_min, t_max);
 }
 
 #ifdef HINTS_ONLY
@@ -308,20 +310,21 @@ float traced_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
 bool g_needs_rays = false;
 #endif
 
-// Ray-traced visibility of the sample from `world`, in [0, 1].
-float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
-    if (s.tile < 0) return 1.0;  // the light casts no shadow
+// Ray-traced visibility of the sample from `world`, in [0, 1] per channel (clear surfaces
+// tint it).
+vec3 shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+    if (s.tile < 0) return vec3(1.0);  // the light casts no shadow
 #ifdef SHADOW_HINTS
     if (g_hint_bit >= 0) {
         if (((g_hints_agreed >> g_hint_bit) & 1u) != 0u) {
-            return float((g_hints_lit >> g_hint_bit) & 1u);
+            return vec3(float((g_hints_lit >> g_hint_bit) & 1u));
         }
 #ifdef HINTS_ONLY
         g_needs_rays = true;
-        return 0.0;
+        return vec3(0.0);
 #else
         if (!g_footprint_known) find_footprint(world, geometric_normal);
-        float lit = 0.0;
+        vec3 lit = vec3(0.0);
         for (int k = 0; k < EDGE_RAYS; ++k) {
             vec3 at = world + g_footprint_x * EDGE_OFFSETS[k].x
                       + g_footprint_y * EDGE_OFFSETS[k].y;
@@ -340,7 +343,7 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
 #endif
 #ifdef HINTS_ONLY
     g_needs_rays = true;
-    return 0.0;
+    return vec3(0.0);
 #else
     return traced_visibility(s, world, geometric_normal);
 #endif

@@ -23,11 +23,15 @@ struct RtHit {
     float t;
     int triangle;  // original index, -1 on a miss
     vec2 uv;
+    vec4 transmittance;  // rgb: light let through by clear triangles up to the hit (or t_max)
 };
 layout(std430, binding = RT_BINDING_RESULTS) writeonly buffer RtHits { RtHit rt_hits[]; };
 #endif
 
 uniform uint rt_ray_count;
+#if !RT_ANY_HIT
+uniform bool rt_has_clear;  // the scene has clear triangles (else the transmittance is 1)
+#endif
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
@@ -38,6 +42,8 @@ void main() {
 #else
     RtHit hit;
     rt_closest_hit(q.origin, q.dir, q.t_min, q.t_max, hit.t, hit.triangle, hit.uv);
+    hit.transmittance = vec4(rt_has_clear ? rt_transmittance(q.origin, q.dir, q.t_min, hit.t)
+                                          : vec3(1.0), 1.0);
     rt_hits[i] = hit;
 #endif
 }

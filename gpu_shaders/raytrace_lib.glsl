@@ -26,14 +26,16 @@ struct RtNode {
     int b;
 };
 
-// Vertices in leaf order and `id`, the triangle's index in the caller's original list.
+// Vertices in leaf order and `id`, the triangle's index in the caller's original list. A clear
+// triangle (clear != 0: packUnorm4x8 of the colour it lets through, alpha 1) is never hit;
+// rt_transmittance dims rays crossing it by its colour and, with ior > 0, the Fresnel loss.
 struct RtTriangle {
     vec3 v0;
     int id;
     vec3 v1;
-    float pad1;
+    uint clear;
     vec3 v2;
-    float pad2;
+    float ior;
 };
 
 layout(std430, binding = RT_BINDING_NODES) readonly buffer RtNodes { RtNode rt_nodes[]; };
@@ -103,9 +105,35 @@ bool rt_hit_triangle(RtRay ray, RtTriangle tri, float t_min, float t_max, out fl
     return t > t_min && t < t_max;
 }
 
-// Nearest-child-first stack traversal. With any_hit it returns at the first hit in range.
-bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, bool any_hit, out float t,
-              out int triangle, out vec2 uv) {
+// Unpolarised Fresnel reflectance of a dielectric interface (IOR `eta` against air) met at
+// cosine `cos_i`; a ray crossing a flat pane meets both faces at the same angle.
+float rt_fresnel(float cos_i, float eta) {
+    float sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0) return 1.0;
+    float cos_t = sqrt(1.0 - sin2_t);
+    float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// The light a clear triangle lets through along `dir`.
+vec3 rt_clear_transmittance(RtTriangle tri, vec3 dir) {
+    vec3 colour = unpackUnorm4x8(tri.clear).rgb;
+    if (tri.ior <= 0.0) return colour;
+    vec3 n = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+    float cos_i = abs(dot(n, dir)) / max(length(n) * length(dir), 1.0e-30);
+    return colour * (1.0 - rt_fresnel(cos_i, tri.ior));
+}
+
+#define RT_CLOSEST 0
+#define RT_ANY 1
+#define RT_TRANSMIT 2
+
+// Nearest-child-first stack traversal of the opaque triangles. RT_ANY returns at the first hit
+// in range; RT_TRANSMIT multiplies `transmittance` by every clear triangle in range and sets it
+// to 0 at the first opaque hit.
+bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int mode, out float t,
+              out int triangle, out vec2 uv, inout vec3 transmittance) {
     t = t_max;
     triangle = -1;
     uv = vec2(0.0);
@@ -142,10 +170,21 @@ bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, bool any_hit, out
                 float t_hit;
                 vec2 uv_hit;
                 if (rt_hit_triangle(ray, rt_triangles[i], t_min, t, t_hit, uv_hit)) {
+                    if (rt_triangles[i].clear != 0u) {  // rare: checked on hits only
+                        if (mode == RT_TRANSMIT) {
+                            transmittance *= rt_clear_transmittance(rt_triangles[i], dir);
+                            if (transmittance == vec3(0.0)) return true;
+                        }
+                        continue;
+                    }
+                    if (mode == RT_TRANSMIT) {
+                        transmittance = vec3(0.0);
+                        return true;
+                    }
                     t = t_hit;
                     uv = uv_hit;
                     triangle = rt_triangles[i].id;
-                    if (any_hit) return true;
+                    if (mode == RT_ANY) return true;
                 }
             }
         }
@@ -162,14 +201,27 @@ bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, bool any_hit, out
 // weights of vertices 1 and 2. On a miss, returns false with triangle = -1.
 bool rt_closest_hit(vec3 origin, vec3 dir, float t_min, float t_max, out float t,
                     out int triangle, out vec2 uv) {
-    return rt_trace(origin, dir, t_min, t_max, false, t, triangle, uv);
+    vec3 unused = vec3(1.0);
+    return rt_trace(origin, dir, t_min, t_max, RT_CLOSEST, t, triangle, uv, unused);
 }
 
-// Whether anything is hit with t_min < t < t_max (any hit, early exit).
+// Whether anything opaque is hit with t_min < t < t_max (any hit, early exit).
 bool rt_occluded(vec3 origin, vec3 dir, float t_min, float t_max) {
     float t;
     int triangle;
     vec2 uv;
-    return rt_trace(origin, dir, t_min, t_max, true, t, triangle, uv);
+    vec3 unused = vec3(1.0);
+    return rt_trace(origin, dir, t_min, t_max, RT_ANY, t, triangle, uv, unused);
+}
+
+// The light let through from t_min to t_max: 0 where anything opaque is in the way, else the
+// product of the clear triangles' transmittance.
+vec3 rt_transmittance(vec3 origin, vec3 dir, float t_min, float t_max) {
+    float t;
+    int triangle;
+    vec2 uv;
+    vec3 transmittance = vec3(1.0);
+    rt_trace(origin, dir, t_min, t_max, RT_TRANSMIT, t, triangle, uv, transmittance);
+    return transmittance;
 }
 #endif

@@ -4,7 +4,9 @@
 // interleaving, bit i is sample i's visibility (at most 31 samples); with it, each supersample
 // gathers one sample of a K×K pattern, and bit 0 is the visibility of the sample of the
 // pixel's centre supersample. Bit 31 (HINT_KNOWN) marks pixels that hold hints: surface
-// pixels, and with interleaving those whose centre supersample gathers a sample.
+// pixels, and with interleaving those whose centre supersample gathers a sample, unless some
+// sample is seen through a clear surface (neither lit nor shadowed: every supersample there
+// traces its rays).
 #include "lights_lib.glsl"
 #include "interleave_lib.glsl"
 
@@ -15,6 +17,11 @@ uniform int u_count;   // samples in the batch
 
 layout(location = 0) out uint out_hints;
 
+// Neither all lit (1) nor all shadowed (0): light through a clear surface.
+bool partly_lit(vec3 v) {
+    return any(greaterThan(v, vec3(0.0))) && any(lessThan(v, vec3(1.0)));
+}
+
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     out_hints = 0u;
@@ -24,12 +31,15 @@ void main() {
     if (interleave_size() > 1) {
         int i = interleave_first(0, px * u_hint_factor + u_hint_factor / 2);
         if (i >= u_count) return;
-        out_hints = HINT_KNOWN | uint(shadow_visibility(light_sample(i), world, geometric));
+        vec3 v = shadow_visibility(light_sample(i), world, geometric);
+        out_hints = partly_lit(v) ? 0u : HINT_KNOWN | uint(v.r);
         return;
     }
     uint hints = HINT_KNOWN;
     for (int i = 0; i < u_count; ++i) {
-        hints |= uint(shadow_visibility(light_sample(i), world, geometric)) << i;
+        vec3 v = shadow_visibility(light_sample(i), world, geometric);
+        if (partly_lit(v)) return;
+        hints |= uint(v.r) << i;
     }
     out_hints = hints;
 }

@@ -8,7 +8,9 @@
   removed: the disc becomes a sun light (core/scene/sun_disc.py).
 
 ``--glass glass`` glazes the window with an 8 mm pane of Glass BSDF (IOR 1.5); ``--glass
-transparent`` with a pane of white Transparent BSDF.
+transparent`` with a pane of white Transparent BSDF; ``--glass trick`` with archviz glass:
+Glass BSDF for camera and bounce rays, Transparent BSDF for shadow rays (Light Path's Is
+Shadow Ray).
 
     .venv/bin/python tools/sky_interior.py OUT.blend [--world sky|sun-disc|hdri]
     .venv/bin/python -m devtools report OUT.blend --set bounces=4 --reference-samples 64
@@ -52,7 +54,8 @@ def hdri_pixels(towards: np.ndarray, irradiance: float) -> np.ndarray:
 
 
 def add_pane(kind: str) -> None:
-    """An 8 mm box filling the window, of Glass BSDF (IOR 1.5) or white Transparent BSDF."""
+    """An 8 mm box filling the window, of Glass BSDF (IOR 1.5), white Transparent BSDF, or
+    the two mixed by Is Shadow Ray (``trick``)."""
     import bpy
 
     centre = [sum(span) / 2 for span in (WINDOW_X, WINDOW_Y, WINDOW_Z)]
@@ -64,11 +67,17 @@ def add_pane(kind: str) -> None:
     material.use_nodes = True
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
-    shader = tree.nodes.new("ShaderNodeBsdfGlass" if kind == "glass" else
-                            "ShaderNodeBsdfTransparent")
-    if kind == "glass":
-        shader.inputs["IOR"].default_value = 1.5
-        shader.inputs["Roughness"].default_value = 0.0
+    glass, transparent = (tree.nodes.new("ShaderNodeBsdfGlass"),
+                          tree.nodes.new("ShaderNodeBsdfTransparent"))
+    glass.inputs["IOR"].default_value = 1.5
+    glass.inputs["Roughness"].default_value = 0.0
+    shader = glass if kind == "glass" else transparent
+    if kind == "trick":
+        shader = tree.nodes.new("ShaderNodeMixShader")
+        tree.links.new(tree.nodes.new("ShaderNodeLightPath").outputs["Is Shadow Ray"],
+                       shader.inputs["Fac"])
+        tree.links.new(glass.outputs[0], shader.inputs[1])
+        tree.links.new(transparent.outputs[0], shader.inputs[2])
     tree.links.new(shader.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
     pane.data.materials.append(material)
 
@@ -77,7 +86,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("output", type=Path)
     parser.add_argument("--world", choices=("sky", "sun-disc", "hdri"), default="sky")
-    parser.add_argument("--glass", choices=("none", "glass", "transparent"), default="none")
+    parser.add_argument("--glass", choices=("none", "glass", "transparent", "trick"),
+                        default="none")
     args = parser.parse_args()
     import bpy
     from mathutils import Vector

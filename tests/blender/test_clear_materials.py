@@ -86,19 +86,21 @@ def test_partly_clear_surfaces_stay_opaque_and_say_what_is_not_rendered(blender)
     assert not veil.is_clear and veil.base_color == pytest.approx((0.4, 0.4, 0.4))
 
 
-def sunlit_box_behind_clear_panes(kind: str) -> bpy.types.Scene:
-    """A grey box on a grey floor under a sun, a pane of material "Pane" (a ``kind`` node)
-    over it (a roof) and one between it and the camera (a window the camera looks through)."""
+def sunlit_box_behind_clear_panes(kind: str, tint=(1.0, 1.0, 1.0, 1.0)) -> bpy.types.Scene:
+    """A grey box on a grey floor under a sun, a pane of material "Roof" (a ``kind`` node of
+    colour ``tint``) over it and one of "Pane" (white) between it and the camera (a window the
+    camera looks through)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     pane = shader_material("Pane", kind)
+    roof = shader_material("Roof", kind, Color=tint)
     grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
     bpy.ops.mesh.primitive_plane_add(size=40)
     bpy.context.object.data.materials.append(grey)
     bpy.ops.mesh.primitive_cube_add(size=1.5, location=(0, 0, 0.75))
     bpy.context.object.data.materials.append(grey)
     bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 0, 3.0))
-    bpy.context.object.data.materials.append(pane)
+    bpy.context.object.data.materials.append(roof)
     bpy.ops.mesh.primitive_plane_add(size=6, location=(0, -4.0, 2.0),
                                      rotation=(math.radians(90), 0, 0))
     bpy.context.object.data.materials.append(pane)
@@ -121,10 +123,10 @@ def test_light_and_the_camera_pass_a_transparent_pane_as_in_cycles(blender, tmp_
     reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
     scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 0, 4
     ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
-    bpy.data.materials["Pane"].node_tree.nodes.new("ShaderNodeBsdfDiffuse")
-    tree = bpy.data.materials["Pane"].node_tree
-    tree.links.new(tree.nodes["Diffuse BSDF"].outputs[0],
-                   tree.nodes["Material Output"].inputs["Surface"])
+    for name in ("Pane", "Roof"):
+        tree = bpy.data.materials[name].node_tree
+        tree.links.new(tree.nodes.new("ShaderNodeBsdfDiffuse").outputs[0],
+                       tree.nodes["Material Output"].inputs["Surface"])
     opaque = render_linear(scene, "VPL_GI", tmp_path / "opaque.exr")
 
     assert np.isfinite(ours).all()
@@ -136,3 +138,31 @@ def test_light_and_the_camera_pass_a_transparent_pane_as_in_cycles(blender, tmp_
     assert abs(energy) < 0.02
     assert error < 0.04
     assert opaque_error > 10 * error
+
+
+def test_light_through_a_tinted_roof_is_tinted_direct_and_indirect(blender, tmp_path):
+    """The sun through an orange Transparent BSDF roof, with one diffuse bounce (Cycles 128
+    samples): the ray-traced sun and the light paths are tinted by it. Measured (bpy 4.5,
+    llvmpipe): energy per channel +0.1, +1.1, +1.9 %, relRMSE 2.5 %; the tint left out (the
+    roof white): relRMSE 31 %."""
+    scene = sunlit_box_behind_clear_panes("ShaderNodeBsdfTransparent", (0.9, 0.5, 0.2, 1.0))
+    configure_cycles(scene, 128, bounces=1)
+    scene.cycles.transparent_max_bounces = 8
+    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
+    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 1, 4
+    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    roof = bpy.data.materials["Roof"].node_tree.nodes["Transparent BSDF"]
+    roof.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    white = render_linear(scene, "VPL_GI", tmp_path / "white.exr")
+
+    assert np.isfinite(ours).all()
+    channels = [metrics.mean_relative_energy(ours[..., c:c + 1], reference[..., c:c + 1])
+                for c in range(3)]
+    error = metrics.relative_rmse(ours, reference)
+    white_error = metrics.relative_rmse(white, reference)
+    print(f"tinted roof vs Cycles: energy per channel "
+          f"{', '.join(f'{e:+.4f}' for e in channels)} relRMSE {error:.4f}; white roof: "
+          f"relRMSE {white_error:.4f}")
+    assert max(abs(e) for e in channels) < 0.03
+    assert error < 0.05
+    assert white_error > 5 * error

@@ -246,6 +246,41 @@ def test_the_interval_is_open_and_exact(tracer):
         assert tracer.occluded(origin, up, t_max, t_min)[0] == np.isfinite(expected)
 
 
+def fresnel(cos_i: np.ndarray, eta: float) -> np.ndarray:
+    """Unpolarised dielectric Fresnel reflectance, entering a medium of IOR ``eta``."""
+    cos_t = np.sqrt(1 - (1 - cos_i**2) / eta**2)
+    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return (rs**2 + rp**2) / 2
+
+
+def test_clear_triangles_are_never_hit_and_dim_what_crosses_them(tracer):
+    """A pane (two clear faces, IOR 1.5, tinted) at z = 0.5 and 0.6 over an opaque floor at
+    z = 2: rays find the floor, dimmed by the pane's colour squared and (1 - F)² at their
+    angle; occlusion sees the floor only."""
+    tint = np.array([1.0, 0.8, 0.4])
+    wide = np.float32([4, 4, 1])
+    tracer.upload(planes([2.0]) * wide, clear=planes([0.5, 0.6]) * wide,
+                  transmission=np.tile([*tint, 1.5], (4, 1)))
+    angles = np.radians([0.0, 30.0, 60.0])
+    directions = np.stack([np.sin(angles), np.zeros(3), np.cos(angles)], axis=1)
+    origins = np.tile([0.1, 0.3, 0.0], (3, 1))  # off the squares' diagonals
+    hits = tracer.intersect(origins, directions)
+    assert (hits.triangle >= 0).all() and (hits.triangle < 2).all()  # the floor's two
+    np.testing.assert_allclose(hits.distance, 2.0 / np.cos(angles), rtol=1e-6)
+    expected = (tint[None] * (1 - fresnel(np.cos(angles), 1.5))[:, None]) ** 2
+    np.testing.assert_allclose(hits.transmittance, expected, rtol=2e-2)  # colour in 8 bits
+    assert expected[0, 0] == pytest.approx(0.9216, abs=1e-4)  # (1 - 0.04)²
+    np.testing.assert_array_equal(tracer.occluded(origins, directions, 1.9), [False] * 3)
+    np.testing.assert_array_equal(tracer.occluded(origins, directions, np.inf), [True] * 3)
+    beyond = tracer.intersect(origins, -directions)  # nothing behind: a miss, undimmed
+    np.testing.assert_array_equal(beyond.triangle, [-1] * 3)
+    np.testing.assert_array_equal(beyond.transmittance, np.ones((3, 3)))
+    tracer.upload(planes([2.0]) * wide)  # no clear triangles: nothing dims
+    np.testing.assert_array_equal(tracer.intersect(origins, directions).transmittance,
+                                  np.ones((3, 3)))
+
+
 def test_both_sides_of_a_triangle_are_hit(tracer):
     tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32)
     for scene in (tri, tri[:, ::-1]):

@@ -73,7 +73,9 @@ def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometr
         return tracer
     with stats.timed("ray tracing setup"):
         try:
-            tracer.upload(geometry.positions.reshape(-1, 3, 3), instanced=geometry.instanced)
+            tracer.upload(geometry.positions.reshape(-1, 3, 3), instanced=geometry.instanced,
+                          clear=geometry.clear_triangles,
+                          transmission=geometry.clear_transmission)
         except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
             raise RenderError(f"ray tracing: {exc}") from None
     kept.keep("bvh", _triangles_key(kept))

@@ -28,11 +28,12 @@ BINDING_RESULTS = 13  # RT_BINDING_RESULTS in raytrace_comp.glsl
 LOCAL_SIZE = 64  # local_size_x of raytrace_comp.glsl
 MAX_BATCH = 1 << 20  # rays per dispatch
 
-TRIANGLE_DTYPE = np.dtype([("v0", "<f4", 3), ("id", "<i4"), ("v1", "<f4", 3), ("pad1", "<f4"),
-                           ("v2", "<f4", 3), ("pad2", "<f4")])
+TRIANGLE_DTYPE = np.dtype([("v0", "<f4", 3), ("id", "<i4"), ("v1", "<f4", 3), ("clear", "<u4"),
+                           ("v2", "<f4", 3), ("ior", "<f4")])
 RAY_DTYPE = np.dtype([("origin", "<f4", 3), ("t_min", "<f4"), ("dir", "<f4", 3),
                       ("t_max", "<f4")])
-RESULT_DTYPE = np.dtype([("t", "<f4"), ("triangle", "<i4"), ("uv", "<f4", 2)])
+RESULT_DTYPE = np.dtype([("t", "<f4"), ("triangle", "<i4"), ("uv", "<f4", 2),
+                         ("transmittance", "<f4", 4)])
 
 
 @dataclass
@@ -42,6 +43,7 @@ class Hits:
     distance: np.ndarray  # (R,) float32, inf where missed
     triangle: np.ndarray  # (R,) int32 original triangle index, -1 where missed
     barycentric: np.ndarray  # (R, 2) float32 weights of vertices 1 and 2, 0 where missed
+    transmittance: np.ndarray  # (R, 3) float32 light let through by clear triangles on the way
 
 
 def _pack_rays(origins: np.ndarray, directions: np.ndarray, t_min: float | np.ndarray,
@@ -78,14 +80,29 @@ class RayTracer:
         self.upload(np.zeros((0, 3, 3), np.float32))
 
     def upload(self, triangles: np.ndarray, leaf_size: int = 4,
-               instanced: np.ndarray | tuple = ()) -> None:
+               instanced: np.ndarray | tuple = (), clear: np.ndarray | None = None,
+               transmission: np.ndarray | None = None) -> None:
         """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene.
         ``instanced`` rows (first triangle, instances, triangles each) mark runs of one mesh's
-        copies, whose tree is built once (``instanced_bvh``). Raises ValueError before building
-        when the triangles cannot fit a storage buffer."""
-        count = len(np.asarray(triangles).reshape(-1, 3, 3))
+        copies, whose tree is built once (``instanced_bvh``). ``clear`` triangles (C, 3, 3)
+        let rays through, each with its ``transmission`` row (colour, Fresnel IOR or 0): no
+        query hits them, and closest hits and shadow rays get the light they let through
+        (raytrace_lib.glsl). Raises ValueError before building when the triangles cannot fit
+        a storage buffer."""
+        triangles = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
+        codes = None
+        if clear is not None and len(clear):
+            colour = np.clip(np.asarray(transmission, np.float32)[:, :3], 0.0, 1.0)
+            codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
+            codes[len(triangles):, 0] = (np.round(colour * 255).astype(np.uint32)
+                                         << np.array([0, 8, 16], np.uint32)).sum(axis=1) \
+                | np.uint32(255 << 24)  # packUnorm4x8(colour, 1): never 0
+            codes[len(triangles):, 1] = np.asarray(transmission, np.float32)[:, 3].view(
+                np.uint32)
+            triangles = np.concatenate([triangles, np.asarray(clear, np.float32)])
+        count = len(triangles)
         self._check_size(count, count * TRIANGLE_DTYPE.itemsize)
-        self.upload_bvh(build_instanced_bvh(triangles, instanced, leaf_size))
+        self.upload_bvh(build_instanced_bvh(triangles, instanced, leaf_size), codes)
 
     def _check_size(self, triangles: int, nbytes: int) -> None:
         limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
@@ -93,8 +110,9 @@ class RayTracer:
             raise ValueError(f"{triangles} triangles need {nbytes >> 20} MiB of storage buffer; "
                              f"this GPU allows {limit >> 20} MiB")
 
-    def upload_bvh(self, bvh: BVH) -> None:
-        """Upload a BVH from ``build_bvh``, replacing the scene."""
+    def upload_bvh(self, bvh: BVH, clear: np.ndarray | None = None) -> None:
+        """Upload a BVH from ``build_bvh``, replacing the scene; ``clear`` (T, 2) uint32 per
+        original triangle: its packed colour (0 for an opaque one) and its IOR's bits."""
         # raytrace_lib.glsl's RtNode (lo, a, hi, b) and RtTriangle (TRIANGLE_DTYPE) as float32
         # rows, the int fields as their bits, the vertices moved as 12-byte records (a
         # structured array filled field by field took 3× the time)
@@ -109,6 +127,9 @@ class RayTracer:
             "V12")[:, 0]
         tris[:count, :, 3] = 0.0
         tris[:count, 0, 3] = bvh.triangle_ids.astype(np.int32, copy=False).view(np.float32)
+        self.has_clear = clear is not None
+        if clear is not None:
+            tris[:count, 1:, 3] = clear[bvh.triangle_ids].view(np.float32)
         self._check_size(len(bvh.triangles), max(nodes.nbytes, tris.nbytes))
         self._release_scene()
         self._nodes, self._triangles = self.ctx.buffer(nodes), self.ctx.buffer(tris)
@@ -125,7 +146,8 @@ class RayTracer:
         out = self._run(_pack_rays(origins, directions, t_min, t_max), 0, RESULT_DTYPE)
         hit = out["triangle"] >= 0
         return Hits(np.where(hit, out["t"], np.float32(np.inf)), out["triangle"].copy(),
-                    np.where(hit[:, None], out["uv"], np.float32(0.0)))
+                    np.where(hit[:, None], out["uv"], np.float32(0.0)),
+                    out["transmittance"][:, :3].copy())
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: float | np.ndarray,
                  t_min: float | np.ndarray = 0.0) -> np.ndarray:
@@ -157,6 +179,8 @@ class RayTracer:
             self._rays.bind_to_storage_buffer(BINDING_RAYS)
             self._results.bind_to_storage_buffer(BINDING_RESULTS)
             shader["rt_ray_count"] = len(batch)
+            if not any_hit:
+                shader["rt_has_clear"] = self.has_clear
             shader.run(-(-len(batch) // LOCAL_SIZE))
             self.ctx.memory_barrier(moderngl.BUFFER_UPDATE_BARRIER_BIT)
             data = self._results.read(len(batch) * out_dtype.itemsize)

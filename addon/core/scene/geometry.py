@@ -46,6 +46,12 @@ class WorldGeometry:
     textures: list[Texture] = field(default_factory=list)
     instanced: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
     """Runs of one mesh's copies: rows (first triangle, instances, triangles each)."""
+    clear_triangles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3), np.float32))
+    """Triangles of clear materials, (C, 3, 3) world positions: not in the vertex streams; the
+    ray tracer lets rays through them (Material.is_clear)."""
+    clear_transmission: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
+    """Per clear triangle: the colour it lets through and the IOR of its Fresnel loss (0:
+    none), (C, 4)."""
 
     @classmethod
     def from_triangles(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
@@ -262,6 +268,13 @@ def _material_rows(materials: list[Material], warnings: list[str],
     return rows
 
 
+def _transmission_row(material: Material) -> tuple[float, ...]:
+    """The colour a clear material lets through (finite, in [0, 1]) and its Fresnel IOR."""
+    colour = np.clip(np.nan_to_num(np.asarray(material.transmission, float)), 0.0, 1.0)
+    ior = float(material.transmission_ior)
+    return (*colour, ior if np.isfinite(ior) and ior > 0 else 0.0)
+
+
 class _MaterialTable:
     """The frame's material table: one block of rows per distinct material list (one row per
     slot), shared by every instance with that list."""
@@ -271,6 +284,7 @@ class _MaterialTable:
         self.textures = tex.TextureSet()
         self.clamped: set[str] = set()
         self.clear: list[bool] = []  # per row: a clear material (Material.is_clear)
+        self.transmission: list[tuple[float, ...]] = []  # per row: colour and Fresnel IOR
         self.clear_names: set[str] = set()
         self.blocks: list[np.ndarray] = []
         self._first: dict[tuple[int, ...], int] = {}
@@ -284,6 +298,7 @@ class _MaterialTable:
             self.blocks.append(_material_rows(materials, self.warnings, self.textures,
                                               self.clamped))
             self.clear.extend(m.is_clear for m in materials)
+            self.transmission.extend(_transmission_row(m) for m in materials)
             self.clear_names.update(m.name for m in materials if m.is_clear)
             self.row_count += len(materials)
         return self._first[key], len(materials)
@@ -446,6 +461,15 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
                                     triangle_material[start:start + size], clear))
         start += size
     clear_count = int(clear[triangle_material].sum()) if clear.any() else 0
+    clear_triangles = np.zeros((0, 3, 3), np.float32)
+    clear_transmission = np.zeros((0, 4), np.float32)
+    if clear_count:
+        rows = triangle_material[clear[triangle_material]]
+        clear_triangles = positions.reshape(-1, 3, 3)[clear[triangle_material]]
+        finite = np.isfinite(clear_triangles).all(axis=(1, 2))
+        clear_triangles = np.ascontiguousarray(clear_triangles[finite])
+        clear_transmission = np.array(table.transmission, np.float32).reshape(-1, 4)[
+            rows[finite]]
     if any(mask is not None for mask in masks):
         keep = np.concatenate([np.ones(3 * size, bool) if mask is None else mask
                                for mask, size in zip(masks, sizes, strict=True)])
@@ -462,14 +486,16 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     if clear_count and notes is not None:
         notes.append(f"{clear_count} triangles of clear material(s) "
                      f"{', '.join(repr(n) for n in sorted(table.clear_names))} let light "
-                     f"straight through as openings (their reflections, refraction, tint "
-                     f"and Fresnel loss are not rendered)")
+                     f"straight through: their tint and Fresnel loss dim ray-traced light "
+                     f"(lamps and suns, light paths), not shadow-mapped samples or the "
+                     f"camera's view; their reflections and refraction are not rendered")
     if table.clamped and notes is not None:
         notes.append(f"glossy roughness below {principled.MIN_ROUGHNESS:g} is rendered at "
                      f"{principled.MIN_ROUGHNESS:g}: {len(table.clamped)} material(s), e.g. "
                      f"'{min(table.clamped)}'")
     return WorldGeometry(positions, normals, triangle_material, table.rows(),
-                         uv if textures else None, textures, instanced)
+                         uv if textures else None, textures, instanced, clear_triangles,
+                         clear_transmission)
 
 
 def bounding_sphere(positions: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None

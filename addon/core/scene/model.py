@@ -66,6 +66,7 @@ class Material:
     base_color_texture: Texture | None = None
     emission_texture: Texture | None = None
     transmission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    transmission_ior: float = 0.0  # the Fresnel loss's IOR at each crossing (0: none)
 
     @property
     def is_clear(self) -> bool:

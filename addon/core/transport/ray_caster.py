@@ -13,6 +13,7 @@ class RayHits(Protocol):
     distance: np.ndarray  # (R,) inf where missed
     triangle: np.ndarray  # (R,) triangle index, -1 where missed
     barycentric: np.ndarray  # (R, 2) weights of vertices 1 and 2
+    transmittance: np.ndarray  # (R, 3) light let through by clear surfaces before the hit
 
 
 class RayCaster(Protocol):
@@ -26,5 +27,5 @@ class RayCaster(Protocol):
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: float | np.ndarray,
                  t_min: float | np.ndarray = 0.0) -> np.ndarray:
-        """Whether each ray (R, 3) hits anything with ``t_min < t < t_max``."""
+        """Whether each ray (R, 3) hits anything opaque with ``t_min < t < t_max``."""
         ...

@@ -352,8 +352,9 @@ class SurfaceHits:
 def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
            direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float
            ) -> SurfaceHits:
-    """The surfaces the rays hit (misses dropped), normals turned towards the ray; the base
-    colour is looked up once per hit (the path albedo and the lobes derive from it)."""
+    """The surfaces the rays hit (misses dropped), normals turned towards the ray, the flux
+    dimmed by the clear surfaces crossed on the way; the base colour is looked up once per hit
+    (the path albedo and the lobes derive from it)."""
     hits = tracer.intersect(origin, direction, epsilon, np.inf)
     hit = hits.triangle >= 0
     tri = hits.triangle[hit]
@@ -362,8 +363,8 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
     normal = unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
     normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
     base = geometry.base_at(tri, position)
-    return SurfaceHits(position, normal, geometry.path_albedo(tri, base), flux[hit], rank[hit],
-                       tri, direction[hit], base)
+    return SurfaceHits(position, normal, geometry.path_albedo(tri, base),
+                       flux[hit] * hits.transmittance[hit], rank[hit], tri, direction[hit], base)
 
 
 def _lobes(hits: SurfaceHits, geometry: WorldGeometry
