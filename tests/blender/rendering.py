@@ -8,6 +8,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from devtools import metrics
+
 SAMPLE_SCENES = Path(__file__).resolve().parents[2] / "sample_scenes"
 
 
@@ -66,3 +68,9 @@ def render_linear(scene: bpy.types.Scene, engine: str, path: Path) -> np.ndarray
         return pixels.reshape(height, width, 4)
     finally:
         bpy.data.images.remove(image)
+
+
+def against(image: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
+    """``image``'s mean relative energy and relative RMSE against ``reference``."""
+    return (metrics.mean_relative_energy(image, reference),
+            metrics.relative_rmse(image, reference))

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from addon.export import export_material
-from devtools import metrics
-from tests.blender.rendering import add_camera, configure_cycles, render_linear
+from tests.blender.rendering import add_camera, against, configure_cycles, render_linear
 
 SIZE = 64
 
@@ -130,9 +129,8 @@ def test_light_and_the_camera_pass_a_transparent_pane_as_in_cycles(blender, tmp_
     opaque = render_linear(scene, "VPL_GI", tmp_path / "opaque.exr")
 
     assert np.isfinite(ours).all()
-    energy = metrics.mean_relative_energy(ours, reference)
-    error = metrics.relative_rmse(ours, reference)
-    opaque_error = metrics.relative_rmse(opaque, reference)
+    energy, error = against(ours, reference)
+    opaque_error = against(opaque, reference)[1]
     print(f"transparent panes vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; "
           f"opaque panes: relRMSE {opaque_error:.4f}")
     assert abs(energy) < 0.02
@@ -156,10 +154,9 @@ def test_light_through_a_tinted_roof_is_tinted_direct_and_indirect(blender, tmp_
     white = render_linear(scene, "VPL_GI", tmp_path / "white.exr")
 
     assert np.isfinite(ours).all()
-    channels = [metrics.mean_relative_energy(ours[..., c:c + 1], reference[..., c:c + 1])
-                for c in range(3)]
-    error = metrics.relative_rmse(ours, reference)
-    white_error = metrics.relative_rmse(white, reference)
+    channels = [against(ours[..., c:c + 1], reference[..., c:c + 1])[0] for c in range(3)]
+    error = against(ours, reference)[1]
+    white_error = against(white, reference)[1]
     print(f"tinted roof vs Cycles: energy per channel "
           f"{', '.join(f'{e:+.4f}' for e in channels)} relRMSE {error:.4f}; white roof: "
           f"relRMSE {white_error:.4f}")

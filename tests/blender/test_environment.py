@@ -13,9 +13,8 @@ import pytest
 from addon import bake
 from addon.blender_compat import ensure_nodes
 from addon.export import export_world
-from devtools import metrics
 from devtools.hdr import write_hdr
-from tests.blender.rendering import add_camera, configure_cycles, render_linear
+from tests.blender.rendering import add_camera, against, configure_cycles, render_linear
 
 SIZE = 64
 MAP_W, MAP_H = 128, 64
@@ -102,10 +101,8 @@ def test_hdri_world_matches_cycles_and_a_constant_world_does_not(blender, tmp_pa
     constant = render_linear(scene, "VPL_GI", tmp_path / "constant.exr")
 
     assert np.isfinite(ours).all()
-    energy = metrics.mean_relative_energy(ours, reference)
-    error = metrics.relative_rmse(ours, reference)
-    constant_energy = metrics.mean_relative_energy(constant, reference)
-    constant_error = metrics.relative_rmse(constant, reference)
+    energy, error = against(ours, reference)
+    constant_energy, constant_error = against(constant, reference)
     print(f"HDRI vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; constant mean world: "
           f"energy {constant_energy:+.4f} relRMSE {constant_error:.4f}")
     assert abs(energy) < 0.03
@@ -196,18 +193,16 @@ def test_sky_texture_world_is_baked_and_matches_cycles(blender, tmp_path):
     sky = scene.world.node_tree.nodes["Sky Texture"]
     assert sun.sun_angle == pytest.approx(sky.sun_size, rel=0.05)
     assert np.isfinite(ours).all()
-    energy = metrics.mean_relative_energy(ours, reference)
-    error = metrics.relative_rmse(ours, reference)
+    energy, error = against(ours, reference)
     scene.world = bpy.data.worlds.new("One colour")
     ensure_nodes(scene.world)
     background = scene.world.node_tree.nodes["Background"]
     background.inputs["Color"].default_value = (*unread.color, 1.0)
     background.inputs["Strength"].default_value = unread.strength
     constant = render_linear(scene, "VPL_GI", tmp_path / "constant.exr")
-    constant_error = metrics.relative_rmse(constant, reference)
+    constant_energy, constant_error = against(constant, reference)
     print(f"Sky Texture vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; unbaked: energy "
-          f"{metrics.mean_relative_energy(constant, reference):+.4f} relRMSE "
-          f"{constant_error:.4f}")
+          f"{constant_energy:+.4f} relRMSE {constant_error:.4f}")
     assert abs(energy) < 0.02
     assert error < 0.03
     assert constant_error > 3 * error
@@ -241,8 +236,7 @@ def test_world_showing_the_camera_a_backdrop_is_baked_twice(blender, tmp_path):
     exported = export_world(scene.world, [], [])
     assert exported.background is not None and exported.visible_sun is None
     np.testing.assert_allclose(exported.background.radiance, 0.4 * 0.05, rtol=1e-3)
-    energy = metrics.mean_relative_energy(ours, reference)
-    error = metrics.relative_rmse(ours, reference)
+    energy, error = against(ours, reference)
     print(f"camera backdrop vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}")
     np.testing.assert_allclose(ours[-1, :, :3], 0.02, rtol=1e-3)  # the top row: backdrop
     assert abs(energy) < 0.02 and error < 0.03
