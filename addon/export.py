@@ -348,7 +348,7 @@ def _mixed_ior(a: Material, b: Material) -> float:
 def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
     """A Principled BSDF that is all transmission (Alpha 0, or Transmission Weight 1 and not
     metallic) as a clear material; None otherwise, with a warning where some Alpha or
-    Transmission (constant) is not rendered (the surface is rendered opaque)."""
+    Transmission (constant or linked) is not rendered (the surface is rendered opaque)."""
     def unlinked(label: str, default: float) -> float:
         socket = node.inputs.get(label)
         return default if socket is None or socket.is_linked else float(socket.default_value)
@@ -363,11 +363,18 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0,
                         transmission=tuple(float(1.0 - alpha + alpha * c) for c in tint),
                         transmission_ior=0.0 if alpha < 1.0 else unlinked("IOR", 1.5))
-    if alpha < 1.0 or transmitted > 0.0:
+    linked = [label for label in ("Alpha", "Transmission Weight")
+              if node.inputs.get(label) is not None and node.inputs[label].is_linked]
+    message = None
+    if linked:  # e.g. a leaf's alpha texture
+        message = (f"material '{name}': Principled BSDF's {' and '.join(linked)} linked to "
+                   f"'{node.inputs[linked[0]].links[0].from_node.bl_label}' "
+                   f"{'is' if len(linked) == 1 else 'are'} not rendered (an opaque surface)")
+    elif alpha < 1.0 or transmitted > 0.0:
         message = (f"material '{name}': Principled BSDF's Alpha {alpha:g} and Transmission "
                    f"Weight {weight:g} are not rendered (an opaque surface)")
-        if message not in warnings:
-            warnings.append(message)
+    if message is not None and message not in warnings:
+        warnings.append(message)
     return None
 
 

@@ -83,6 +83,14 @@ def test_partly_clear_surfaces_stay_opaque_and_say_what_is_not_rendered(blender)
     tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
     veil = export_material(material, warnings)
     assert not veil.is_clear and veil.base_color == pytest.approx((0.4, 0.4, 0.4))
+    leaf = shader_material("Leaf", "ShaderNodeBsdfPrincipled")
+    tree = leaf.node_tree
+    texture = tree.nodes.new("ShaderNodeTexImage")
+    tree.links.new(texture.outputs["Alpha"], tree.nodes["Principled BSDF"].inputs["Alpha"])
+    warnings.clear()
+    assert not export_material(leaf, warnings).is_clear
+    assert warnings == ["material 'Leaf': Principled BSDF's Alpha linked to 'Image Texture' is "
+                        "not rendered (an opaque surface)"]
 
 
 def sunlit_box_behind_clear_panes(kind: str, tint=(1.0, 1.0, 1.0, 1.0)) -> bpy.types.Scene:
