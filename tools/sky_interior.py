@@ -58,13 +58,15 @@ def add_pane(kind: str) -> None:
     the two mixed by Is Shadow Ray (``trick``)."""
     import bpy
 
+    from addon.blender_compat import ensure_nodes
+
     centre = [sum(span) / 2 for span in (WINDOW_X, WINDOW_Y, WINDOW_Z)]
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=centre)
     pane = bpy.context.active_object
     pane.name = "Window.Pane"
     pane.scale = [span[1] - span[0] for span in (WINDOW_X, WINDOW_Y, WINDOW_Z)]
     material = bpy.data.materials.new(f"Window {kind}")
-    material.use_nodes = True
+    ensure_nodes(material)
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     glass, transparent = (tree.nodes.new("ShaderNodeBsdfGlass"),

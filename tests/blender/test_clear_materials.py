@@ -10,6 +10,7 @@ import bpy
 import numpy as np
 import pytest
 
+from addon.blender_compat import ensure_nodes
 from addon.export import export_material
 from tests.blender.rendering import add_camera, against, configure_cycles, render_linear
 
@@ -19,7 +20,7 @@ SIZE = 64
 def shader_material(name: str, kind: str, **inputs) -> bpy.types.Material:
     """A material whose surface is one new node of ``kind`` with ``inputs`` set."""
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
+    ensure_nodes(material)
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     node = tree.nodes.new(kind)
