@@ -724,7 +724,8 @@ class _Export:
         self.bake_resolution = bake.settings_of(depsgraph.scene)[0]
 
     def include(self, obj: bpy.types.Object) -> bool:
-        """False for geometry no ray sees; warns once per object about flags not honoured."""
+        """False for geometry no ray sees; warns once per object about flags not honoured
+        (camera visibility is: ``Instance.visible_to_camera``)."""
         original = obj.original
         pointer = original.as_pointer()
         known = self.visibility.get(pointer)
@@ -733,14 +734,16 @@ class _Export:
         off = [label for flag, label in RAY_FLAGS.items() if not getattr(obj, flag, True)]
         include = len(off) < len(RAY_FLAGS)
         unsupported = []
-        if include and off:
-            unsupported.append(f"ray visibility {', '.join(off)} off")
+        if include and set(off) - {"camera"}:
+            unsupported.append(f"ray visibility {', '.join(o for o in off if o != 'camera')} "
+                               f"off")
         if include and original.holdout_get(view_layer=self.depsgraph.view_layer):
             unsupported.append("holdout")
         if unsupported:
             self.result.warnings.append(
                 f"object '{original.name}': {' and '.join(unsupported)} is not supported "
-                f"(rendered as a visible surface)")
+                f"(rendered as a {'hidden' if 'camera' in off else 'visible'} surface that "
+                f"casts shadows and reflects light)")
         self.visibility[pointer] = include
         return include
 
@@ -862,7 +865,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         memo = (obj.original, obj.data)
         entry = placements.get(memo)
         if entry is None:
-            known = state.placed(inst, obj) if state.include(obj) else None
+            known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True))) \
+                if state.include(obj) else None
             entry = placements[memo] = (known, bool(known and known[0].triangle_count))
         elif entry[0]:
             reused += 1
@@ -876,11 +880,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     depsgraph.object_instances.foreach_get("matrix_world", columns)
     matrices = columns.reshape(-1, 4, 4)[ordinals].transpose(0, 2, 1).astype(np.float64)
     problems = transform_problems(matrices)
-    for (mesh, materials, name), matrix, problem in zip(placed, matrices, problems, strict=True):
+    for (mesh, materials, name, camera), matrix, problem in zip(placed, matrices, problems,
+                                                                strict=True):
         if problem:
             result.warnings.append(f"object '{name}' {problem} and was skipped")
         else:
-            result.instances.append(Instance(mesh, matrix, materials))
+            result.instances.append(Instance(mesh, matrix, materials, camera))
     cache._entries = state.used
     result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
                                 result.lights)

@@ -39,6 +39,8 @@ layout(location = 7) out vec4 out_lobe_c;
 #endif
 
 void main() {
+    Material material = material_of(v_triangle);
+    if (material.albedo.w > 0.5) discard;  // an object the camera does not see (geometry.HIDDEN)
     vec3 to_camera = u_orthographic ? -u_camera_forward : normalize(u_camera_position - v_world);
     vec3 geometric = normalize(cross(dFdx(v_world), dFdy(v_world)));
     if (dot(geometric, to_camera) < 0.0) geometric = -geometric;
@@ -51,7 +53,6 @@ void main() {
     out_position = vec4(v_world, depth);
     out_normal = vec4(shading, 1.0);
     out_geometric = vec4(geometric, 1.0);
-    Material material = material_of(v_triangle);
     vec3 albedo = material.albedo.rgb;
     vec3 emission = material.emission.rgb;
 #ifdef TEXTURED

@@ -303,10 +303,12 @@ def test_hidden_and_excluded_objects_stay_out_and_ray_flags_are_reported(blender
     flagged = [w for w in warnings if "is not supported" in w]
     assert sorted(flagged) == sorted([
         "object 'NoShadow': ray visibility shadow off is not supported (rendered as a "
-        "visible surface)",
-        "object 'Holdout': holdout is not supported (rendered as a visible surface)",
-        "object 'InvisibleToCamera': ray visibility camera off is not supported (rendered as "
-        "a visible surface)"])
+        "visible surface that casts shadows and reflects light)",
+        "object 'Holdout': holdout is not supported (rendered as a visible surface that casts "
+        "shadows and reflects light)"])
+    assert sorted((i.mesh.name, i.visible_to_camera) for i in exported.instances) == [
+        ("Floor", True), ("Holdout", True), *[("InvisibleToCamera", False)] * 3,
+        ("NoShadow", True)]
     assert np.isfinite(image).all()
 
 

@@ -17,7 +17,9 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
-MATERIAL_COLUMNS = 20  # albedo, 0, emission, 0, texture attribute, 0, specular: five texels
+MATERIAL_COLUMNS = 20  # albedo, hidden, emission, 0, texture attribute, 0, specular: five
+# texels
+HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
@@ -95,6 +97,11 @@ class WorldGeometry:
     def texture(self) -> np.ndarray | None:
         """Each triangle's texture attribute (T, 3), or None without textures."""
         return self._per_triangle(8) if self.has_textures else None
+
+    @cached_property
+    def camera_hidden(self) -> np.ndarray:
+        """(T,) bool: triangles of instances the camera does not see."""
+        return self.materials[self.triangle_material, HIDDEN] > 0.5
 
     def _per_triangle(self, column: int) -> np.ndarray:
         rows = np.ascontiguousarray(self.materials[:, column:column + 3]).view("V12")[:, 0]
@@ -290,13 +297,16 @@ class _MaterialTable:
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
 
-    def block(self, materials: list[Material]) -> tuple[int, int]:
-        """The first row and row count of a material list's block (added on first use)."""
-        key = tuple(id(m) for m in materials)
+    def block(self, materials: list[Material], visible_to_camera: bool = True
+              ) -> tuple[int, int]:
+        """The first row and row count of a material list's block (added on first use); the
+        rows of instances the camera does not see are marked (column HIDDEN)."""
+        key = (*(id(m) for m in materials), visible_to_camera)
         if key not in self._first:
             self._first[key] = self.row_count
-            self.blocks.append(_material_rows(materials, self.warnings, self.textures,
-                                              self.clamped))
+            rows = _material_rows(materials, self.warnings, self.textures, self.clamped)
+            rows[:, HIDDEN] = 0.0 if visible_to_camera else 1.0
+            self.blocks.append(rows)
             self.clear.extend(m.is_clear for m in materials)
             self.transmission.extend(_transmission_row(m) for m in materials)
             self.clear_names.update(m.name for m in materials if m.is_clear)
@@ -435,14 +445,17 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     principled.MIN_ROUGHNESS get one line in ``notes``."""
     table = _MaterialTable(warnings)
     found: dict[int, _Group] = {}
-    blocks: dict[int, tuple[int, int]] = {}  # by material list: instances of an object share it
+    blocks: dict[tuple[int, bool], tuple[int, int]] = {}  # by material list and camera
+    # visibility: instances of an object share it
     for inst in scene.instances:  # one pass: scenes may hold many thousand instances
         group = found.get(id(inst.mesh))
         if group is None:
             group = found[id(inst.mesh)] = _Group(inst.mesh)
-        rows = blocks.get(id(inst.materials))
+        key = (id(inst.materials), inst.visible_to_camera)
+        rows = blocks.get(key)
         if rows is None:
-            rows = blocks[id(inst.materials)] = table.block(inst.materials or NO_MATERIAL)
+            rows = blocks[key] = table.block(inst.materials or NO_MATERIAL,
+                                             inst.visible_to_camera)
         group.matrices.append(inst.matrix)
         group.rows.append(rows)
     groups = [group for group in found.values() if group.mesh.triangle_count]

@@ -122,11 +122,14 @@ def _per_corner(values: np.ndarray, index: np.ndarray | None) -> np.ndarray:
 
 @dataclass
 class Instance:
-    """One placement of a mesh in the world with its resolved materials (one per slot)."""
+    """One placement of a mesh in the world with its resolved materials (one per slot); one
+    not ``visible_to_camera`` still casts shadows and reflects light (Cycles' ray
+    visibility)."""
 
     mesh: Mesh
     matrix: Matrix4
     materials: list[Material]
+    visible_to_camera: bool = True
 
 
 class LightKind(StrEnum):
