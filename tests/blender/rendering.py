@@ -8,6 +8,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from addon.blender_compat import ensure_nodes
 from devtools import metrics
 
 SAMPLE_SCENES = Path(__file__).resolve().parents[2] / "sample_scenes"
@@ -74,3 +75,16 @@ def against(image: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
     """``image``'s mean relative energy and relative RMSE against ``reference``."""
     return (metrics.mean_relative_energy(image, reference),
             metrics.relative_rmse(image, reference))
+
+
+def shader_material(name: str, kind: str, **inputs) -> bpy.types.Material:
+    """A material whose surface is one new node of ``kind`` with ``inputs`` set."""
+    material = bpy.data.materials.new(name)
+    ensure_nodes(material)
+    tree = material.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new(kind)
+    for label, value in inputs.items():
+        node.inputs[label.replace("_", " ")].default_value = value
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return material

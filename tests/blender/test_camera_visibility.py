@@ -8,8 +8,13 @@ import math
 import bpy
 import numpy as np
 
-from addon.blender_compat import ensure_nodes
-from tests.blender.rendering import add_camera, against, configure_cycles, render_linear
+from tests.blender.rendering import (
+    add_camera,
+    against,
+    configure_cycles,
+    render_linear,
+    shader_material,
+)
 
 SIZE = 64
 
@@ -36,13 +41,8 @@ def cutaway_room() -> bpy.types.Scene:
     bpy.ops.object.mode_set(mode="EDIT")
     bpy.ops.mesh.delete(type="FACE")
     bpy.ops.object.mode_set(mode="OBJECT")
-    grey = bpy.data.materials.new("Grey")  # diffuse: 5.x's default surface is glossy
-    ensure_nodes(grey)
-    tree = grey.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (0.7, 0.7, 0.7, 1.0)
-    tree.links.new(diffuse.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    # diffuse: 5.x's default surface is glossy
+    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1.0))
     for obj in (room, front):
         obj.data.materials.append(grey)
     lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))

@@ -10,24 +10,16 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.blender_compat import ensure_nodes
 from addon.export import export_material
-from tests.blender.rendering import add_camera, against, configure_cycles, render_linear
+from tests.blender.rendering import (
+    add_camera,
+    against,
+    configure_cycles,
+    render_linear,
+    shader_material,
+)
 
 SIZE = 64
-
-
-def shader_material(name: str, kind: str, **inputs) -> bpy.types.Material:
-    """A material whose surface is one new node of ``kind`` with ``inputs`` set."""
-    material = bpy.data.materials.new(name)
-    ensure_nodes(material)
-    tree = material.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    node = tree.nodes.new(kind)
-    for label, value in inputs.items():
-        node.inputs[label.replace("_", " ")].default_value = value
-    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    return material
 
 
 def glass_for_camera_transparent_for_shadows() -> bpy.types.Material:
