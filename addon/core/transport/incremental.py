@@ -80,12 +80,13 @@ class _Anchors:
     triangle: np.ndarray  # (n,) int, the triangle hit (-1 for a miss)
     slot: np.ndarray  # (n,) int, global path slot
     path_id: np.ndarray  # (n,) int, unique id of the path (new id = new VPLs)
+    transmittance: np.ndarray  # (n, 3) light the clear surfaces on the path let through
 
     @classmethod
     def empty(cls, dimensions: int) -> _Anchors:
         return cls(np.zeros((0, dimensions)), np.zeros((0, 2)), np.zeros(0, bool),
                    np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int),
-                   np.zeros(0, int), np.zeros(0, int))
+                   np.zeros(0, int), np.zeros(0, int), np.zeros((0, 3)))
 
     def __len__(self) -> int:
         return len(self.slot)
@@ -244,8 +245,8 @@ class IncrementalVPLs:
         """New anchors: paths from domain points traced to their first hit (misses kept)."""
         n = len(coords)
         origin, direction = domain.rays(coords, offsets)
-        found = trace_hits(tracer, geometry, origin, direction, np.zeros((n, 3)),
-                           np.arange(n), epsilon)
+        found = trace_hits(tracer, geometry, origin, direction, np.ones((n, 3)),
+                           np.arange(n), epsilon)  # unit flux: the hits' transmittance
         hit = np.zeros(n, bool)
         hit[found.rank] = True
         position, normal, albedo = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
@@ -253,8 +254,10 @@ class IncrementalVPLs:
         albedo[found.rank] = found.albedo
         triangle = np.full(n, -1)
         triangle[found.rank] = found.triangle
+        transmittance = np.zeros((n, 3))
+        transmittance[found.rank] = found.flux
         return _Anchors(coords, offsets, hit, position, normal, albedo, triangle, slots,
-                        self._ids(n))
+                        self._ids(n), transmittance)
 
     def _create(self, anchors: _Anchors, domain: LightDomain, slots: np.ndarray,
                 tracer: RayCaster, geometry: WorldGeometry, epsilon: float,
@@ -315,7 +318,8 @@ class IncrementalVPLs:
         _, flux = cell_integrals(domain, anchors.coords)
         hit = anchors.hit
         return SurfaceHits(anchors.position[hit], anchors.normal[hit], anchors.albedo[hit],
-                           flux[hit], permutation[anchors.slot[hit]],
+                           flux[hit] * anchors.transmittance[hit],
+                           permutation[anchors.slot[hit]],
                            anchors.triangle[hit]), anchors.path_id[hit]
 
     def _environment_hits(self, emitters: list, slots: np.ndarray, count: int,
