@@ -92,13 +92,13 @@ class RayTracer:
         triangles = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
         codes = None
         if clear is not None and len(clear):
-            colour = np.clip(np.asarray(transmission, np.float32)[:, :3], 0.0, 1.0)
+            rows = np.asarray(transmission, np.float32)
+            colour = np.clip(rows[:, :3], 0.0, 1.0)
             codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
             codes[len(triangles):, 0] = (np.round(colour * 255).astype(np.uint32)
                                          << np.array([0, 8, 16], np.uint32)).sum(axis=1) \
                 | np.uint32(255 << 24)  # packUnorm4x8(colour, 1): never 0
-            codes[len(triangles):, 1] = np.asarray(transmission, np.float32)[:, 3].view(
-                np.uint32)
+            codes[len(triangles):, 1] = rows[:, 3].view(np.uint32)
             triangles = np.concatenate([triangles, np.asarray(clear, np.float32)])
         count = len(triangles)
         self._check_size(count, count * TRIANGLE_DTYPE.itemsize)

@@ -473,12 +473,13 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
                                     None if uv is None else uv[corners],
                                     triangle_material[start:start + size], clear))
         start += size
-    clear_count = int(clear[triangle_material].sum()) if clear.any() else 0
+    is_clear = clear[triangle_material] if clear.any() else np.zeros(0, bool)
+    clear_count = int(is_clear.sum())
     clear_triangles = np.zeros((0, 3, 3), np.float32)
     clear_transmission = np.zeros((0, 4), np.float32)
     if clear_count:
-        rows = triangle_material[clear[triangle_material]]
-        clear_triangles = positions.reshape(-1, 3, 3)[clear[triangle_material]]
+        rows = triangle_material[is_clear]
+        clear_triangles = positions.reshape(-1, 3, 3)[is_clear]
         finite = np.isfinite(clear_triangles).all(axis=(1, 2))
         clear_triangles = np.ascontiguousarray(clear_triangles[finite])
         clear_transmission = np.array(table.transmission, np.float32).reshape(-1, 4)[
