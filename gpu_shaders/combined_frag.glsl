@@ -3,7 +3,8 @@
 // u_factor² supersamples' (direct + soft + indirect) × albedo + glossy + emission, alpha the
 // surface's coverage; with BACKGROUND (a colour) or BACKGROUND_IMAGE (one per supersample)
 // the uncovered part sees the background and alpha is 1. Defines: SOFT (blurred soft direct
-// light), GLOSSY (each light's glossy radiance, added without the albedo).
+// light), GLOSSY (each light's glossy radiance, added without the albedo), TRANSMITTANCE (what
+// clear surfaces in front let through to the camera, per supersample: gpu/clear_view.py).
 
 uniform sampler2D u_direct;
 uniform sampler2D u_indirect;
@@ -25,11 +26,14 @@ uniform sampler2D u_background;
 #elif defined(BACKGROUND)
 uniform vec3 u_background;
 #endif
+#ifdef TRANSMITTANCE
+uniform sampler2D u_transmittance;
+#endif
 uniform int u_factor;                 // supersamples per pixel edge
 
 layout(location = 0) out vec4 out_combined;
 
-vec4 supersample(ivec2 s) {
+vec4 seen(ivec2 s) {
     vec4 light = texelFetch(u_direct, s, 0) + texelFetch(u_indirect, s, 0);
 #ifdef SOFT
     light += texelFetch(u_soft, s, 0);
@@ -48,6 +52,14 @@ vec4 supersample(ivec2 s) {
     return vec4(c.rgb + (1.0 - covered) * u_background, 1.0);
 #else
     return vec4(c.rgb, covered);
+#endif
+}
+
+vec4 supersample(ivec2 s) {
+#ifdef TRANSMITTANCE
+    return seen(s) * vec4(texelFetch(u_transmittance, s, 0).rgb, 1.0);
+#else
+    return seen(s);
 #endif
 }
 

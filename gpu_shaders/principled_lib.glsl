@@ -9,6 +9,7 @@
 #ifndef PRINCIPLED_LIB_GLSL
 #define PRINCIPLED_LIB_GLSL
 #include "common_lib.glsl"
+#include "fresnel_lib.glsl"
 
 // Table rows (principled.py's ROW_* constants) of the R32F table texture, E_SIZE wide.
 #define E_SIZE 32
@@ -33,15 +34,6 @@ float table_2d(int first, float rough, float mu, int size) {
     int i = min(int(floor(f)), size - 2);
     return mix(table_row(first + i, mu, size), table_row(first + i + 1, mu, size),
                f - float(i));
-}
-
-float fresnel_dielectric(float c, float eta) {
-    float g2 = eta * eta - 1.0 + c * c;
-    if (g2 <= 0.0) return 1.0;
-    float g = sqrt(g2);
-    float a = (g - c) / (g + c);
-    float b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
-    return 0.5 * a * a * (1.0 + b * b);
 }
 
 float f0_of(float eta) {

@@ -6,6 +6,7 @@
 // every ray when it was a compile-time constant (raytrace_test_comp.glsl).
 #ifndef RAYTRACE_LIB_GLSL
 #define RAYTRACE_LIB_GLSL
+#include "fresnel_lib.glsl"
 
 #define RT_BINDING_NODES 10
 #define RT_BINDING_TRIANGLES 11
@@ -105,24 +106,13 @@ bool rt_hit_triangle(RtRay ray, RtTriangle tri, float t_min, float t_max, out fl
     return t > t_min && t < t_max;
 }
 
-// Unpolarised Fresnel reflectance of a dielectric interface (IOR `eta` against air) met at
-// cosine `cos_i`; a ray crossing a flat pane meets both faces at the same angle.
-float rt_fresnel(float cos_i, float eta) {
-    float sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if (sin2_t >= 1.0) return 1.0;
-    float cos_t = sqrt(1.0 - sin2_t);
-    float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    return 0.5 * (rs * rs + rp * rp);
-}
-
 // The light a clear triangle lets through along `dir`.
 vec3 rt_clear_transmittance(RtTriangle tri, vec3 dir) {
     vec3 colour = unpackUnorm4x8(tri.clear).rgb;
     if (tri.ior <= 0.0) return colour;
     vec3 n = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     float cos_i = abs(dot(n, dir)) / max(length(n) * length(dir), 1.0e-30);
-    return colour * (1.0 - rt_fresnel(cos_i, tri.ior));
+    return colour * (1.0 - fresnel_dielectric(cos_i, tri.ior));
 }
 
 #define RT_CLOSEST 0

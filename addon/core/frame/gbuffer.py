@@ -61,12 +61,13 @@ class GBuffer:
     """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays
     (read back when first used); ``view_projection``: world to the tile's clip space, as a
     mat4 uniform; ``view``: the camera uniforms a glossy gather needs (empty without
-    GLOSSY_LAYERS)."""
+    GLOSSY_LAYERS); ``depth``: the depth the layers were drawn with."""
 
     textures: dict[str, moderngl.Texture]
     images: Mapping[str, np.ndarray]
     view_projection: tuple[float, ...]
     view: dict[str, object] = field(default_factory=dict)
+    depth: moderngl.Renderbuffer | None = None
 
     @property
     def glossy(self) -> bool:
@@ -92,7 +93,8 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
     glossy = scene is not None and scene.has_specular
     names = LAYERS + GLOSSY_LAYERS if glossy else LAYERS
     layers = [scope.own(ctx.texture(size, 4, dtype="f4")) for _ in names]
-    fbo = scope.own(ctx.framebuffer(layers, scope.own(ctx.depth_renderbuffer(size))))
+    depth = scope.own(ctx.depth_renderbuffer(size))
+    fbo = scope.own(ctx.framebuffer(layers, depth))
     fbo.use()
     fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
     ctx.enable(moderngl.DEPTH_TEST)
@@ -132,4 +134,4 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
     by_name = dict(zip(names, layers, strict=True))
     view = {name: uniforms[name] for name in ("u_camera_position", "u_camera_forward",
                                               "u_orthographic")} if glossy else {}
-    return GBuffer(by_name, TextureImages(by_name), uniforms["u_view_projection"], view)
+    return GBuffer(by_name, TextureImages(by_name), uniforms["u_view_projection"], view, depth)

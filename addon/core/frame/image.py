@@ -10,6 +10,7 @@ from functools import partial
 import moderngl
 import numpy as np
 
+from ..gpu.clear_view import ClearView
 from ..gpu.combined import combined_pass
 from ..gpu.gl import read_textures
 from ..gpu.scene_buffers import SceneBuffers
@@ -45,6 +46,7 @@ class FrameGpu:
     shapes: SceneBuffers | None
     textures: tuple[moderngl.TextureArray, moderngl.Texture] | None
     maps: FrameMaps
+    clear: ClearView | None = None  # the clear triangles, for the camera's view through them
 
 
 @dataclass
@@ -65,6 +67,8 @@ class TileWork:
     indirect_light: list[moderngl.Texture] = field(default_factory=list)
     thin: moderngl.Renderbuffer | None = None  # pixels that gather every VPL (thin_surfaces)
     background: np.ndarray | None = None  # what rays that miss see (None: transparent film)
+    transmittance: moderngl.Texture | None = None  # per supersample: what clear surfaces in
+    # front let through to the camera (None where the scene has none)
 
 
 def tiles_of(width: int, height: int, aa: int) -> list[Tile]:
@@ -116,6 +120,11 @@ class GBufferStage(TileStage):
             if aa > 1 and (per_pixel or hinted):
                 work.pixels = self._render(data, frame, work, pixel_tile(work.tile, aa))
             self.gpu.ctx.finish()  # its GPU work timed here, not in the next stage
+        if data.clear is not None:
+            with frame.stats.timed("view through clear surfaces"):
+                work.transmittance = work.scope.own(data.clear.transmittance(
+                    work.gbuffer.depth, work.gbuffer.view_projection, frame.camera))
+                self.gpu.ctx.finish()
         work.indirect_gbuffer = work.pixels if per_pixel else work.gbuffer
         glossy = work.gbuffer.glossy
         work.direct = new_accumulator(self.gpu.ctx, work.tile.size, work.scope, glossy)
@@ -333,7 +342,7 @@ class ComposeStage(TileStage):
             combined = combined_pass(self.gpu.ctx, self.gpu.programs,
                                      work.direct.color_attachments, work.indirect_light,
                                      work.soft_light, work.gbuffer.textures, work.background,
-                                     aa)
+                                     aa, work.transmittance)
             h, w = combined.shape[:2]
             x0, y0 = tile.x0 // aa, tile.y0 // aa
             frame.output["Combined"][y0:y0 + h, x0:x0 + w] = combined
@@ -380,7 +389,10 @@ class RenderImage(Stage):
             atlases = ShadowAtlases(ctx, self.gpu.programs, scene, kept)
             maps = FrameMaps(atlases, frame.ism_maps, frame.centre, frame.radius,
                              reuse_atlas=len(frame.light_passes) == 1)
-            data = FrameGpu(scene, shapes, textures, maps)
+            clear = scope.own(ClearView(ctx, self.gpu.programs, geometry.clear_triangles,
+                                        geometry.clear_transmission)) \
+                if len(geometry.clear_triangles) else None
+            data = FrameGpu(scene, shapes, textures, maps, clear)
             if frame.traces_rays:
                 self.gpu.tracer.bind()
             try:

@@ -14,11 +14,13 @@ from .gl import ProgramCache, draw_into_new_textures, read_textures, set_uniform
 def combined_pass(ctx: moderngl.Context, programs: ProgramCache,
                   direct: Sequence[moderngl.Texture], indirect: Sequence[moderngl.Texture],
                   soft: Sequence[moderngl.Texture], gbuffer: Mapping[str, moderngl.Texture],
-                  background: np.ndarray | None, factor: int) -> np.ndarray:
+                  background: np.ndarray | None, factor: int,
+                  transmittance: moderngl.Texture | None = None) -> np.ndarray:
     """(h, w, 4) float32 Combined of a tile of ``factor``² supersamples per pixel. ``direct``,
     ``indirect`` and ``soft`` (may be empty): light textures, diffuse then glossy where the
     g-buffer has glossy layers; ``background``: a colour (3,), one per supersample
-    (h·factor, w·factor, 3), or None for a transparent film."""
+    (h·factor, w·factor, 3), or None for a transparent film; ``transmittance``: per
+    supersample, the light clear surfaces let through to the camera (gpu/clear_view.py)."""
     glossy = len(direct) > 1
     defines: dict[str, object] = {}
     units: dict[str, moderngl.Texture] = {
@@ -32,6 +34,9 @@ def combined_pass(ctx: moderngl.Context, programs: ProgramCache,
         units.update(u_direct_glossy=direct[1], u_indirect_glossy=indirect[1])
         if soft:
             units["u_soft_glossy"] = soft[1]
+    if transmittance is not None:
+        defines["TRANSMITTANCE"] = 1
+        units["u_transmittance"] = transmittance
     owned: list[moderngl.Texture] = []
     if background is not None and background.ndim == 3:
         defines["BACKGROUND_IMAGE"] = 1

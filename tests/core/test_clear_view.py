@@ -1,0 +1,55 @@
+"""The camera's view through clear surfaces: what is seen through a pane is dimmed by its
+colour and Fresnel loss at the view angle, once per surface crossed, background included."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from addon.core.gpu.clear_view import clear_vertices
+from addon.core.scene.model import Instance, Material, Scene, World
+from addon.core.settings import Settings
+from tests.core.builders import quad, top_down_camera, translation
+
+SIZE = 64
+EXTENT = 6.0  # metres across the top-down view: 64 / 6 pixels a metre, x = -3 at column 0
+FRESNEL_1_5 = 0.04  # ((1.5 - 1) / (1.5 + 1))², one face met at normal incidence
+
+
+def columns(x0: float, x1: float) -> slice:
+    """The pixel columns well inside x0 < x < x1 (one pixel clear of each edge)."""
+    scale = SIZE / EXTENT
+    return slice(int(np.ceil((x0 + 3) * scale)) + 1, int(np.floor((x1 + 3) * scale)) - 1)
+
+
+def test_degenerate_clear_triangles_are_left_out_and_normals_are_unit():
+    triangles = np.array([[[0, 0, 0], [2, 0, 0], [0, 3, 0]], [[0, 0, 0], [1, 1, 1], [2, 2, 2]]],
+                         np.float32)
+    rows = clear_vertices(triangles, [[0.5, 0.6, 0.7, 1.5], [1, 1, 1, 0]])
+    assert rows.shape == (3, 10)
+    np.testing.assert_allclose(rows[:, 3:6], [[0, 0, 1]] * 3)
+    np.testing.assert_allclose(rows[:, 6:], [[0.5, 0.6, 0.7, 1.5]] * 3)
+
+
+def test_what_the_camera_sees_through_panes_is_dimmed_by_each(renderer):
+    """An emissive strip under a tinted glass pane and, over part of it, a red Transparent
+    pane; the world colour beside the strip is seen through both too."""
+    emission, world = np.array([2.0, 1.0, 0.5]), np.array([0.3, 0.4, 0.5])
+    tint_glass, tint_red = np.array([0.5, 0.8, 1.0]), np.array([1.0, 0.5, 0.5])
+    strip = Instance(quad(2, 3), np.eye(4), [Material("lamp", (0, 0, 0), tuple(emission))])
+    glass = Instance(quad(1.5, 3, 1.0), translation(-1.5, 0, 0),
+                     [Material("glass", (0, 0, 0), transmission=tuple(tint_glass),
+                               transmission_ior=1.5)])
+    red = Instance(quad(0.75, 3, 2.0), translation(-2.25, 0, 0),
+                   [Material("red", (0, 0, 0), transmission=tuple(tint_red))])
+    scene = Scene([strip, glass, red], [], World(tuple(world)), top_down_camera(SIZE, EXTENT))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=2))
+    image = frame.passes["Combined"][..., :3]
+
+    glass_loss = tint_glass * (1 - FRESNEL_1_5)
+    expected = [((0, 2), emission), ((2, 3), world), ((-1.5, 0), emission * glass_loss),
+                ((-2, -1.5), emission * glass_loss * tint_red),
+                ((-3, -2), world * glass_loss * tint_red)]
+    for (x0, x1), colour in expected:
+        seen = image[:, columns(x0, x1)]
+        np.testing.assert_allclose(seen, np.broadcast_to(colour, seen.shape), rtol=1e-4,
+                                   err_msg=f"{x0} < x < {x1}")
