@@ -9,10 +9,17 @@ from scipy import ndimage
 
 from addon.core.frame import gather as gather_module
 from addon.core.gpu.gl import ProgramCache
-from addon.core.scene.model import Instance, LightKind, Material
+from addon.core.scene.model import Instance, LightKind, Material, Mesh, Scene, World
 from addon.core.settings import Settings
 from devtools import metrics
-from tests.core.builders import floor_scene, light, quad, rotation_x, translation
+from tests.core.builders import (
+    floor_scene,
+    inside_sphere_camera,
+    light,
+    quad,
+    rotation_x,
+    translation,
+)
 
 
 def blocked_scene(lights):
@@ -110,3 +117,33 @@ def test_splitting_off_the_supersamples_that_need_rays_changes_no_pixel(renderer
     whole, _ = renderer.render(scene, settings)
     for name, image in whole.passes.items():
         np.testing.assert_array_equal(split.passes[name], image, err_msg=name)
+
+
+def room_with_a_window() -> list[Instance]:
+    """A 4 × 3 × 5 m room round the origin's camera (inside_sphere_camera, looking down -Z),
+    its left wall open by a 1.2 × 1.5 m window."""
+    rectangles = [((-2, -1.5, -4), (4, 0, 0), (0, 3, 0)), ((-2, -1.5, 1), (4, 0, 0), (0, 3, 0)),
+                  ((-2, -1.5, -4), (4, 0, 0), (0, 0, 5)), ((-2, 1.5, -4), (4, 0, 0), (0, 0, 5)),
+                  ((2, -1.5, -4), (0, 3, 0), (0, 0, 5)), ((-2, -1.5, -4), (0, 1.2, 0), (0, 0, 5)),
+                  ((-2, 0.9, -4), (0, 0.6, 0), (0, 0, 5)), ((-2, -0.3, -4), (0, 1.2, 0), (0, 0, 1)),
+                  ((-2, -0.3, -1.5), (0, 1.2, 0), (0, 0, 2.5))]  # corner, two edges
+    corners = np.array([[o, np.add(o, u), np.add(o, u) + v, o, np.add(o, u) + v, np.add(o, v)]
+                        for o, u, v in rectangles], np.float32)
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 5] - corners[:, 0])
+    inward = np.sign(np.einsum("ij,ij->i", normals, [0, 0, -1.5] - corners.mean(axis=1)))
+    normals *= (inward / np.linalg.norm(normals, axis=1))[:, None]
+    mesh = Mesh("room", corners.reshape(-1, 3), np.repeat(normals, 6, axis=0).astype(np.float32),
+                np.zeros(2 * len(rectangles), np.int32))
+    return [Instance(mesh, np.eye(4), [Material("wall", (0.7, 0.7, 0.7))])]
+
+
+def test_world_light_through_a_window_is_not_taken_from_the_pixels_around(renderer):
+    """The world's samples are interleaved, a different direction at each supersample: the
+    pixels around, which traced other directions, cannot stand for them (a room's sky light
+    through a small window was 60–94 % dark away from its sun patch). With adaptive shadows
+    every world sample keeps its ray (measured: the image the same to the bit; when the
+    neighbours stood for them, relRMSE 19.6 %)."""
+    scene = Scene(room_with_a_window(), [], World((1.0, 1.0, 1.0)), inside_sphere_camera(64))
+    every, adaptive, stats = render_both(renderer, scene)
+    assert "shadow hints" not in stats.timings
+    assert metrics.relative_rmse(adaptive, every) < 0.002

@@ -17,11 +17,17 @@ MAX_HINTED_SAMPLES = 31  # bits of the hint texture (bit 31 marks pixels with hi
 
 
 def takes_hints(light_pass: LightPass) -> bool:
-    """Whether a pass's gather can use shadow hints: direct light with ray-traced shadows, one
-    sample per supersample (interleaved) or at most MAX_HINTED_SAMPLES in all."""
-    return (not light_pass.indirect and light_pass.visibility.rays_per_sample > 0
-            and (light_pass.interleave > 1
-                 or len(light_pass.batch.samples) <= MAX_HINTED_SAMPLES))
+    """Whether a pass's gather can use shadow hints: direct light with ray-traced shadows, at
+    most MAX_HINTED_SAMPLES in all, each hinted by its own rays at the pixels around, or a
+    sun's angle samples interleaved one per supersample. Those are hinted by the neighbours'
+    other samples, which only samples of nearly one direction can stand for: the world's or
+    an area light's, interleaved, would take their neighbours' answer for other directions
+    (through a window, mostly shadowed: a room's sky light 7 % dark)."""
+    if light_pass.indirect or light_pass.visibility.rays_per_sample == 0:
+        return False
+    if light_pass.interleave > 1:
+        return light_pass.spread
+    return len(light_pass.batch.samples) <= MAX_HINTED_SAMPLES
 
 
 def render_hints(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
