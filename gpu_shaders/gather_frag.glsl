@@ -62,7 +62,7 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
 #endif
 #ifdef AREA_SHAPES
     int run = 0;  // the draw's samples, and their unshadowed and shadowed sums
-    float open = 0.0, shaded = 0.0;
+    vec3 open = vec3(0.0), shaded = vec3(0.0);
     bool subset = interleave_size() > 1;
     if (subset) {
         for (int i = u_first; i < u_first + u_count; ++i) {
@@ -70,7 +70,7 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
             if (s.generation > max_generation) continue;
             vec3 e = unshadowed_irradiance(s, world, normal);
             ++run;
-            open += e.r + e.g + e.b;
+            open += e;
         }
     }
 #endif
@@ -88,12 +88,12 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
 #ifdef AREA_SHAPES
         if (!subset) {
             ++run;
-            open += e.r + e.g + e.b;
+            open += e;
         }
 #endif
         if (any(greaterThan(e, vec3(0.0)))) e *= shadow_visibility(s, world, geometric);
 #ifdef AREA_SHAPES
-        shaded += e.r + e.g + e.b;
+        shaded += e;
 #endif
         irradiance += e;
 #ifdef GLOSSY

@@ -117,18 +117,18 @@ float outline_projected_solid_angle(int first, int count, vec3 x, vec3 n) {
 }
 
 // Area light `shape`'s irradiance at x (normal n) from `run` of its samples whose unshadowed
-// point estimates sum to `open` and shadowed ones to `shaded` (each over r, g, b),
-// `intensity` being each sample's: the light's exact unshadowed irradiance times shaded /
-// open, times the run's share of its samples. Called once per draw: llvmpipe runs both sides
+// point estimates sum to `open` and shadowed ones to `shaded` (per channel: clear surfaces
+// tint the shadowed ones), `intensity` being each sample's: the light's exact unshadowed
+// irradiance times shaded / open, times the run's share of its samples. Called once per draw: llvmpipe runs both sides
 // of a branch, so inside the loop it would cost every sample.
-vec3 area_light_irradiance(int shape, float shaded, float open, int run, vec3 intensity,
+vec3 area_light_irradiance(int shape, vec3 shaded, vec3 open, int run, vec3 intensity,
                            vec3 x, vec3 n) {
-    if (!(open > 0.0)) return vec3(0.0);
+    if (!(open.r + open.g + open.b > 0.0)) return vec3(0.0);
     vec4 header = area_texel(shape);  // first outline point, points, samples, outline area
     // radiance = intensity × samples / area, and the run's share of the samples run / samples
     float exact = outline_projected_solid_angle(int(header.x), int(header.y), x, n)
                   * float(run) / max(header.w, 1e-30);
-    return intensity * exact * (shaded / open);
+    return intensity * exact * (shaded / max(open, vec3(1.0e-30)));
 }
 #endif
 
@@ -363,16 +363,38 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
                           s.axis, world, geometric_normal, u_ism_bias);
 }
 #else
-// Fraction of the sample's light reaching `world` (normal offset by `bias` texels).
-float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
-    if (s.tile < 0) return 1.0;
+#ifdef CLEAR_SHADOWS
+// The atlas's clear layer (shadow_clear_frag.glsl): what clear surfaces nearer the light than
+// the receiver let through, at the texel the receiver falls in.
+uniform sampler2D u_clear_atlas;
+
+vec3 through_clear(int tile, float resolution, vec2 texel, float receiver, float tolerance) {
+    ivec2 origin = ivec2(tile % u_atlas_columns, tile / u_atlas_columns) * int(resolution);
+    ivec2 q = clamp(ivec2(floor(texel)), ivec2(0), ivec2(int(resolution) - 1));
+    vec4 clear = texelFetch(u_clear_atlas, origin + q, 0);
+    return receiver > clear.a + tolerance ? clear.rgb : vec3(1.0);
+}
+#endif
+
+// The light of the sample reaching `world` (receiver offset by `bias` texels): the maps' lit
+// fraction, dimmed by clear surfaces on the way with CLEAR_SHADOWS.
+vec3 mapped_visibility(int tile, float resolution, vec2 texel, float receiver, float tolerance) {
+    float lit = shadow_taps(tile, resolution, texel, receiver, tolerance);
+#ifdef CLEAR_SHADOWS
+    if (lit > 0.0) return lit * through_clear(tile, resolution, texel, receiver, tolerance);
+#endif
+    return vec3(lit);
+}
+
+vec3 shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
+    if (s.tile < 0) return vec3(1.0);
     if (s.kind == KIND_DIRECTIONAL) {
         float texel_size = 2.0 * u_scene_radius / s.resolution;
         vec3 p = world + geometric_normal * (u_shadow_bias * texel_size);
         vec4 clip = directional_clip(p, s.axis, u_scene_centre, u_scene_radius);
         vec2 texel = (clip.xy * 0.5 + 0.5) * s.resolution;
         float receiver = directional_depth(p, s.axis, u_scene_centre, u_scene_radius);
-        return shadow_taps(s.tile, s.resolution, texel, receiver, 0.5 * texel_size);
+        return mapped_visibility(s.tile, s.resolution, texel, receiver, 0.5 * texel_size);
     }
     float distance = length(world - s.position);
     float texel_size = 2.0 * distance / s.resolution;
@@ -384,7 +406,7 @@ float shadow_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     int face = cube_face_of(v);
     vec3 local = CUBE_FACE_ROTATION[face] * v;
     vec2 texel = (local.xy / -local.z * 0.5 + 0.5) * s.resolution;
-    return shadow_taps(s.tile + face, s.resolution, texel, length(v), 0.5 * texel_size);
+    return mapped_visibility(s.tile + face, s.resolution, texel, length(v), 0.5 * texel_size);
 }
 #endif
 

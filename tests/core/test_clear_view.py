@@ -1,14 +1,16 @@
-"""The camera's view through clear surfaces: what is seen through a pane is dimmed by its
-colour and Fresnel loss at the view angle, once per surface crossed, background included."""
+"""Clear surfaces on the GPU: what the camera sees through a pane is dimmed by its colour and
+Fresnel loss at the view angle, once per surface crossed, background included; so is the
+light shadow maps let through (their atlases' clear layers)."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from addon.core.gpu.clear_view import clear_vertices
-from addon.core.scene.model import Instance, Material, Scene, World
+from addon.core.scene.model import AreaShape, Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
-from tests.core.builders import quad, top_down_camera, translation
+from tests.core.builders import floor_scene, light, quad, rotation_x, top_down_camera, translation
 
 SIZE = 64
 EXTENT = 6.0  # metres across the top-down view: 64 / 6 pixels a metre, x = -3 at column 0
@@ -53,3 +55,29 @@ def test_what_the_camera_sees_through_panes_is_dimmed_by_each(renderer):
         seen = image[:, columns(x0, x1)]
         np.testing.assert_allclose(seen, np.broadcast_to(colour, seen.shape), rtol=1e-4,
                                    err_msg=f"{x0} < x < {x1}")
+
+
+@pytest.mark.parametrize("kind, shadows", [(LightKind.AREA, "hybrid"),
+                                           (LightKind.AREA, "ray_traced"),
+                                           (LightKind.POINT, "shadow_maps"),
+                                           (LightKind.SUN, "shadow_maps")])
+def test_shadow_mapped_light_through_a_tinted_pane_is_tinted(renderer, kind, shadows):
+    """A pane of red Transparent BSDF between a light and the whole floor: the light is the
+    same as without it, times the pane's colour (the area light's samples are shadow-mapped
+    in the default hybrid mode, the point light's cube maps and the sun's directional map
+    with shadow_maps; ray traced, the area light's per-channel shadowed share keeps the tint,
+    which its sum over r, g, b greyed: 0.58 of the light in each channel)."""
+    tint = np.array([1.0, 0.6, 0.2])  # in 8 bits a channel (the ray tracer's) exactly
+    lamp = {LightKind.AREA: light(LightKind.AREA, translation(0, 0, 2), power=80.0,
+                                  area_shape=AreaShape.SQUARE, size_x=0.5),
+            LightKind.POINT: light(LightKind.POINT, translation(0, 0, 2), power=80.0),
+            LightKind.SUN: light(LightKind.SUN, rotation_x(0.3), power=3.0)}[kind]
+    pane = Instance(quad(8, 8, 1.0), np.eye(4),
+                    [Material("red", (0, 0, 0), transmission=tuple(tint))])
+    settings = Settings(bounces=0, antialiasing=1, direct_shadows=shadows, light_samples=16)
+    open_frame, _ = renderer.render(floor_scene([lamp]), settings)
+    glazed, stats = renderer.render(floor_scene([lamp], extra=[pane]), settings)
+    assert (stats.counts["shadow_maps"] > 0) == (shadows != "ray_traced")
+    np.testing.assert_allclose(glazed.passes["DiffDir"][..., :3],
+                               open_frame.passes["DiffDir"][..., :3] * tint, rtol=1e-5,
+                               atol=1e-6)

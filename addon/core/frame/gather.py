@@ -25,6 +25,7 @@ SURFACE_VERTICES_BINDING = 4  # the position stream as surface_lib.glsl's storag
 LOBE_UNITS = 9, 10, 11  # the g-buffer's glossy lobe layers (units 6-8: the scene's tables)
 HINTS_UNIT = 12  # the shadow hints
 AREA_SHAPES_UNIT = 13  # the area lights' outlines (transport/lights.py AreaShapes)
+CLEAR_ATLAS_UNIT = 14  # a shadow atlas's clear layer (frame/shadow_maps.py)
 AREA_SHAPES_WIDTH = 1024  # texels per row of their texture (a power of two)
 RAY_OFFSET = 1e-4  # rays from a pixel start this fraction of the scene's radius off its surface
 
@@ -110,10 +111,12 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
            atlas: moderngl.Texture, gbuffer: GBuffer, accumulator: moderngl.Framebuffer,
            scene: SceneBuffers | None, centre: np.ndarray, radius: float, bias: float,
            compensation: Compensation | None = None,
-           hints: tuple[moderngl.Texture, int] | None = None) -> None:
+           hints: tuple[moderngl.Texture, int] | None = None,
+           clear_atlas: moderngl.Texture | None = None) -> None:
     """Add one batch's light to the accumulator (additive blending); with
     ``compensation``, add the light its distance clamp removed instead. ``hints``: the batch's
-    shadow hints (shadow_hints.py) and the supersamples per pixel edge."""
+    shadow hints (shadow_hints.py) and the supersamples per pixel edge; ``clear_atlas``: the
+    shadow atlas's clear layer, which dims the light clear surfaces let through."""
     batch = light_pass.batch
     s = batch.samples
     with GpuScope() as scope:
@@ -131,6 +134,10 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
             defines.update(AREA_SHAPES=1, AREA_SHAPES_WIDTH=AREA_SHAPES_WIDTH)
             scope.own(area_shapes_texture(ctx, s.shapes)).use(AREA_SHAPES_UNIT)
             uniforms.update(u_area_shapes=AREA_SHAPES_UNIT)
+        if clear_atlas is not None:
+            defines.update(CLEAR_SHADOWS=1)
+            clear_atlas.use(CLEAR_ATLAS_UNIT)
+            uniforms.update(u_clear_atlas=CLEAR_ATLAS_UNIT)
         if hints is not None:
             defines.update(SHADOW_HINTS=1)
             if light_pass.spread and light_pass.interleave > 1:

@@ -154,6 +154,7 @@ class GatherStage(TileStage):
             frame.check_cancelled()
             with stats.timed(f"{light_pass.name} maps"):
                 atlas = light_pass.visibility.maps(light_pass.batch, data.maps)
+                clear = data.maps.shadow_atlases.clear_atlas(atlas)
                 ctx.finish()
             hints = self._hints(frame, work, light_pass)
             thin = self._thin(frame, work, light_pass)
@@ -163,15 +164,16 @@ class GatherStage(TileStage):
                 gbuffer = work.indirect_gbuffer if light_pass.indirect else work.gbuffer
                 if thin is None:
                     gather(ctx, self.gpu.programs, light_pass, atlas, gbuffer, target,
-                           data.scene, centre, radius, bias, hints=hints)
+                           data.scene, centre, radius, bias, hints=hints, clear_atlas=clear)
                 else:
                     gather_with_mask(ctx, self.gpu.programs, light_pass, atlas, gbuffer,
-                                     target, thin, data.scene, centre, radius, bias)
+                                     target, thin, data.scene, centre, radius, bias, clear)
                 ctx.finish()
             if frame.compensation is not None:
                 with stats.timed("bias compensation"):
                     gather(ctx, self.gpu.programs, light_pass, atlas, work.indirect_gbuffer,
-                           work.indirect, data.scene, centre, radius, bias, frame.compensation)
+                           work.indirect, data.scene, centre, radius, bias, frame.compensation,
+                           clear_atlas=clear)
                     ctx.finish()
             frame.steps_done += 1
             frame.report(frame.steps_done / frame.steps,
@@ -386,12 +388,12 @@ class RenderImage(Stage):
             shapes = _buffers(ctx, frame.shapes, scope)
             textures = tuple(scope.own(t) for t in upload_textures(ctx, geometry.textures)) \
                 if geometry.has_textures else None
-            atlases = ShadowAtlases(ctx, self.gpu.programs, scene, kept)
-            maps = FrameMaps(atlases, frame.ism_maps, frame.centre, frame.radius,
-                             reuse_atlas=len(frame.light_passes) == 1)
             clear = scope.own(ClearView(ctx, self.gpu.programs, geometry.clear_triangles,
                                         geometry.clear_transmission)) \
                 if len(geometry.clear_triangles) else None
+            atlases = ShadowAtlases(ctx, self.gpu.programs, scene, kept, clear)
+            maps = FrameMaps(atlases, frame.ism_maps, frame.centre, frame.radius,
+                             reuse_atlas=len(frame.light_passes) == 1)
             data = FrameGpu(scene, shapes, textures, maps, clear)
             if frame.traces_rays:
                 self.gpu.tracer.bind()

@@ -6,9 +6,10 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from ..gpu.clear_view import ClearView
 from ..gpu.gl import ProgramCache, set_uniforms
 from ..gpu.scene_buffers import SceneBuffers
-from ..gpu.shadow_atlas import draw_tiles, tile_table
+from ..gpu.shadow_atlas import TileTable, draw_tiles, tile_table
 from .batches import ATLAS_TEXELS, Batch
 from .gpu_scope import GpuScope
 
@@ -44,17 +45,26 @@ class KeptAtlases:
 
 class ShadowAtlases:
     """Renders batches' shadow atlases for one frame; the current atlas lives until the next
-    one is rendered or ``release`` (kept atlases belong to KeptAtlases)."""
+    one is rendered or ``release`` (kept atlases belong to KeptAtlases). With ``clear``
+    surfaces each atlas has a clear layer (``clear_atlas``)."""
 
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache,
-                 scene: SceneBuffers | None, kept: KeptAtlases) -> None:
+                 scene: SceneBuffers | None, kept: KeptAtlases,
+                 clear: ClearView | None = None) -> None:
         self.ctx = ctx
         self.programs = programs
         self.scene = scene
         self.kept = kept
+        self.clear = clear
         self._current = GpuScope()
         self._last: tuple[moderngl.Texture, Batch] | None = None
         self._placeholder: moderngl.Texture | None = None
+        self._clear_layers: dict[int, moderngl.Texture] = {}  # by their atlas's glo
+        self._current_atlas: int | None = None  # the glo of the atlas _current owns
+
+    def clear_atlas(self, atlas: moderngl.Texture) -> moderngl.Texture | None:
+        """The clear layer of an atlas ``atlas`` returned (None without clear surfaces)."""
+        return self._clear_layers.get(atlas.glo)
 
     def atlas(self, batch: Batch, centre: np.ndarray, radius: float, again: bool
                ) -> moderngl.Texture:
@@ -66,42 +76,90 @@ class ShadowAtlases:
         key = kept.key(batch, centre, radius)
         if key in kept.used:
             kept.tile_hits += 1
-            return kept.used[key][0]
+            return self._layers(kept.used[key])
         if key in kept.previous:
             objects = kept.previous[key]
             kept.keep(key, objects, batch)
             kept.hits += 1
-            return objects[0]
-        self._current.release()
+            return self._layers(objects)
+        self._release_current()
         keeping = kept.room_for(batch)
         objects: list = []
         own = objects.append if keeping else self._current.own
         res = batch.resolution
         size = (batch.columns * res, batch.rows * res)
         texture = self.ctx.texture(size, 1, dtype="f4")
+        layer = self.ctx.texture(size, 4, dtype="f4") if self.clear is not None else None
         depth = self.ctx.depth_renderbuffer(size)
         fbo = self.ctx.framebuffer([texture], depth)
-        for obj in (texture, depth, fbo):
-            own(obj)
+        for obj in (texture, layer, depth, fbo):
+            if obj is not None:
+                own(obj)
         if keeping:
             kept.keep(key, objects, batch)
         fbo.use()
         fbo.clear(FAR_DEPTH, 0.0, 0.0, 0.0, depth=1.0)
         self._last = (texture, batch)
+        if layer is not None:
+            self._clear_layers[texture.glo] = layer
+        if not keeping:
+            self._current_atlas = texture.glo
         s = batch.samples
-        if self.scene is None or not s.casts_shadow.any():
+        if not s.casts_shadow.any() or (self.scene is None and layer is None):
+            if layer is not None:
+                self._draw_clear(layer, depth, None, batch, centre, radius)
             return texture
         table = tile_table(s, batch.first_tile, batch.columns, centre, radius)
         tiles = table.texture(self.ctx)
         own(tiles)
         tiles.use(0)
-        program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl")
-        vao = self.ctx.vertex_array(program, self.scene.streams(normals=False))
-        own(vao)
-        set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
-                     u_scene_centre=tuple(centre), u_scene_radius=radius)
-        draw_tiles(self.ctx, vao, self.scene.vertex_count, len(table.rows))
+        if self.scene is not None:
+            program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl")
+            vao = self.ctx.vertex_array(program, self.scene.streams(normals=False))
+            own(vao)
+            set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
+                         u_scene_centre=tuple(centre), u_scene_radius=radius)
+            draw_tiles(self.ctx, vao, self.scene.vertex_count, len(table.rows))
+        if layer is not None:
+            self._draw_clear(layer, depth, table, batch, centre, radius)
         return texture
+
+    def _layers(self, objects: list) -> moderngl.Texture:
+        """A kept atlas (its objects: the atlas first, then its clear layer if any)."""
+        if self.clear is not None:
+            self._clear_layers[objects[0].glo] = objects[1]
+        return objects[0]
+
+    def _draw_clear(self, layer: moderngl.Texture, depth: moderngl.Renderbuffer,
+                    table: TileTable | None, batch: Batch, centre: np.ndarray,
+                    radius: float) -> None:
+        """The atlas's clear layer: cleared to (1, 1, 1, far), then the clear triangles in
+        front of the opaque ones multiply rgb and keep the nearest distance in a."""
+        fbo = self.ctx.framebuffer([layer], depth)
+        try:
+            fbo.depth_mask = False  # the opaque layer's depth is tested, not written
+            fbo.use()
+            fbo.clear(1.0, 1.0, 1.0, FAR_DEPTH)
+            if table is None:
+                return
+            program = self.programs.get("shadow_clear_vert.glsl", "shadow_clear_frag.glsl")
+            vao = self.clear.vertex_array(program)
+            if vao is None:
+                return
+            set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
+                         u_scene_centre=tuple(centre), u_scene_radius=radius)
+            self.ctx.enable(moderngl.BLEND)
+            self.ctx.blend_equation = moderngl.FUNC_ADD, moderngl.MIN
+            self.ctx.blend_func = moderngl.ZERO, moderngl.SRC_COLOR, moderngl.ONE, moderngl.ONE
+            try:
+                draw_tiles(self.ctx, vao, self.clear.vertex_count, len(table.rows), True)
+            finally:
+                self.ctx.blend_equation = moderngl.FUNC_ADD
+                self.ctx.blend_func = moderngl.DEFAULT_BLENDING
+                self.ctx.disable(moderngl.BLEND)
+                vao.release()
+        finally:
+            fbo.release()
 
     def placeholder(self) -> moderngl.Texture:
         """A 1×1 atlas for passes that read no maps (the gather binds an atlas regardless)."""
@@ -109,9 +167,16 @@ class ShadowAtlases:
             self._placeholder = self.ctx.texture((1, 1), 1, dtype="f4")
         return self._placeholder
 
-    def release(self) -> None:
+    def _release_current(self) -> None:
+        """Release the atlas no KeptAtlases holds (its name may then be reused)."""
         self._current.release()
+        self._clear_layers.pop(self._current_atlas, None)
+        self._current_atlas = None
+
+    def release(self) -> None:
+        self._release_current()
         self._last = None
+        self._clear_layers.clear()
         if self._placeholder is not None:
             self._placeholder.release()
             self._placeholder = None

@@ -58,7 +58,7 @@ def gather_with_mask(ctx: moderngl.Context, programs: ProgramCache, light_pass: 
                      atlas: moderngl.Texture, gbuffer: GBuffer,
                      accumulator: moderngl.Framebuffer, mask: moderngl.Renderbuffer,
                      scene: SceneBuffers | None, centre: np.ndarray, radius: float,
-                     bias: float) -> None:
+                     bias: float, clear_atlas: moderngl.Texture | None = None) -> None:
     """Add an interleaved pass's light to ``accumulator`` (gather.gather) with its own pattern
     where ``mask`` is 0 and with every VPL where it is 1."""
     with GpuScope() as scope:
@@ -67,6 +67,7 @@ def gather_with_mask(ctx: moderngl.Context, programs: ProgramCache, light_pass: 
         ctx.enable(moderngl.DEPTH_TEST)
         for depth_func, each in ((">", light_pass), ("<", replace(light_pass, interleave=1))):
             ctx.depth_func = depth_func
-            gather(ctx, programs, each, atlas, gbuffer, target, scene, centre, radius, bias)
+            gather(ctx, programs, each, atlas, gbuffer, target, scene, centre, radius, bias,
+                   clear_atlas=clear_atlas)
         ctx.depth_func = "<"
         ctx.disable(moderngl.DEPTH_TEST)

@@ -1,6 +1,7 @@
-"""The camera's view through clear surfaces (Material.is_clear): the light the clear triangles
-in front of each supersample's surface (or of the background) let through to the camera,
-rasterised against the g-buffer's depth (gpu_shaders/clear_view_*.glsl)."""
+"""Clear surfaces (Material.is_clear) on the GPU: their triangles, and the camera's view
+through them, the light the clear triangles in front of each supersample's surface (or of the
+background) let through to the camera, rasterised against the g-buffer's depth
+(gpu_shaders/clear_view_*.glsl). Shadow atlases draw them too (frame/shadow_maps.py)."""
 
 from __future__ import annotations
 
@@ -36,9 +37,15 @@ class ClearView:
         self.vertex_count = len(vertices)
         self._buffer = ctx.buffer(vertices.tobytes()) if len(vertices) else None
         self._program = programs.get("clear_view_vert.glsl", "clear_view_frag.glsl")
-        self._vao = None if self._buffer is None else ctx.vertex_array(
-            self._program, [(self._buffer, "3f 3f 4f", "in_position", "in_normal",
-                             "in_transmission")])
+        self._vao = self.vertex_array(self._program)
+
+    def vertex_array(self, program: moderngl.Program) -> moderngl.VertexArray | None:
+        """A new vertex array of the clear triangles for ``program`` (in_position, in_normal,
+        in_transmission), which the caller releases; None where there are none."""
+        if self._buffer is None:
+            return None
+        return self.ctx.vertex_array(program, [(self._buffer, "3f 3f 4f", "in_position",
+                                                "in_normal", "in_transmission")])
 
     def transmittance(self, depth: moderngl.Renderbuffer, view_projection: tuple[float, ...],
                       camera: Camera) -> moderngl.Texture:

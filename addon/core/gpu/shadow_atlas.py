@@ -54,11 +54,14 @@ def tile_table(samples: LightSamples, first_tile: np.ndarray, columns: int,
 
 
 def draw_tiles(ctx: moderngl.Context, vao: moderngl.VertexArray, vertices: int,
-               tiles: int) -> None:
+               tiles: int, blended: bool = False) -> None:
     """Draw the scene once per tile (instanced), depth-tested, cut to each tile by the four
-    clip distances tiles_lib.glsl sets."""
+    clip distances tiles_lib.glsl sets; ``blended``: with the context's blending (enabled and
+    set by the caller), else without."""
     ctx.enable(moderngl.DEPTH_TEST)
-    ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+    ctx.disable(moderngl.CULL_FACE)
+    if not blended:
+        ctx.disable(moderngl.BLEND)
     for plane in range(4):
         ctx.enable_direct(GL_CLIP_DISTANCE0 + plane)
     vao.render(moderngl.TRIANGLES, vertices=vertices, instances=tiles)
