@@ -105,15 +105,13 @@ class ShadowAtlases:
         if not keeping:
             self._current_atlas = texture.glo
         s = batch.samples
-        if not s.casts_shadow.any() or (self.scene is None and layer is None):
-            if layer is not None:
-                self._draw_clear(layer, depth, None, batch, centre, radius)
-            return texture
-        table = tile_table(s, batch.first_tile, batch.columns, centre, radius)
-        tiles = table.texture(self.ctx)
-        own(tiles)
-        tiles.use(0)
-        if self.scene is not None:
+        table = None
+        if s.casts_shadow.any() and (self.scene is not None or layer is not None):
+            table = tile_table(s, batch.first_tile, batch.columns, centre, radius)
+            tiles = table.texture(self.ctx)
+            own(tiles)
+            tiles.use(0)
+        if table is not None and self.scene is not None:
             program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl")
             vao = self.ctx.vertex_array(program, self.scene.streams(normals=False))
             own(vao)
@@ -142,7 +140,8 @@ class ShadowAtlases:
             fbo.clear(1.0, 1.0, 1.0, FAR_DEPTH)
             if table is None:
                 return
-            program = self.programs.get("shadow_clear_vert.glsl", "shadow_clear_frag.glsl")
+            program = self.programs.get("shadow_vert.glsl", "shadow_clear_frag.glsl",
+                                        {"CLEAR": 1})
             vao = self.clear.vertex_array(program)
             if vao is None:
                 return
