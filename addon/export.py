@@ -725,7 +725,7 @@ class _Export:
 
     def include(self, obj: bpy.types.Object) -> bool:
         """False for geometry no ray sees; warns once per object about flags not honoured
-        (camera visibility is: ``Instance.visible_to_camera``)."""
+        (camera visibility and holdout are: ``Instance``)."""
         original = obj.original
         pointer = original.as_pointer()
         known = self.visibility.get(pointer)
@@ -737,8 +737,6 @@ class _Export:
         if include and set(off) - {"camera"}:
             unsupported.append(f"ray visibility {', '.join(o for o in off if o != 'camera')} "
                                f"off")
-        if include and original.holdout_get(view_layer=self.depsgraph.view_layer):
-            unsupported.append("holdout")
         if unsupported:
             self.result.warnings.append(
                 f"object '{original.name}': {' and '.join(unsupported)} is not supported "
@@ -746,6 +744,10 @@ class _Export:
                 f"casts shadows and reflects light)")
         self.visibility[pointer] = include
         return include
+
+    def holdout(self, obj: bpy.types.Object) -> bool:
+        """Whether the view layer renders the object as a holdout (``Instance.holdout``)."""
+        return bool(obj.original.holdout_get(view_layer=self.depsgraph.view_layer))
 
     def _key(self, inst, obj: bpy.types.Object, pointer: int) -> tuple[tuple, set[str]]:
         """The cache key of an instance's geometry and the names that invalidate it."""
@@ -865,8 +867,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         memo = (obj.original, obj.data)
         entry = placements.get(memo)
         if entry is None:
-            known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True))) \
-                if state.include(obj) else None
+            known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
+                     state.holdout(obj)) if state.include(obj) else None
             entry = placements[memo] = (known, bool(known and known[0].triangle_count))
         elif entry[0]:
             reused += 1
@@ -880,12 +882,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     depsgraph.object_instances.foreach_get("matrix_world", columns)
     matrices = columns.reshape(-1, 4, 4)[ordinals].transpose(0, 2, 1).astype(np.float64)
     problems = transform_problems(matrices)
-    for (mesh, materials, name, camera), matrix, problem in zip(placed, matrices, problems,
-                                                                strict=True):
+    for (mesh, materials, name, camera, holdout), matrix, problem in zip(
+            placed, matrices, problems, strict=True):
         if problem:
             result.warnings.append(f"object '{name}' {problem} and was skipped")
         else:
-            result.instances.append(Instance(mesh, matrix, materials, camera))
+            result.instances.append(Instance(mesh, matrix, materials, camera, holdout))
     cache._entries = state.used
     result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
                                 result.lights)

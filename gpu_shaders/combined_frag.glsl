@@ -2,7 +2,8 @@
 // algebra on the GPU, so that only pixels are read back): each pixel is the mean of its
 // u_factor² supersamples' (direct + soft + indirect) × albedo + glossy + emission, alpha the
 // surface's coverage; with BACKGROUND (a colour) or BACKGROUND_IMAGE (one per supersample)
-// the uncovered part sees the background and alpha is 1. Defines: SOFT (blurred soft direct
+// the uncovered part sees the background and alpha is 1. A holdout's supersample (the
+// g-buffer's geometric.w) is a hole: black, alpha 0, as in Cycles. Defines: SOFT (blurred soft direct
 // light), GLOSSY (each light's glossy radiance, added without the albedo), TRANSMITTANCE (what
 // clear surfaces in front let through to the camera, per supersample: gpu/clear_view.py).
 
@@ -21,6 +22,7 @@ uniform sampler2D u_soft_glossy;
 uniform sampler2D u_albedo;
 uniform sampler2D u_emission;
 uniform sampler2D u_normal;           // w: the supersample's coverage
+uniform sampler2D u_geometric;        // w: 1 on a holdout
 #if defined(BACKGROUND_IMAGE)
 uniform sampler2D u_background;
 #elif defined(BACKGROUND)
@@ -34,6 +36,7 @@ uniform int u_factor;                 // supersamples per pixel edge
 layout(location = 0) out vec4 out_combined;
 
 vec4 seen(ivec2 s) {
+    if (texelFetch(u_geometric, s, 0).w > 0.5) return vec4(0.0);
     vec4 light = texelFetch(u_direct, s, 0) + texelFetch(u_indirect, s, 0);
 #ifdef SOFT
     light += texelFetch(u_soft, s, 0);

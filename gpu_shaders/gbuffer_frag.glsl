@@ -52,7 +52,7 @@ void main() {
     float depth = -(u_view * vec4(v_world, 1.0)).z;
     out_position = vec4(v_world, depth);
     out_normal = vec4(shading, 1.0);
-    out_geometric = vec4(geometric, 1.0);
+    out_geometric = vec4(geometric, material.emission.w);  // w: a holdout (geometry.HOLDOUT)
     vec3 albedo = material.albedo.rgb;
     vec3 emission = material.emission.rgb;
 #ifdef TEXTURED

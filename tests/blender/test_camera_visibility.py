@@ -1,5 +1,6 @@
 """Objects the camera does not see (Object › Visibility › Ray Visibility › Camera off): left
-out of the camera's view, still casting shadows and reflecting light, as in Cycles."""
+out of the camera's view, still casting shadows and reflecting light, as in Cycles; and
+holdouts (the view layer's Holdout), which the camera sees as a hole (black, alpha 0)."""
 
 from __future__ import annotations
 
@@ -81,3 +82,49 @@ def test_a_wall_the_camera_does_not_see_still_lights_the_room_as_in_cycles(blend
     assert error < 0.2
     assert seen_error > 5 * error
     assert open_energy < -0.05  # the hidden wall's bounce light is there
+
+
+def test_a_holdout_is_a_hole_that_still_shadows_and_lights_as_in_cycles(blender, tmp_path):
+    """A sunlit holdout box on a grey floor under a grey sky, one bounce (Cycles 64 samples):
+    black with alpha 0 where the camera sees it, its shadow and bounce light kept. Measured
+    (bpy 4.5, llvmpipe): alpha off by 0.0011 on average (the hole 8 % of the image); colour
+    energy −0.4 %, relRMSE 2.0 %; the holdout rendered as a surface (before): relRMSE 36 %."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1.0))
+    bpy.ops.mesh.primitive_plane_add(size=30)
+    bpy.context.object.data.materials.append(grey)
+    bpy.ops.mesh.primitive_cube_add(size=1.5, location=(0, 0, 0.75))
+    box = bpy.context.object
+    box.data.materials.append(grey)
+    box.is_holdout = True
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy, sun.data.angle = 3.0, 0.0
+    sun.rotation_euler = (math.radians(40), 0.0, math.radians(30))
+    scene.collection.objects.link(sun)
+    scene.world = bpy.data.worlds.new("Sky")
+    scene.world.use_nodes = False
+    scene.world.color = (0.1, 0.1, 0.1)
+    add_camera(scene, SIZE, (0.0, -5.0, 3.0), (math.radians(60), 0.0, 0.0)).data.lens = 30
+    configure_cycles(scene, 64, bounces=1)
+    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
+    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 1, 4
+    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    box.is_holdout = False
+    surface = render_linear(scene, "VPL_GI", tmp_path / "surface.exr")
+
+    assert np.isfinite(ours).all()
+    hole = reference[..., 3] < 0.5
+    alpha_error = float(np.abs(ours[..., 3] - reference[..., 3]).mean())
+    energy, error = against(ours[..., :3], reference[..., :3])
+    surface_error = against(surface[..., :3], reference[..., :3])[1]
+    print(f"holdout vs Cycles: hole {hole.mean():.3f} of the image, alpha off by "
+          f"{alpha_error:.4f} on average; energy {energy:+.4f} relRMSE {error:.4f}; rendered "
+          f"as a surface: relRMSE {surface_error:.4f}")
+    inside = ours[..., 3] == 0.0  # pixels the holdout covers whole
+    assert 0.05 < hole.mean() < 0.5 and inside.sum() > 0.8 * hole.sum()
+    assert np.all(ours[inside, :3] == 0.0)
+    assert alpha_error < 0.02
+    assert abs(energy) < 0.03
+    assert error < 0.1
+    assert surface_error > 3 * error

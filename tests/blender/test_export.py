@@ -301,14 +301,13 @@ def test_hidden_and_excluded_objects_stay_out_and_ray_flags_are_reported(blender
     assert names == ["Floor", "Holdout", "InvisibleToCamera", "InvisibleToCamera",
                      "InvisibleToCamera", "NoShadow"]
     flagged = [w for w in warnings if "is not supported" in w]
-    assert sorted(flagged) == sorted([
+    assert flagged == [
         "object 'NoShadow': ray visibility shadow off is not supported (rendered as a "
-        "visible surface that casts shadows and reflects light)",
-        "object 'Holdout': holdout is not supported (rendered as a visible surface that casts "
-        "shadows and reflects light)"])
-    assert sorted((i.mesh.name, i.visible_to_camera) for i in exported.instances) == [
-        ("Floor", True), ("Holdout", True), *[("InvisibleToCamera", False)] * 3,
-        ("NoShadow", True)]
+        "visible surface that casts shadows and reflects light)"]
+    assert sorted((i.mesh.name, i.visible_to_camera, i.holdout)
+                  for i in exported.instances) == [
+        ("Floor", True, False), ("Holdout", True, True),
+        *[("InvisibleToCamera", False, False)] * 3, ("NoShadow", True, False)]
     assert np.isfinite(image).all()
 
 

@@ -1,6 +1,7 @@
 """The Combined pass composed on the GPU (gpu/combined.py) against Blender's pass algebra
 written out in numpy: (direct + soft + indirect) × albedo + glossy + emission, the background
-where a supersample sees no surface, the mean of each pixel's supersamples."""
+where a supersample sees no surface, nothing (alpha 0) where it sees a holdout, the mean of
+each pixel's supersamples."""
 
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ def expected(light: dict[str, np.ndarray], layers: dict[str, np.ndarray],
         rgb = rgb + (1.0 - covered) * np.broadcast_to(background, rgb.shape)
         alpha = np.ones_like(covered)
     image = np.concatenate([rgb, alpha], axis=-1)
+    image[layers["geometric"][..., 3] > 0.5] = 0.0
     h, w = image.shape[0] // FACTOR, image.shape[1] // FACTOR
     return image.reshape(h, FACTOR, w, FACTOR, 4).mean(axis=(1, 3))
 
@@ -41,8 +43,9 @@ def test_combined_matches_the_pass_algebra(programs, soft, glossy, film):
     names += [f"{n}_glossy" for n in names] if glossy else []
     light = {name: rng.uniform(0.0, 2.0, shape).astype(np.float32) for name in names}
     layers = {name: rng.uniform(0.0, 1.0, shape).astype(np.float32)
-              for name in ("albedo", "emission", "normal")}
+              for name in ("albedo", "emission", "normal", "geometric")}
     layers["normal"][..., 3] = rng.choice([0.0, 0.5, 1.0], shape[:2])  # partial coverage
+    layers["geometric"][..., 3] = rng.choice([0.0, 0.0, 1.0], shape[:2])  # holdouts
     background = {"transparent": None, "colour": np.array([0.2, 0.3, 0.4], np.float32),
                   "image": rng.uniform(0.0, 3.0, (*shape[:2], 3)).astype(np.float32)}[film]
     textures = {name: ctx.texture(shape[1::-1], 4, array.tobytes(), dtype="f4")

@@ -25,7 +25,8 @@ def combined_pass(ctx: moderngl.Context, programs: ProgramCache,
     defines: dict[str, object] = {}
     units: dict[str, moderngl.Texture] = {
         "u_direct": direct[0], "u_indirect": indirect[0], "u_albedo": gbuffer["albedo"],
-        "u_emission": gbuffer["emission"], "u_normal": gbuffer["normal"]}
+        "u_emission": gbuffer["emission"], "u_normal": gbuffer["normal"],
+        "u_geometric": gbuffer["geometric"]}
     if soft:
         defines["SOFT"] = 1
         units["u_soft"] = soft[0]

@@ -124,12 +124,14 @@ def _per_corner(values: np.ndarray, index: np.ndarray | None) -> np.ndarray:
 class Instance:
     """One placement of a mesh in the world with its resolved materials (one per slot); one
     not ``visible_to_camera`` still casts shadows and reflects light (Cycles' ray
-    visibility)."""
+    visibility), and so does a ``holdout``, which the camera sees as a hole: black, alpha 0
+    (the view layer's holdout collections and objects)."""
 
     mesh: Mesh
     matrix: Matrix4
     materials: list[Material]
     visible_to_camera: bool = True
+    holdout: bool = False
 
 
 class LightKind(StrEnum):
