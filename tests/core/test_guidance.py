@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from addon.core.scene.geometry import flatten_instances
 from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.scene.vectors import unit
 from addon.core.settings import Settings
@@ -15,6 +16,7 @@ from addon.core.transport.guidance import (
     UNLIT_SHARE,
     CameraPoints,
     acceptance,
+    camera_points,
     contributions,
     guide,
     least_acceptance,
@@ -23,7 +25,14 @@ from addon.core.transport.guidance import (
 )
 from addon.core.transport.vpl import LUMINANCE, VPLs
 from devtools import metrics
-from tests.core.builders import floor_scene, light, quad, rotation_x, translation
+from tests.core.builders import (
+    floor_scene,
+    light,
+    quad,
+    rotation_x,
+    top_down_camera,
+    translation,
+)
 
 BASE = Settings(antialiasing=1, bounces=1, vpl_count=256, visibility="exact", interleave=1,
                 clamp_distance=0.02)
@@ -190,3 +199,19 @@ def test_the_decision_costs_a_small_probe_not_a_round_of_candidates(renderer, mo
     _, stats = renderer.render(mostly_wasted_scene(), settings)
     assert "vpl guidance" not in stats.skipped and stats.counts["vpls_in_view_pct"] >= 50
     assert traced == [vpl_stage.DECISION_PATHS, settings.guidance_candidates * 512]
+
+
+def test_camera_points_go_through_hidden_objects_and_stop_at_holdouts(tracer) -> None:
+    """Over the floor's left half a panel the camera does not see, over its right half a
+    holdout: the points guiding VPLs lie on the floor on the left and nowhere on the right
+    (the camera sees a hole there, whatever lights it)."""
+    panel = Instance(quad(1.5, 3, 1.0), translation(-1.5, 0, 0), [Material("panel")],
+                     visible_to_camera=False)
+    hole = Instance(quad(1.5, 3, 1.0), translation(1.5, 0, 0), [Material("hole")], holdout=True)
+    scene = floor_scene([], extra=[panel, hole])
+    geometry = flatten_instances(scene, [])
+    tracer.upload(geometry.positions.reshape(-1, 3, 3))
+    points = camera_points(top_down_camera(), geometry, tracer, 256, 0)
+    x, z = points.position[:, 0], points.position[:, 2]
+    assert np.all(x < 0.0) and np.abs(z).max() < 1e-5
+    assert 100 < len(x) < 156  # the left half of 256 rays

@@ -104,6 +104,11 @@ class WorldGeometry:
         """(T,) bool: triangles of instances the camera does not see."""
         return self.materials[self.triangle_material, HIDDEN] > 0.5
 
+    @cached_property
+    def holdout(self) -> np.ndarray:
+        """(T,) bool: triangles of holdout instances (the camera sees a hole there)."""
+        return self.materials[self.triangle_material, HOLDOUT] > 0.5
+
     def _per_triangle(self, column: int) -> np.ndarray:
         rows = np.ascontiguousarray(self.materials[:, column:column + 3]).view("V12")[:, 0]
         return np.take(rows, self.triangle_material).view(np.float32).reshape(-1, 3)

@@ -63,7 +63,8 @@ class Guidance:
 def _first_seen(origin: np.ndarray, direction: np.ndarray, geometry: WorldGeometry,
                 tracer: RayCaster) -> tuple[np.ndarray, np.ndarray]:
     """Distance and triangle (-1: none) of the first surface each camera ray sees: rays go
-    on through objects the camera does not see (up to HIDDEN_LAYERS of them)."""
+    on through objects the camera does not see (up to HIDDEN_LAYERS of them) and see nothing
+    where they meet a holdout (its light is not in the image)."""
     hits = tracer.intersect(origin, direction, 0.0, np.inf)
     distance, triangle = hits.distance.copy(), hits.triangle.copy()
     hidden = geometry.camera_hidden
@@ -71,11 +72,11 @@ def _first_seen(origin: np.ndarray, direction: np.ndarray, geometry: WorldGeomet
         again = np.flatnonzero(triangle >= 0)
         again = again[hidden[triangle[again]]]
         if len(again) == 0:
-            return distance, triangle
+            break
         beyond = tracer.intersect(origin[again], direction[again], distance[again], np.inf)
         distance[again], triangle[again] = beyond.distance, beyond.triangle
-    seen = triangle >= 0
-    triangle[np.flatnonzero(seen)[hidden[triangle[seen]]]] = -1
+    seen = np.flatnonzero(triangle >= 0)
+    triangle[seen[hidden[triangle[seen]] | geometry.holdout[triangle[seen]]]] = -1
     return distance, triangle
 
 
