@@ -17,7 +17,5 @@ layout(location = 0) out vec4 out_transmittance;
 void main() {
     vec3 view = u_orthographic ? u_camera_forward : v_world - u_camera_position;
     float cos_i = abs(dot(v_normal, view)) / max(length(view), 1.0e-30);
-    vec3 colour = v_transmission.rgb;
-    if (v_transmission.a > 0.0) colour *= 1.0 - fresnel_dielectric(cos_i, v_transmission.a);
-    out_transmittance = vec4(colour, 1.0);
+    out_transmittance = vec4(clear_crossing(v_transmission.rgb, v_transmission.a, cos_i), 1.0);
 }

@@ -106,13 +106,13 @@ bool rt_hit_triangle(RtRay ray, RtTriangle tri, float t_min, float t_max, out fl
     return t > t_min && t < t_max;
 }
 
-// The light a clear triangle lets through along `dir`.
+// The light a clear triangle lets through along `dir` (fresnel_lib.glsl's clear_crossing).
 vec3 rt_clear_transmittance(RtTriangle tri, vec3 dir) {
     vec3 colour = unpackUnorm4x8(tri.clear).rgb;
     if (tri.ior <= 0.0) return colour;
     vec3 n = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     float cos_i = abs(dot(n, dir)) / max(length(n) * length(dir), 1.0e-30);
-    return colour * (1.0 - fresnel_dielectric(cos_i, tri.ior));
+    return clear_crossing(colour, tri.ior, cos_i);
 }
 
 #define RT_CLOSEST 0

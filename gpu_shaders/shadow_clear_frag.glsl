@@ -19,8 +19,7 @@ out vec4 out_clear;
 void main() {
     vec3 dir = v_face >= 0 ? v_world - v_origin : v_origin;
     float cos_i = abs(dot(v_normal, dir)) / max(length(dir), 1.0e-30);
-    vec3 colour = v_transmission.rgb;
-    if (v_transmission.a > 0.0) colour *= 1.0 - fresnel_dielectric(cos_i, v_transmission.a);
+    vec3 colour = clear_crossing(v_transmission.rgb, v_transmission.a, cos_i);
     float distance = v_face >= 0 ? length(v_world - v_origin)
                                  : directional_depth(v_world, v_origin, u_scene_centre,
                                                      u_scene_radius);
