@@ -81,3 +81,23 @@ def test_shadow_mapped_light_through_a_tinted_pane_is_tinted(renderer, kind, sha
     np.testing.assert_allclose(glazed.passes["DiffDir"][..., :3],
                                open_frame.passes["DiffDir"][..., :3] * tint, rtol=1e-5,
                                atol=1e-6)
+
+
+def test_blender_s_pass_algebra_holds_through_a_pane(renderer):
+    """Seen through a tinted pane, Combined = (DiffDir + DiffInd) × DiffCol + Emit still holds:
+    DiffCol and Emit carry the pane's colour and the light passes do not, as Cycles writes
+    them (compose.SEEN_THROUGH; the sun's light through the pane is tinted by it once)."""
+    tint = np.array([1.0, 0.6, 0.2])
+    sun = light(LightKind.SUN, rotation_x(0.3), power=3.0)
+    floor = Instance(quad(5, 5), np.eye(4), [Material("floor", (0.8, 0.8, 0.8), (0.1, 0.1, 0.1))])
+    pane = Instance(quad(8, 8, 2.5), np.eye(4),
+                    [Material("tint", (0, 0, 0), transmission=tuple(tint))])
+    scene = Scene([floor, pane], [sun], World(), top_down_camera())
+    frame, _ = renderer.render(scene, Settings(bounces=1, antialiasing=2, vpl_count=64))
+    p = frame.passes
+    np.testing.assert_allclose(p["DiffCol"], np.broadcast_to(0.8 * tint, p["DiffCol"].shape),
+                               rtol=1e-5)
+    np.testing.assert_allclose(p["Emit"], np.broadcast_to(0.1 * tint, p["Emit"].shape),
+                               rtol=1e-5)
+    rebuilt = (p["DiffDir"] + p["DiffInd"]) * p["DiffCol"] + p["Emit"]
+    np.testing.assert_allclose(p["Combined"][..., :3], rebuilt, rtol=1e-4, atol=1e-6)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from addon.core.frame.compose import BACKGROUND_DEPTH, compose
+from addon.core.frame.compose import BACKGROUND_DEPTH, SEEN_THROUGH, compose
 from addon.core.frame.result import PASS_CHANNELS
 
 AA, H, W = 2, 4, 6  # a 4×6 supersampled tile: 2×3 pixels
@@ -14,7 +14,8 @@ def tile_gbuffer() -> dict[str, np.ndarray]:
     """A g-buffer whose upper supersample rows are covered, at depth 2 + x."""
     rng = np.random.default_rng(7)
     gbuffer = {name: rng.random((H, W, 4), dtype=np.float32)
-               for name in ("normal", "albedo", "emission", "position")}
+               for name in ("normal", "albedo", "emission", "position", "geometric")}
+    gbuffer["geometric"][..., 3] = 0.0  # no holdouts
     gbuffer["normal"][..., 3] = 0.0
     gbuffer["normal"][:2, :, 3] = 1.0
     gbuffer["position"][..., 3] = 2.0 + np.arange(W, dtype=np.float32)
@@ -55,3 +56,25 @@ def test_light_passes_read_the_light_back_once():
     np.testing.assert_allclose(output["DiffInd"][0, 0], 1.0)  # 4 / AA²
     np.testing.assert_allclose(output["DiffInd"][1:, 1:], 0.0)
     np.testing.assert_allclose(output["GlossCol"], 0.0)  # no glossy channels: zero
+
+
+def test_through_clear_surfaces_colour_passes_are_dimmed_and_holdouts_get_nothing():
+    """As Cycles writes them (measured, bpy 4.5): through a tinted Transparent BSDF DiffCol and
+    Emit carry the tint and DiffDir does not; on a holdout every pass is empty, Depth the
+    background's."""
+    light = np.full((H, W, 4), 0.5, np.float32), np.zeros((H, W, 4), np.float32)
+    tint = np.array([1.0, 0.5, 0.25, 1.0], np.float32)
+    gbuffer = tile_gbuffer()
+    gbuffer["albedo"][..., :3] = gbuffer["emission"][..., :3] = 0.8
+    gbuffer["geometric"][0:2, 4:6, 3] = 1.0  # the top right pixel: a holdout
+    output = empty_output()
+    passes = frozenset({"DiffCol", "Emit", "DiffDir", "Normal", "Depth"})
+    assert {"DiffCol", "Emit"} <= SEEN_THROUGH and "DiffDir" not in SEEN_THROUGH
+    compose(output, gbuffer, lambda: light, AA, 0, 0, passes,
+            lambda: np.broadcast_to(tint, (H, W, 4)), holdouts=True)
+    for name in ("DiffCol", "Emit"):
+        np.testing.assert_allclose(output[name][0, :2], [[0.8, 0.4, 0.2]] * 2, rtol=1e-6)
+    np.testing.assert_allclose(output["DiffDir"][0, :2], 0.5)
+    for name in passes - {"Depth"}:
+        np.testing.assert_allclose(output[name][0, 2], 0.0, err_msg=name)
+    np.testing.assert_allclose(output["Depth"][0, :, 0], [2.0, 4.0, BACKGROUND_DEPTH])

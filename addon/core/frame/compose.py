@@ -13,6 +13,10 @@ BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
 COMPOSED_PASSES = frozenset({"DiffDir", "DiffInd", "DiffCol", "Emit", "Normal", "GlossDir",
                              "GlossInd", "GlossCol", "Depth"})
 """The passes ``compose`` writes from the supersamples read back."""
+SEEN_THROUGH = frozenset({"DiffCol", "GlossCol", "Emit"})
+"""The passes clear surfaces in front dim, as Cycles writes them (measured, 4.5: through a
+tinted Transparent BSDF the colour passes and Emit carry the tint, the light passes, which
+are light over colour, do not)."""
 
 
 def downsample(image: np.ndarray, factor: int) -> np.ndarray:
@@ -52,13 +56,21 @@ def _per_colour(radiance: np.ndarray, color: np.ndarray) -> np.ndarray:
 
 def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
             read_light: Callable[[], tuple[np.ndarray, np.ndarray]], aa: int, x0: int, y0: int,
-            passes: frozenset[str]) -> None:
+            passes: frozenset[str], read_transmittance: Callable[[], np.ndarray] | None = None,
+            holdouts: bool = False) -> None:
     """Write one supersampled tile's ``passes`` (of COMPOSED_PASSES; Combined is composed on
     the GPU, gpu/combined.py) into ``output`` at output resolution. ``read_light`` returns
     the direct and indirect light, (h, w, 4) diffuse or (h, w, 8) with glossy radiance in
     channels 4-6; it is called once, and only where a light pass or GlossCol is asked for (the
-    others come from the g-buffer alone)."""
+    others come from the g-buffer alone). ``read_transmittance``: what clear surfaces in
+    front let through to each supersample (h, w, 4), which dims SEEN_THROUGH; with
+    ``holdouts``, the supersamples of holdouts (the g-buffer's geometric.w) get nothing, as
+    the background does (Cycles writes no pass there)."""
     covered = gbuffer["normal"][..., 3:4]
+    if holdouts:
+        covered = covered * (gbuffer["geometric"][..., 3:4] <= 0.5)
+    seen = read_transmittance()[..., :3] if read_transmittance is not None \
+        and passes & SEEN_THROUGH else None
     h, w = covered.shape[0] // aa, covered.shape[1] // aa
     region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
     light = cache(read_light)
@@ -73,7 +85,12 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
               "GlossCol": lambda: glossy()[0]}
     for name, image in images.items():
         if name in passes:
-            output[name][region] = downsample(image(), aa)
+            values = image()
+            if seen is not None and name in SEEN_THROUGH:
+                values = values * seen
+            if holdouts:
+                values = values * (covered > 0)
+            output[name][region] = downsample(values, aa)
     if "Depth" in passes:
         depth = np.where(covered > 0, gbuffer["position"][..., 3:4], BACKGROUND_DEPTH)
         output["Depth"][region] = depth.reshape(h, aa, w, aa, 1).min(axis=(1, 3))

@@ -350,8 +350,10 @@ class ComposeStage(TileStage):
             frame.output["Combined"][y0:y0 + h, x0:x0 + w] = combined
             others = frame.plan.passes - {"Combined"}
             if others & COMPOSED_PASSES:
+                through = None if work.transmittance is None else \
+                    partial(read_textures, [work.transmittance])
                 compose(frame.output, work.gbuffer.images, partial(read_light, work), aa,
-                        tile.x0, tile.y0, others)
+                        tile.x0, tile.y0, others, through, bool(frame.geometry.holdout.any()))
 
 
 def read_light(work: TileWork) -> tuple[np.ndarray, np.ndarray]:
