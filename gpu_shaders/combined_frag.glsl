@@ -60,7 +60,16 @@ vec4 seen(ivec2 s) {
 
 vec4 supersample(ivec2 s) {
 #ifdef TRANSMITTANCE
-    return seen(s) * vec4(texelFetch(u_transmittance, s, 0).rgb, 1.0);
+    vec3 through = texelFetch(u_transmittance, s, 0).rgb;
+    vec4 c = seen(s) * vec4(through, 1.0);
+#if !defined(BACKGROUND) && !defined(BACKGROUND_IMAGE)
+    // a transparent film: clear surfaces in front of the background are as opaque as they
+    // dim it (Cycles: alpha 1 - the mean of what they let through)
+    if (texelFetch(u_geometric, s, 0).w <= 0.5) {
+        c.a += (1.0 - c.a) * (1.0 - (through.r + through.g + through.b) / 3.0);
+    }
+#endif
+    return c;
 #else
     return seen(s);
 #endif

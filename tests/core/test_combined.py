@@ -63,3 +63,29 @@ def test_combined_matches_the_pass_algebra(programs, soft, glossy, film):
     assert result.shape == (PIXELS[1], PIXELS[0], 4)
     np.testing.assert_allclose(result, expected(light, layers, background), rtol=1e-5,
                                atol=1e-6)
+
+
+def test_a_transparent_film_seen_through_a_tinted_pane_is_as_opaque_as_the_pane_dims(programs):
+    """Cycles (measured, bpy 4.5): the background through a (1, 0.5, 0.25) Transparent BSDF
+    pane on a transparent film has alpha 1 − their mean, 0.417; a surface behind it alpha 1,
+    a holdout behind it 0."""
+    ctx = programs.ctx
+    shape = (PIXELS[1] * FACTOR, PIXELS[0] * FACTOR, 4)
+    zero = np.zeros(shape, np.float32)
+    layers = {"albedo": zero, "emission": zero, "normal": zero.copy(), "geometric": zero.copy()}
+    layers["normal"][:, :FACTOR, 3] = 1.0  # the first column of pixels: a surface
+    layers["geometric"][:, FACTOR:2 * FACTOR, 3] = 1.0  # the second: a holdout
+    through = np.broadcast_to(np.array([1.0, 0.5, 0.25, 1.0], np.float32), shape)
+    arrays = {"direct": zero, "indirect": zero, "through": np.ascontiguousarray(through),
+              **layers}
+    textures = {name: ctx.texture(shape[1::-1], 4, array.tobytes(), dtype="f4")
+                for name, array in arrays.items()}
+    try:
+        result = combined_pass(ctx, programs, [textures["direct"]], [textures["indirect"]], [],
+                               textures, None, FACTOR, textures["through"])
+    finally:
+        for texture in textures.values():
+            texture.release()
+    np.testing.assert_allclose(result[:, 0, 3], 1.0)
+    np.testing.assert_allclose(result[:, 1, 3], 0.0)
+    np.testing.assert_allclose(result[:, 2:, 3], 1.0 - 1.75 / 3, rtol=1e-6)
