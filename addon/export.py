@@ -724,8 +724,8 @@ class _Export:
         self.bake_resolution = bake.settings_of(depsgraph.scene)[0]
 
     def include(self, obj: bpy.types.Object) -> bool:
-        """False for geometry no ray sees; warns once per object about flags not honoured
-        (camera visibility and holdout are: ``Instance``)."""
+        """False for geometry no ray sees; warns once per object about Diffuse visibility off,
+        which is not honoured (camera and shadow visibility and holdout are: ``Instance``)."""
         original = obj.original
         pointer = original.as_pointer()
         known = self.visibility.get(pointer)
@@ -733,15 +733,12 @@ class _Export:
             return known
         off = [label for flag, label in RAY_FLAGS.items() if not getattr(obj, flag, True)]
         include = len(off) < len(RAY_FLAGS)
-        unsupported = []
-        if include and set(off) - {"camera"}:
-            unsupported.append(f"ray visibility {', '.join(o for o in off if o != 'camera')} "
-                               f"off")
-        if unsupported:
+        if include and "diffuse" in off:
+            shadows = "" if "shadow" in off else "casts shadows and "
             self.result.warnings.append(
-                f"object '{original.name}': {' and '.join(unsupported)} is not supported "
+                f"object '{original.name}': ray visibility diffuse off is not supported "
                 f"(rendered as a {'hidden' if 'camera' in off else 'visible'} surface that "
-                f"casts shadows and reflects light)")
+                f"{shadows}reflects light)")
         self.visibility[pointer] = include
         return include
 
@@ -868,7 +865,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         entry = placements.get(memo)
         if entry is None:
             known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
-                     state.holdout(obj)) if state.include(obj) else None
+                     state.holdout(obj), bool(getattr(obj, "visible_shadow", True))) \
+                if state.include(obj) else None
             entry = placements[memo] = (known, bool(known and known[0].triangle_count))
         elif entry[0]:
             reused += 1
@@ -882,12 +880,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     depsgraph.object_instances.foreach_get("matrix_world", columns)
     matrices = columns.reshape(-1, 4, 4)[ordinals].transpose(0, 2, 1).astype(np.float64)
     problems = transform_problems(matrices)
-    for (mesh, materials, name, camera, holdout), matrix, problem in zip(
-            placed, matrices, problems, strict=True):
+    for (mesh, materials, name, *flags), matrix, problem in zip(placed, matrices, problems,
+                                                                strict=True):
         if problem:
             result.warnings.append(f"object '{name}' {problem} and was skipped")
         else:
-            result.instances.append(Instance(mesh, matrix, materials, camera, holdout))
+            result.instances.append(Instance(mesh, matrix, materials, *flags))
     cache._entries = state.used
     result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
                                 result.lights)

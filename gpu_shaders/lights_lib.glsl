@@ -289,18 +289,20 @@ const float SHADOW_RAY_NORMAL_SHARE = 0.1;
 
 // One ray: the light let through on the segment from `world` to the sample (or along its
 // direction): 1 where nothing is in the way, 0 where something opaque is, clear surfaces'
-// colour and Fresnel loss between.
+// colour and Fresnel loss between. A light's sample casts a shadow ray (shadowless objects let
+// it through, as Cycles' shadow rays); a VPL's is a diffuse path's segment.
 vec3 traced_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     vec3 origin = world + geometric_normal * (u_ray_offset * SHADOW_RAY_NORMAL_SHARE);
     float t_min = u_ray_offset;
+    int flags = s.generation == 0 ? RT_SHADOW : 0;
     if (s.kind == KIND_DIRECTIONAL) {
-        return rt_transmittance(origin, -s.axis, t_min, 3.0e38);
+        return rt_transmittance(origin, -s.axis, t_min, 3.0e38, flags);
     }
     vec3 to_light = s.position - origin;
     float distance = length(to_light);
     float t_max = distance * (1.0 - 1e-4) - u_ray_offset;
     if (t_max <= t_min) return vec3(1.0);
-    return rt_transmittance(origin, to_light / distance, t_min, t_max);
+    return rt_transmittance(origin, to_light / distance, t_min, t_max, flags);
 }
 
 #ifdef HINTS_ONLY

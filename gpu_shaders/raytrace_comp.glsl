@@ -29,20 +29,30 @@ layout(std430, binding = RT_BINDING_RESULTS) writeonly buffer RtHits { RtHit rt_
 #endif
 
 uniform uint rt_ray_count;
+uniform int rt_flags;  // 0, or RT_SHADOW for shadow rays (shadowless triangles let them through)
 #if !RT_ANY_HIT
-uniform bool rt_has_clear;  // the scene has clear triangles (else the transmittance is 1)
+uniform bool rt_has_clear;  // the scene has clear or shadowless triangles (else the
+                            // transmittance is 1)
 #endif
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= rt_ray_count) return;
     RtQuery q = rt_queries[i];
+    vec3 unused = vec3(1.0);
 #if RT_ANY_HIT
-    rt_occluded_out[i] = rt_occluded(q.origin, q.dir, q.t_min, q.t_max) ? 1 : 0;
+    float t;
+    int triangle;
+    vec2 uv;
+    bool hit = rt_trace(q.origin, q.dir, q.t_min, q.t_max, RT_ANY | rt_flags, t, triangle, uv,
+                        unused);
+    rt_occluded_out[i] = hit ? 1 : 0;
 #else
     RtHit hit;
-    rt_closest_hit(q.origin, q.dir, q.t_min, q.t_max, hit.t, hit.triangle, hit.uv);
-    hit.transmittance = vec4(rt_has_clear ? rt_transmittance(q.origin, q.dir, q.t_min, hit.t)
+    rt_trace(q.origin, q.dir, q.t_min, q.t_max, RT_CLOSEST | rt_flags, hit.t, hit.triangle, hit.uv,
+             unused);
+    hit.transmittance = vec4(rt_has_clear ? rt_transmittance(q.origin, q.dir, q.t_min, hit.t,
+                                                             rt_flags)
                                           : vec3(1.0), 1.0);
     rt_hits[i] = hit;
 #endif

@@ -28,8 +28,10 @@ struct RtNode {
 };
 
 // Vertices in leaf order and `id`, the triangle's index in the caller's original list. A clear
-// triangle (clear != 0: packUnorm4x8 of the colour it lets through, alpha 1) is never hit;
-// rt_transmittance dims rays crossing it by its colour and, with ior > 0, the Fresnel loss.
+// triangle (clear: packUnorm4x8 of the colour it lets through, alpha 1) is never hit;
+// rt_transmittance dims rays crossing it by its colour and, with ior > 0, the Fresnel loss. A
+// shadowless one (clear = RT_SHADOWLESS, alpha 0: an object whose Shadow ray visibility is
+// off) is opaque to every ray but shadow rays (RT_SHADOW).
 struct RtTriangle {
     vec3 v0;
     int id;
@@ -118,12 +120,16 @@ vec3 rt_clear_transmittance(RtTriangle tri, vec3 dir) {
 #define RT_CLOSEST 0
 #define RT_ANY 1
 #define RT_TRANSMIT 2
+#define RT_SHADOW 4  // or'ed into a mode: a shadow ray, which shadowless triangles let through
+#define RT_SHADOWLESS 1u  // RtTriangle.clear of a shadowless triangle
 
 // Nearest-child-first stack traversal of the opaque triangles. RT_ANY returns at the first hit
 // in range; RT_TRANSMIT multiplies `transmittance` by every clear triangle in range and sets it
-// to 0 at the first opaque hit.
-bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int mode, out float t,
+// to 0 at the first opaque hit; with RT_SHADOW or'ed in, shadowless triangles are not hit.
+bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int flags, out float t,
               out int triangle, out vec2 uv, inout vec3 transmittance) {
+    int mode = flags & 3;
+    bool shadow = (flags & RT_SHADOW) != 0;
     t = t_max;
     triangle = -1;
     uv = vec2(0.0);
@@ -160,12 +166,17 @@ bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int mode, out flo
                 float t_hit;
                 vec2 uv_hit;
                 if (rt_hit_triangle(ray, rt_triangles[i], t_min, t, t_hit, uv_hit)) {
-                    if (rt_triangles[i].clear != 0u) {  // rare: checked on hits only
-                        if (mode == RT_TRANSMIT) {
-                            transmittance *= rt_clear_transmittance(rt_triangles[i], dir);
-                            if (transmittance == vec3(0.0)) return true;
+                    uint code = rt_triangles[i].clear;
+                    if (code != 0u) {  // rare: checked on hits only
+                        if (code == RT_SHADOWLESS) {
+                            if (shadow) continue;
+                        } else {
+                            if (mode == RT_TRANSMIT) {
+                                transmittance *= rt_clear_transmittance(rt_triangles[i], dir);
+                                if (transmittance == vec3(0.0)) return true;
+                            }
+                            continue;
                         }
-                        continue;
                     }
                     if (mode == RT_TRANSMIT) {
                         transmittance = vec3(0.0);
@@ -205,13 +216,13 @@ bool rt_occluded(vec3 origin, vec3 dir, float t_min, float t_max) {
 }
 
 // The light let through from t_min to t_max: 0 where anything opaque is in the way, else the
-// product of the clear triangles' transmittance.
-vec3 rt_transmittance(vec3 origin, vec3 dir, float t_min, float t_max) {
+// product of the clear triangles' transmittance; `flags`: 0 or RT_SHADOW.
+vec3 rt_transmittance(vec3 origin, vec3 dir, float t_min, float t_max, int flags) {
     float t;
     int triangle;
     vec2 uv;
     vec3 transmittance = vec3(1.0);
-    rt_trace(origin, dir, t_min, t_max, RT_TRANSMIT, t, triangle, uv, transmittance);
+    rt_trace(origin, dir, t_min, t_max, RT_TRANSMIT | flags, t, triangle, uv, transmittance);
     return transmittance;
 }
 #endif

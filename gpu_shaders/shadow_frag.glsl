@@ -1,5 +1,10 @@
-// Stores the occluder's distance: radial from the light (cube faces) or along the axis.
+// Stores the occluder's distance: radial from the light (cube faces) or along the axis. With
+// SHADOWLESS, triangles of objects that cast no shadow (geometry.SHADOWLESS) are left out.
 #include "common_lib.glsl"
+#ifdef SHADOWLESS
+#include "materials_lib.glsl"
+flat in int v_triangle;
+#endif
 
 in vec3 v_world;
 flat in vec3 v_origin;
@@ -11,6 +16,9 @@ uniform float u_scene_radius;
 out float out_distance;
 
 void main() {
+#ifdef SHADOWLESS
+    if (material_of(v_triangle).texture.w > 0.5) discard;
+#endif
     out_distance = v_face >= 0 ? length(v_world - v_origin)
                                : directional_depth(v_world, v_origin, u_scene_centre,
                                                    u_scene_radius);

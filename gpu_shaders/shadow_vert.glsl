@@ -1,6 +1,7 @@
 // Shadow-map rendering: every atlas tile (a cube face or a directional map) in one instanced
 // draw (see tiles_lib.glsl). With CLEAR, the clear triangles for an atlas's clear layer
-// (shadow_clear_frag.glsl), with their normals and the light they let through.
+// (shadow_clear_frag.glsl), with their normals and the light they let through; with
+// SHADOWLESS, the triangle index for shadow_frag.glsl.
 #include "tiles_lib.glsl"
 
 in vec3 in_position;
@@ -9,6 +10,9 @@ out vec3 v_world;
 flat out vec3 v_origin;
 flat out int v_face;
 
+#ifdef SHADOWLESS
+flat out int v_triangle;
+#endif
 #ifdef CLEAR
 in vec3 in_normal;          // the triangle's unit normal
 in vec4 in_transmission;    // colour let through, Fresnel IOR (0: no Fresnel loss)
@@ -19,6 +23,9 @@ flat out vec4 v_transmission;
 void main() {
     gl_Position = atlas_tile_position(in_position, gl_InstanceID, v_origin, v_face);
     v_world = in_position;
+#ifdef SHADOWLESS
+    v_triangle = gl_VertexID / 3;  // instanced draws do not reset it
+#endif
 #ifdef CLEAR
     v_normal = in_normal;
     v_transmission = in_transmission;

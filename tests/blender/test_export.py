@@ -285,6 +285,7 @@ def test_hidden_and_excluded_objects_stay_out_and_ray_flags_are_reported(blender
     ghost = add_plane(bpy, "Ghost", 1.0, z=0.7)
     ghost.visible_camera = ghost.visible_diffuse = ghost.visible_shadow = False
     add_plane(bpy, "NoShadow", 0.5, z=0.8, x=1.0).visible_shadow = False
+    add_plane(bpy, "NoDiffuse", 0.5, z=0.8, x=2.0).visible_diffuse = False
     holdout = add_plane(bpy, "Holdout", 0.5, z=0.8, x=-1.0)
     holdout.is_holdout = True
     parts = bpy.data.collections.new("Parts")
@@ -299,15 +300,15 @@ def test_hidden_and_excluded_objects_stay_out_and_ray_flags_are_reported(blender
     image, exported, warnings = engine_export(scene, tmp_path / "visibility.exr")
     names = sorted(i.mesh.name for i in exported.instances)
     assert names == ["Floor", "Holdout", "InvisibleToCamera", "InvisibleToCamera",
-                     "InvisibleToCamera", "NoShadow"]
+                     "InvisibleToCamera", "NoDiffuse", "NoShadow"]
     flagged = [w for w in warnings if "is not supported" in w]
     assert flagged == [
-        "object 'NoShadow': ray visibility shadow off is not supported (rendered as a "
+        "object 'NoDiffuse': ray visibility diffuse off is not supported (rendered as a "
         "visible surface that casts shadows and reflects light)"]
-    assert sorted((i.mesh.name, i.visible_to_camera, i.holdout)
-                  for i in exported.instances) == [
-        ("Floor", True, False), ("Holdout", True, True),
-        *[("InvisibleToCamera", False, False)] * 3, ("NoShadow", True, False)]
+    assert sorted((i.mesh.name, *i.flags) for i in exported.instances) == [
+        ("Floor", True, False, True), ("Holdout", True, True, True),
+        *[("InvisibleToCamera", False, False, True)] * 3, ("NoDiffuse", True, False, True),
+        ("NoShadow", True, False, False)]
     assert np.isfinite(image).all()
 
 

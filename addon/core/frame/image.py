@@ -393,7 +393,8 @@ class RenderImage(Stage):
             clear = scope.own(ClearView(ctx, self.gpu.programs, geometry.clear_triangles,
                                         geometry.clear_transmission)) \
                 if len(geometry.clear_triangles) else None
-            atlases = ShadowAtlases(ctx, self.gpu.programs, scene, kept, clear)
+            atlases = ShadowAtlases(ctx, self.gpu.programs, scene, kept, clear,
+                                    bool(geometry.shadowless.any()))
             maps = FrameMaps(atlases, frame.ism_maps, frame.centre, frame.radius,
                              reuse_atlas=len(frame.light_passes) == 1)
             data = FrameGpu(scene, shapes, textures, maps, clear)

@@ -38,9 +38,9 @@ def _texture_state(geometry: WorldGeometry) -> tuple[np.ndarray, ...]:
 
 
 class SceneVersions:
-    """Versions of the frame's geometry: ``shape`` changes when triangle positions or clear
-    triangles do (the BVH and imperfect shadow maps read them), ``geometry`` when those,
-    materials or textures do (VPLs read all)."""
+    """Versions of the frame's geometry: ``shape`` changes when triangle positions, clear
+    triangles or the triangles that cast no shadow do (the BVH and shadow maps read them),
+    ``geometry`` when those, materials or textures do (VPLs read all)."""
 
     def __init__(self) -> None:
         self.shape = 0
@@ -50,11 +50,12 @@ class SceneVersions:
     def note(self, geometry: WorldGeometry) -> None:
         """Compare this frame's geometry with the last one's and bump the versions."""
         arrays = (geometry.positions, geometry.clear_triangles, geometry.clear_transmission,
-                  geometry.albedo, geometry.emission, *_texture_state(geometry))
+                  geometry.shadowless, geometry.albedo, geometry.emission,
+                  *_texture_state(geometry))
         before = self._arrays
         same = [k < len(before) and a.shape == before[k].shape and np.array_equal(a, before[k])
                 for k, a in enumerate(arrays)]
-        if not all(same[:3]):
+        if not all(same[:4]):
             self.shape += 1
         if not all(same) or len(before) != len(arrays):
             self._arrays = tuple(a.copy() for a in arrays)

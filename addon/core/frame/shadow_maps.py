@@ -46,16 +46,19 @@ class KeptAtlases:
 class ShadowAtlases:
     """Renders batches' shadow atlases for one frame; the current atlas lives until the next
     one is rendered or ``release`` (kept atlases belong to KeptAtlases). With ``clear``
-    surfaces each atlas has a clear layer (``clear_atlas``)."""
+    surfaces each atlas has a clear layer (``clear_atlas``); with ``shadowless`` triangles
+    (objects that cast no shadow) the atlases of lights leave them out, those of VPLs keep
+    them (their light comes along diffuse paths, which such objects block)."""
 
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache,
                  scene: SceneBuffers | None, kept: KeptAtlases,
-                 clear: ClearView | None = None) -> None:
+                 clear: ClearView | None = None, shadowless: bool = False) -> None:
         self.ctx = ctx
         self.programs = programs
         self.scene = scene
         self.kept = kept
         self.clear = clear
+        self.shadowless = shadowless
         self._current = GpuScope()
         self._last: tuple[moderngl.Texture, Batch] | None = None
         self._placeholder: moderngl.Texture | None = None
@@ -112,9 +115,13 @@ class ShadowAtlases:
             own(tiles)
             tiles.use(0)
         if table is not None and self.scene is not None:
-            program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl")
+            lights = self.shadowless and not s.generation.any()
+            program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl",
+                                        {"SHADOWLESS": 1} if lights else {})
             vao = self.ctx.vertex_array(program, self.scene.streams(normals=False))
             own(vao)
+            if lights:
+                self.scene.bind_materials(program)
             set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
                          u_scene_centre=tuple(centre), u_scene_radius=radius)
             draw_tiles(self.ctx, vao, self.scene.vertex_count, len(table.rows))

@@ -27,6 +27,8 @@ BINDING_RAYS = 12  # RT_BINDING_RAYS in raytrace_comp.glsl
 BINDING_RESULTS = 13  # RT_BINDING_RESULTS in raytrace_comp.glsl
 LOCAL_SIZE = 64  # local_size_x of raytrace_comp.glsl
 MAX_BATCH = 1 << 20  # rays per dispatch
+RT_SHADOW = 4  # raytrace_lib.glsl: a shadow ray, which shadowless triangles let through
+SHADOWLESS = 1  # RT_SHADOWLESS: RtTriangle.clear of a shadowless triangle
 
 TRIANGLE_DTYPE = np.dtype([("v0", "<f4", 3), ("id", "<i4"), ("v1", "<f4", 3), ("clear", "<u4"),
                            ("v2", "<f4", 3), ("ior", "<f4")])
@@ -81,20 +83,27 @@ class RayTracer:
 
     def upload(self, triangles: np.ndarray, leaf_size: int = 4,
                instanced: np.ndarray | tuple = (), clear: np.ndarray | None = None,
-               transmission: np.ndarray | None = None) -> None:
+               transmission: np.ndarray | None = None,
+               shadowless: np.ndarray | None = None) -> None:
         """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene.
         ``instanced`` rows (first triangle, instances, triangles each) mark runs of one mesh's
         copies, whose tree is built once (``instanced_bvh``). ``clear`` triangles (C, 3, 3)
         let rays through, each with its ``transmission`` row (colour, Fresnel IOR or 0): no
         query hits them, and closest hits and shadow rays get the light they let through
-        (raytrace_lib.glsl). Raises ValueError before building when the triangles cannot fit
-        a storage buffer."""
+        (raytrace_lib.glsl). ``shadowless`` (T,) bool: triangles shadow rays pass (Shadow ray
+        visibility off). Raises ValueError before building when the triangles cannot fit a
+        storage buffer."""
         triangles = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
         codes = None
+        if shadowless is not None and np.any(shadowless):
+            codes = np.zeros((len(triangles) + (0 if clear is None else len(clear)), 2),
+                             np.uint32)
+            codes[:len(triangles)][np.asarray(shadowless, bool), 0] = SHADOWLESS
         if clear is not None and len(clear):
             rows = np.asarray(transmission, np.float32)
             colour = np.clip(rows[:, :3], 0.0, 1.0)
-            codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
+            if codes is None:
+                codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
             codes[len(triangles):, 0] = (np.round(colour * 255).astype(np.uint32)
                                          << np.array([0, 8, 16], np.uint32)).sum(axis=1) \
                 | np.uint32(255 << 24)  # packUnorm4x8(colour, 1): never 0
@@ -112,7 +121,8 @@ class RayTracer:
 
     def upload_bvh(self, bvh: BVH, clear: np.ndarray | None = None) -> None:
         """Upload a BVH from ``build_bvh``, replacing the scene; ``clear`` (T, 2) uint32 per
-        original triangle: its packed colour (0 for an opaque one) and its IOR's bits."""
+        original triangle: its packed colour (0 for an opaque one, SHADOWLESS for one shadow
+        rays pass) and its IOR's bits."""
         # raytrace_lib.glsl's RtNode (lo, a, hi, b) and RtTriangle (TRIANGLE_DTYPE) as float32
         # rows, the int fields as their bits, the vertices moved as 12-byte records (a
         # structured array filled field by field took 3× the time)
@@ -141,18 +151,22 @@ class RayTracer:
         self._triangles.bind_to_storage_buffer(BINDING_TRIANGLES)
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray,
-                  t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf) -> Hits:
-        """Closest hit of each ray (R, 3) with ``t_min < t < t_max`` (per ray or shared)."""
-        out = self._run(_pack_rays(origins, directions, t_min, t_max), 0, RESULT_DTYPE)
+                  t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf,
+                  shadow: bool = False) -> Hits:
+        """Closest hit of each ray (R, 3) with ``t_min < t < t_max`` (per ray or shared);
+        ``shadow``: light's rays, which shadowless triangles let through."""
+        out = self._run(_pack_rays(origins, directions, t_min, t_max), 0, RESULT_DTYPE, shadow)
         hit = out["triangle"] >= 0
         return Hits(np.where(hit, out["t"], np.float32(np.inf)), out["triangle"].copy(),
                     np.where(hit[:, None], out["uv"], np.float32(0.0)),
                     out["transmittance"][:, :3].copy())
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: float | np.ndarray,
-                 t_min: float | np.ndarray = 0.0) -> np.ndarray:
-        """Whether each ray hits anything with ``t_min < t < t_max`` (any hit, early exit)."""
-        return self._run(_pack_rays(origins, directions, t_min, t_max), 1, np.dtype("<i4")) != 0
+                 t_min: float | np.ndarray = 0.0, shadow: bool = False) -> np.ndarray:
+        """Whether each ray hits anything with ``t_min < t < t_max`` (any hit, early exit);
+        ``shadow``: shadow rays, which shadowless triangles let through."""
+        return self._run(_pack_rays(origins, directions, t_min, t_max), 1, np.dtype("<i4"),
+                         shadow) != 0
 
     def release(self) -> None:
         self._release_scene()
@@ -167,7 +181,8 @@ class RayTracer:
                 buffer.release()
         self._nodes = self._triangles = None
 
-    def _run(self, rays: np.ndarray, any_hit: int, out_dtype: np.dtype) -> np.ndarray:
+    def _run(self, rays: np.ndarray, any_hit: int, out_dtype: np.dtype, shadow: bool
+             ) -> np.ndarray:
         """Trace ``rays`` in batches of at most ``batch_size`` with raytrace_comp.glsl."""
         shader = self.programs.compute("raytrace_comp.glsl", {"RT_ANY_HIT": any_hit})
         out = np.empty(len(rays), out_dtype)
@@ -179,6 +194,7 @@ class RayTracer:
             self._rays.bind_to_storage_buffer(BINDING_RAYS)
             self._results.bind_to_storage_buffer(BINDING_RESULTS)
             shader["rt_ray_count"] = len(batch)
+            shader["rt_flags"] = RT_SHADOW if shadow else 0
             if not any_hit:
                 shader["rt_has_clear"] = self.has_clear
             shader.run(-(-len(batch) // LOCAL_SIZE))

@@ -17,10 +17,11 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
-MATERIAL_COLUMNS = 20  # albedo, hidden, emission, holdout, texture attribute, 0, specular: five
-# texels
+MATERIAL_COLUMNS = 20  # albedo, hidden, emission, holdout, texture attribute, shadowless,
+# specular: five texels
 HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 HOLDOUT = 7  # 1 in the rows of holdout instances (gbuffer_frag.glsl, combined_frag.glsl)
+SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl)
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
@@ -108,6 +109,11 @@ class WorldGeometry:
     def holdout(self) -> np.ndarray:
         """(T,) bool: triangles of holdout instances (the camera sees a hole there)."""
         return self.materials[self.triangle_material, HOLDOUT] > 0.5
+
+    @cached_property
+    def shadowless(self) -> np.ndarray:
+        """(T,) bool: triangles of instances that cast no shadow (shadow rays pass them)."""
+        return self.materials[self.triangle_material, SHADOWLESS] > 0.5
 
     def _per_triangle(self, column: int) -> np.ndarray:
         rows = np.ascontiguousarray(self.materials[:, column:column + 3]).view("V12")[:, 0]
@@ -303,17 +309,20 @@ class _MaterialTable:
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
 
-    def block(self, materials: list[Material], visible_to_camera: bool = True,
-              holdout: bool = False) -> tuple[int, int]:
-        """The first row and row count of a material list's block (added on first use); the
-        rows of instances the camera does not see are marked (column HIDDEN), and those of
-        holdouts (column HOLDOUT)."""
-        key = (*(id(m) for m in materials), visible_to_camera, holdout)
+    def block(self, materials: list[Material], flags: tuple[bool, bool, bool]
+              ) -> tuple[int, int]:
+        """The first row and row count of a material list's block (added on first use) for
+        instances of ``flags`` (Instance.flags): the rows of instances the camera does not see
+        are marked (column HIDDEN), those of holdouts (HOLDOUT) and those that cast no shadow
+        (SHADOWLESS)."""
+        key = (*(id(m) for m in materials), *flags)
         if key not in self._first:
             self._first[key] = self.row_count
             rows = _material_rows(materials, self.warnings, self.textures, self.clamped)
+            visible_to_camera, holdout, casts_shadow = flags
             rows[:, HIDDEN] = 0.0 if visible_to_camera else 1.0
             rows[:, HOLDOUT] = 1.0 if holdout else 0.0
+            rows[:, SHADOWLESS] = 0.0 if casts_shadow else 1.0
             self.blocks.append(rows)
             self.clear.extend(m.is_clear for m in materials)
             self.transmission.extend(_transmission_row(m) for m in materials)
@@ -453,17 +462,16 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     principled.MIN_ROUGHNESS get one line in ``notes``."""
     table = _MaterialTable(warnings)
     found: dict[int, _Group] = {}
-    blocks: dict[tuple[int, bool, bool], tuple[int, int]] = {}  # by material list, camera
-    # visibility and holdout: instances of an object share it
+    blocks: dict[tuple, tuple[int, int]] = {}  # by material list and Instance.flags:
+    # instances of an object share it
     for inst in scene.instances:  # one pass: scenes may hold many thousand instances
         group = found.get(id(inst.mesh))
         if group is None:
             group = found[id(inst.mesh)] = _Group(inst.mesh)
-        key = (id(inst.materials), inst.visible_to_camera, inst.holdout)
+        key = (id(inst.materials), *inst.flags)
         rows = blocks.get(key)
         if rows is None:
-            rows = blocks[key] = table.block(inst.materials or NO_MATERIAL,
-                                             inst.visible_to_camera, inst.holdout)
+            rows = blocks[key] = table.block(inst.materials or NO_MATERIAL, inst.flags)
         group.matrices.append(inst.matrix)
         group.rows.append(rows)
     groups = [group for group in found.values() if group.mesh.triangle_count]

@@ -125,13 +125,21 @@ class Instance:
     """One placement of a mesh in the world with its resolved materials (one per slot); one
     not ``visible_to_camera`` still casts shadows and reflects light (Cycles' ray
     visibility), and so does a ``holdout``, which the camera sees as a hole: black, alpha 0
-    (the view layer's holdout collections and objects)."""
+    (the view layer's holdout collections and objects); one that does not ``cast_shadow``
+    lets the shadow rays of lights through (Cycles' Shadow ray visibility: a bulb round its
+    lamp), and is seen and reflects light."""
 
     mesh: Mesh
     matrix: Matrix4
     materials: list[Material]
     visible_to_camera: bool = True
     holdout: bool = False
+    cast_shadow: bool = True
+
+    @property
+    def flags(self) -> tuple[bool, bool, bool]:
+        """What its material rows mark: (visible_to_camera, holdout, cast_shadow)."""
+        return self.visible_to_camera, self.holdout, self.cast_shadow
 
 
 class LightKind(StrEnum):

@@ -225,7 +225,8 @@ class IncrementalVPLs:
         visible = np.zeros(len(anchors), bool)
         if check.any():
             rows = np.flatnonzero(check)
-            found = tracer.intersect(origin[rows], unit(towards[rows]), epsilon, np.inf)
+            found = tracer.intersect(origin[rows], unit(towards[rows]), epsilon, np.inf,
+                                     shadow=True)
             visible[rows] = found.distance >= distance[rows] * (1 - 1e-4) - 2 * epsilon
         valid = check & visible
         retrace = ~anchors.hit | retrace_all
@@ -246,7 +247,8 @@ class IncrementalVPLs:
         n = len(coords)
         origin, direction = domain.rays(coords, offsets)
         found = trace_hits(tracer, geometry, origin, direction, np.ones((n, 3)),
-                           np.arange(n), epsilon)  # unit flux: the hits' transmittance
+                           np.arange(n), epsilon, from_light=True)  # unit flux: the hits'
+        # transmittance
         hit = np.zeros(n, bool)
         hit[found.rank] = True
         position, normal, albedo = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
@@ -330,7 +332,7 @@ class IncrementalVPLs:
         u = scrambled_halton(count, START_DIMENSIONS, seed + 7)[slots]
         paths = start_paths(emitters, u)
         found = trace_hits(tracer, geometry, paths.origin, paths.direction, paths.flux,
-                           np.arange(len(slots)), epsilon)
+                           np.arange(len(slots)), epsilon, from_light=True)
         if self.stats.reset or not np.array_equal(slots, self._environment_slots):
             self._environment_slots, self._environment_ids = slots, self._ids(len(slots))
         return (SurfaceHits(found.position, found.normal, found.albedo, found.flux,

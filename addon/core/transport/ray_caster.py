@@ -20,12 +20,13 @@ class RayCaster(Protocol):
     """Closest-hit and any-hit queries against the frame's triangles."""
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray,
-                  t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf
-                  ) -> RayHits:
-        """Closest hit of each ray (R, 3) with ``t_min < t < t_max``."""
+                  t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf,
+                  shadow: bool = False) -> RayHits:
+        """Closest hit of each ray (R, 3) with ``t_min < t < t_max``; ``shadow``: a light's
+        rays (Cycles' shadow rays), which objects with Shadow visibility off let through."""
         ...
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: float | np.ndarray,
-                 t_min: float | np.ndarray = 0.0) -> np.ndarray:
+                 t_min: float | np.ndarray = 0.0, shadow: bool = False) -> np.ndarray:
         """Whether each ray (R, 3) hits anything opaque with ``t_min < t < t_max``."""
         ...

@@ -51,5 +51,5 @@ def _unblocked(samples: LightSamples, todo: np.ndarray, origin: np.ndarray,
     behind = emitting & ((direction * axis).sum(axis=-1) >= 0.0)  # the emitter faces away
     shape = direction.shape[:2]
     blocked = tracer.occluded(np.broadcast_to(origin[None], (*shape, 3)).reshape(-1, 3),
-                              direction.reshape(-1, 3), t_max.reshape(-1))
+                              direction.reshape(-1, 3), t_max.reshape(-1), shadow=True)
     return ~blocked.reshape(shape) & ~behind

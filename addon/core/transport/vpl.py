@@ -350,12 +350,13 @@ class SurfaceHits:
 
 
 def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
-           direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float
-           ) -> SurfaceHits:
+           direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float,
+           from_light: bool = False) -> SurfaceHits:
     """The surfaces the rays hit (misses dropped), normals turned towards the ray, the flux
     dimmed by the clear surfaces crossed on the way; the base colour is looked up once per hit
-    (the path albedo and the lobes derive from it)."""
-    hits = tracer.intersect(origin, direction, epsilon, np.inf)
+    (the path albedo and the lobes derive from it). Rays ``from_light`` are its light's direct
+    path (Cycles' shadow rays): objects whose Shadow visibility is off let them through."""
+    hits = tracer.intersect(origin, direction, epsilon, np.inf, shadow=from_light)
     hit = hits.triangle >= 0
     tri = hits.triangle[hit]
     position = origin[hit] + direction[hit] * hits.distance[hit, None].astype(np.float64)
@@ -460,5 +461,5 @@ def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tra
     paths = start_paths(emitters, u[:, :START_DIMENSIONS])
     alive = np.flatnonzero(np.any(paths.flux != 0, axis=1))
     first = trace_hits(tracer, geometry, paths.origin[alive], paths.direction[alive],
-                   paths.flux[alive], alive, 1e-5 * radius)
+                       paths.flux[alive], alive, 1e-5 * radius, from_light=True)
     return propagate(first, n, u[:, START_DIMENSIONS:], settings, tracer, geometry, radius)
