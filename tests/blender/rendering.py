@@ -71,6 +71,18 @@ def render_linear(scene: bpy.types.Scene, engine: str, path: Path) -> np.ndarray
         bpy.data.images.remove(image)
 
 
+def cycles_and_ours(scene: bpy.types.Scene, tmp_path: Path, samples: int, bounces: int,
+                    transparent: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The scene rendered by Cycles (``configure_cycles``; with ``transparent``, 8 transparent
+    bounces) and by VPL GI with the same bounces and antialiasing 4: (reference, ours)."""
+    configure_cycles(scene, samples, bounces=bounces)
+    if transparent:
+        scene.cycles.transparent_max_bounces = 8
+    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
+    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = bounces, 4
+    return reference, render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+
+
 def against(image: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
     """``image``'s mean relative energy and relative RMSE against ``reference``."""
     return (metrics.mean_relative_energy(image, reference),

@@ -13,7 +13,7 @@ import numpy as np
 from tests.blender.rendering import (
     add_camera,
     against,
-    configure_cycles,
+    cycles_and_ours,
     render_linear,
     shader_material,
 )
@@ -62,10 +62,7 @@ def test_a_wall_the_camera_does_not_see_still_lights_the_room_as_in_cycles(blend
     two Cycles seeds differ by 4.5 %); the wall seen by the camera (the export before): relRMSE
     213 %; the wall left out, its bounce light with it: energy −14 %."""
     scene = cutaway_room()
-    configure_cycles(scene, 128, bounces=1)
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 1, 4
-    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    reference, ours = cycles_and_ours(scene, tmp_path, 128, 1)
     front = bpy.data.objects["Front wall"]
     front.visible_camera = True
     seen = render_linear(scene, "VPL_GI", tmp_path / "seen.exr")
@@ -107,10 +104,7 @@ def test_a_holdout_is_a_hole_that_still_shadows_and_lights_as_in_cycles(blender,
     scene.world.use_nodes = False
     scene.world.color = (0.1, 0.1, 0.1)
     add_camera(scene, SIZE, (0.0, -5.0, 3.0), (math.radians(60), 0.0, 0.0)).data.lens = 30
-    configure_cycles(scene, 64, bounces=1)
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 1, 4
-    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    reference, ours = cycles_and_ours(scene, tmp_path, 64, 1)
     box.is_holdout = False
     surface = render_linear(scene, "VPL_GI", tmp_path / "surface.exr")
 
@@ -155,10 +149,7 @@ def test_a_lamp_inside_a_bulb_that_casts_no_shadow_lights_the_room_as_in_cycles(
     scene.collection.objects.link(lamp)
     scene.world = bpy.data.worlds.new("Black")
     add_camera(scene, SIZE, (0.0, -6.0, 3.0), (math.radians(70), 0.0, 0.0)).data.lens = 25
-    configure_cycles(scene, 64, bounces=1)
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 1, 4
-    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    reference, ours = cycles_and_ours(scene, tmp_path, 64, 1)
     bulb.visible_shadow = True
     casting = render_linear(scene, "VPL_GI", tmp_path / "casting.exr")
 

@@ -14,7 +14,7 @@ from addon.export import export_material
 from tests.blender.rendering import (
     add_camera,
     against,
-    configure_cycles,
+    cycles_and_ours,
     render_linear,
     shader_material,
 )
@@ -119,11 +119,7 @@ def test_light_and_the_camera_pass_a_transparent_pane_as_in_cycles(blender, tmp_
     (Cycles 64 samples, 8 transparent bounces). Measured (bpy 4.5, llvmpipe): energy +0.0 %,
     relRMSE 1.3 %; the panes opaque (the export before clear materials): relRMSE 68 %."""
     scene = sunlit_box_behind_clear_panes("ShaderNodeBsdfTransparent")
-    configure_cycles(scene, 64, bounces=0)
-    scene.cycles.transparent_max_bounces = 8
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 0, 4
-    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    reference, ours = cycles_and_ours(scene, tmp_path, 64, 0, transparent=True)
     for name in ("Pane", "Roof"):
         tree = bpy.data.materials[name].node_tree
         tree.links.new(tree.nodes.new("ShaderNodeBsdfDiffuse").outputs[0],
@@ -146,11 +142,7 @@ def test_light_through_a_tinted_roof_is_tinted_direct_and_indirect(blender, tmp_
     llvmpipe): energy per channel +0.1, +1.1, +1.9 %, relRMSE 2.5 %; the tint left out (the
     roof white): relRMSE 31 %."""
     scene = sunlit_box_behind_clear_panes("ShaderNodeBsdfTransparent", (0.9, 0.5, 0.2, 1.0))
-    configure_cycles(scene, 128, bounces=1)
-    scene.cycles.transparent_max_bounces = 8
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 1, 4
-    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    reference, ours = cycles_and_ours(scene, tmp_path, 128, 1, transparent=True)
     roof = bpy.data.materials["Roof"].node_tree.nodes["Transparent BSDF"]
     roof.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     white = render_linear(scene, "VPL_GI", tmp_path / "white.exr")
@@ -173,11 +165,7 @@ def test_the_camera_sees_through_a_tinted_pane_as_in_cycles(blender, tmp_path):
     2.3 %; the view through the pane not dimmed (the render before it was): red +239 %."""
     scene = sunlit_box_behind_clear_panes("ShaderNodeBsdfTransparent",
                                           pane_tint=(0.3, 0.6, 0.9, 1.0))
-    configure_cycles(scene, 64, bounces=0)
-    scene.cycles.transparent_max_bounces = 8
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 0, 4
-    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    reference, ours = cycles_and_ours(scene, tmp_path, 64, 0, transparent=True)
     undimmed = ours[..., :3] / np.array([0.3, 0.6, 0.9], np.float32)
 
     assert np.isfinite(ours).all()
@@ -202,14 +190,11 @@ def test_sky_light_through_a_tinted_roof_is_tinted(blender, tmp_path):
     bpy.data.objects.remove(bpy.data.objects["Sun"])
     scene.world.use_nodes = False
     scene.world.color = (1.0, 1.0, 1.0)
-    configure_cycles(scene, 128, bounces=0)
-    scene.cycles.transparent_max_bounces = 8
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 0, 4
+    reference, hybrid = cycles_and_ours(scene, tmp_path, 128, 0, transparent=True)
+    scene.vpl_gi.direct_shadows = "ray_traced"
+    traced = render_linear(scene, "VPL_GI", tmp_path / "traced.exr")
     results = {}
-    for mode in ("hybrid", "ray_traced"):
-        scene.vpl_gi.direct_shadows = mode
-        ours = render_linear(scene, "VPL_GI", tmp_path / f"{mode}.exr")
+    for mode, ours in (("hybrid", hybrid), ("ray_traced", traced)):
         assert np.isfinite(ours).all()
         results[mode] = ([against(ours[..., c:c + 1], reference[..., c:c + 1])[0]
                           for c in range(3)], against(ours, reference)[1])
