@@ -89,6 +89,15 @@ def against(image: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
             metrics.relative_rmse(image, reference))
 
 
+def plain_world(scene: bpy.types.Scene, colour: tuple[float, float, float]) -> None:
+    """A new world of one colour, through its Background node (no deprecated use_nodes)."""
+    scene.world = bpy.data.worlds.new("Plain")
+    ensure_nodes(scene.world)
+    background = scene.world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (*colour, 1.0)
+    background.inputs["Strength"].default_value = 1.0
+
+
 def shader_material(name: str, kind: str, **inputs) -> bpy.types.Material:
     """A material whose surface is one new node of ``kind`` with ``inputs`` set."""
     material = bpy.data.materials.new(name)

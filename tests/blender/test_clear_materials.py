@@ -15,6 +15,7 @@ from tests.blender.rendering import (
     add_camera,
     against,
     cycles_and_ours,
+    plain_world,
     render_linear,
     shader_material,
 )
@@ -188,8 +189,7 @@ def test_sky_light_through_a_tinted_roof_is_tinted(blender, tmp_path):
     layers (the roof left out of the maps): blue +13.4 %."""
     scene = sunlit_box_behind_clear_panes("ShaderNodeBsdfTransparent", (0.9, 0.5, 0.2, 1.0))
     bpy.data.objects.remove(bpy.data.objects["Sun"])
-    scene.world.use_nodes = False
-    scene.world.color = (1.0, 1.0, 1.0)
+    plain_world(scene, (1.0, 1.0, 1.0))
     reference, hybrid = cycles_and_ours(scene, tmp_path, 128, 0, transparent=True)
     scene.vpl_gi.direct_shadows = "ray_traced"
     traced = render_linear(scene, "VPL_GI", tmp_path / "traced.exr")
