@@ -94,16 +94,16 @@ class RayTracer:
         visibility off). Raises ValueError before building when the triangles cannot fit a
         storage buffer."""
         triangles = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
+        clear = np.zeros((0, 3, 3), np.float32) if clear is None else clear
+        shadowless = None if shadowless is None or not np.any(shadowless) else shadowless
         codes = None
-        if shadowless is not None and np.any(shadowless):
-            codes = np.zeros((len(triangles) + (0 if clear is None else len(clear)), 2),
-                             np.uint32)
+        if len(clear) or shadowless is not None:
+            codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
+        if shadowless is not None:
             codes[:len(triangles)][np.asarray(shadowless, bool), 0] = SHADOWLESS
-        if clear is not None and len(clear):
+        if len(clear):
             rows = np.asarray(transmission, np.float32)
             colour = np.clip(rows[:, :3], 0.0, 1.0)
-            if codes is None:
-                codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
             codes[len(triangles):, 0] = (np.round(colour * 255).astype(np.uint32)
                                          << np.array([0, 8, 16], np.uint32)).sum(axis=1) \
                 | np.uint32(255 << 24)  # packUnorm4x8(colour, 1): never 0
@@ -137,7 +137,8 @@ class RayTracer:
             "V12")[:, 0]
         tris[:count, :, 3] = 0.0
         tris[:count, 0, 3] = bvh.triangle_ids.astype(np.int32, copy=False).view(np.float32)
-        self.has_clear = clear is not None
+        # closest hits trace their transmittance only where a clear triangle can dim it
+        self.has_clear = clear is not None and bool(np.any(clear[:, 0] > SHADOWLESS))
         if clear is not None:
             tris[:count, 1:, 3] = clear[bvh.triangle_ids].view(np.float32)
         self._check_size(len(bvh.triangles), max(nodes.nbytes, tris.nbytes))
