@@ -100,14 +100,11 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
     ctx.enable(moderngl.DEPTH_TEST)
     ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
     view_projection = tile_projection(camera.projection_matrix, tile) @ camera.view_matrix
-    camera_to_world = np.linalg.inv(camera.view_matrix)
+    view = camera.view_uniforms
     uniforms = {
         "u_view_projection": tuple(view_projection.T.astype("f4").ravel()),
         "u_view": tuple(camera.view_matrix.T.astype("f4").ravel()),
-        "u_camera_position": tuple(camera_to_world[:3, 3]),
-        "u_camera_forward": tuple(-camera_to_world[:3, 2] /
-                                  np.linalg.norm(camera_to_world[:3, 2])),
-        "u_orthographic": camera.is_orthographic,
+        **view,
     }
     scene_defines = {"TEXTURED": 1} if textures else {}
     shape_defines = {"ONE_SIDED": 1}
@@ -132,6 +129,5 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
         vao.render(moderngl.TRIANGLES, vertices=buffers.vertex_count)
     ctx.disable(moderngl.DEPTH_TEST)
     by_name = dict(zip(names, layers, strict=True))
-    view = {name: uniforms[name] for name in ("u_camera_position", "u_camera_forward",
-                                              "u_orthographic")} if glossy else {}
-    return GBuffer(by_name, TextureImages(by_name), uniforms["u_view_projection"], view, depth)
+    return GBuffer(by_name, TextureImages(by_name), uniforms["u_view_projection"],
+                   view if glossy else {}, depth)

@@ -60,11 +60,8 @@ class ClearView:
             fbo.clear(1.0, 1.0, 1.0, 1.0)
             if self._vao is None:
                 return target
-            camera_to_world = np.linalg.inv(camera.view_matrix)
-            forward = -camera_to_world[:3, 2] / np.linalg.norm(camera_to_world[:3, 2])
             set_uniforms(self._program, u_view_projection=view_projection,
-                         u_camera_position=tuple(camera_to_world[:3, 3]),
-                         u_camera_forward=tuple(forward), u_orthographic=camera.is_orthographic)
+                         **camera.view_uniforms)
             self.ctx.enable(moderngl.DEPTH_TEST | moderngl.BLEND)
             self.ctx.disable(moderngl.CULL_FACE)
             self.ctx.blend_func = moderngl.ZERO, moderngl.SRC_COLOR  # destination × fragment

@@ -251,6 +251,20 @@ class Camera:
     def position(self) -> np.ndarray:
         return np.linalg.inv(self.view_matrix)[:3, 3]
 
+    @property
+    def forward(self) -> np.ndarray:
+        """The unit direction the camera looks along (its -Z) in world space."""
+        axis = np.linalg.inv(self.view_matrix)[:3, 2]
+        return -axis / np.linalg.norm(axis)
+
+    @property
+    def view_uniforms(self) -> dict[str, object]:
+        """u_camera_position, u_camera_forward and u_orthographic for shaders that need the
+        view direction (the g-buffer, the view through clear surfaces)."""
+        return {"u_camera_position": tuple(self.position),
+                "u_camera_forward": tuple(self.forward),
+                "u_orthographic": self.is_orthographic}
+
 
 @dataclass
 class Scene:
