@@ -2,8 +2,8 @@
 // algebra on the GPU, so that only pixels are read back): each pixel is the mean of its
 // u_factor² supersamples' (direct + soft + indirect) × albedo + glossy + emission, alpha the
 // surface's coverage; with BACKGROUND (a colour) or BACKGROUND_IMAGE (one per supersample)
-// the uncovered part sees the background and alpha is 1. A holdout's supersample (the
-// g-buffer's geometric.w) is a hole: black, alpha 0, as in Cycles. Defines: SOFT (blurred soft direct
+// the uncovered part sees the background and alpha is 1. With HOLDOUTS a holdout's
+// supersample (the g-buffer's geometric.w) is a hole: black, alpha 0, as in Cycles. Defines: SOFT (blurred soft direct
 // light), GLOSSY (each light's glossy radiance, added without the albedo), TRANSMITTANCE (what
 // clear surfaces in front let through to the camera, per supersample: gpu/clear_view.py).
 
@@ -22,7 +22,9 @@ uniform sampler2D u_soft_glossy;
 uniform sampler2D u_albedo;
 uniform sampler2D u_emission;
 uniform sampler2D u_normal;           // w: the supersample's coverage
+#ifdef HOLDOUTS
 uniform sampler2D u_geometric;        // w: 1 on a holdout
+#endif
 #if defined(BACKGROUND_IMAGE)
 uniform sampler2D u_background;
 #elif defined(BACKGROUND)
@@ -35,8 +37,16 @@ uniform int u_factor;                 // supersamples per pixel edge
 
 layout(location = 0) out vec4 out_combined;
 
+bool holdout(ivec2 s) {
+#ifdef HOLDOUTS
+    return texelFetch(u_geometric, s, 0).w > 0.5;
+#else
+    return false;
+#endif
+}
+
 vec4 seen(ivec2 s) {
-    if (texelFetch(u_geometric, s, 0).w > 0.5) return vec4(0.0);
+    if (holdout(s)) return vec4(0.0);
     vec4 light = texelFetch(u_direct, s, 0) + texelFetch(u_indirect, s, 0);
 #ifdef SOFT
     light += texelFetch(u_soft, s, 0);
@@ -65,7 +75,7 @@ vec4 supersample(ivec2 s) {
 #if !defined(BACKGROUND) && !defined(BACKGROUND_IMAGE)
     // a transparent film: clear surfaces in front of the background are as opaque as they
     // dim it (Cycles: alpha 1 - the mean of what they let through)
-    if (texelFetch(u_geometric, s, 0).w <= 0.5) {
+    if (!holdout(s)) {
         c.a += (1.0 - c.a) * (1.0 - (through.r + through.g + through.b) / 3.0);
     }
 #endif

@@ -15,7 +15,7 @@ FACTOR = 3
 
 
 def expected(light: dict[str, np.ndarray], layers: dict[str, np.ndarray],
-             background: np.ndarray | None) -> np.ndarray:
+             background: np.ndarray | None, holdouts: bool) -> np.ndarray:
     """The Combined pass of the supersample arrays, one mean per pixel."""
     diffuse = light["direct"] + light["indirect"] + light.get("soft", 0.0)
     rgb = diffuse[..., :3] * layers["albedo"][..., :3] + layers["emission"][..., :3]
@@ -28,7 +28,8 @@ def expected(light: dict[str, np.ndarray], layers: dict[str, np.ndarray],
         rgb = rgb + (1.0 - covered) * np.broadcast_to(background, rgb.shape)
         alpha = np.ones_like(covered)
     image = np.concatenate([rgb, alpha], axis=-1)
-    image[layers["geometric"][..., 3] > 0.5] = 0.0
+    if holdouts:
+        image[layers["geometric"][..., 3] > 0.5] = 0.0
     h, w = image.shape[0] // FACTOR, image.shape[1] // FACTOR
     return image.reshape(h, FACTOR, w, FACTOR, 4).mean(axis=(1, 3))
 
@@ -36,7 +37,8 @@ def expected(light: dict[str, np.ndarray], layers: dict[str, np.ndarray],
 @pytest.mark.parametrize("soft", [False, True])
 @pytest.mark.parametrize("glossy", [False, True])
 @pytest.mark.parametrize("film", ["transparent", "colour", "image"])
-def test_combined_matches_the_pass_algebra(programs, soft, glossy, film):
+@pytest.mark.parametrize("holdouts", [False, True])
+def test_combined_matches_the_pass_algebra(programs, soft, glossy, film, holdouts):
     ctx, rng = programs.ctx, np.random.default_rng(7)
     shape = (PIXELS[1] * FACTOR, PIXELS[0] * FACTOR, 4)
     names = ["direct", "indirect", *(["soft"] if soft else [])]
@@ -56,12 +58,13 @@ def test_combined_matches_the_pass_algebra(programs, soft, glossy, film):
 
     try:
         result = combined_pass(ctx, programs, pair("direct"), pair("indirect"),
-                               pair("soft") if soft else [], textures, background, FACTOR)
+                               pair("soft") if soft else [], textures, background, FACTOR,
+                               holdouts=holdouts)
     finally:
         for texture in textures.values():
             texture.release()
     assert result.shape == (PIXELS[1], PIXELS[0], 4)
-    np.testing.assert_allclose(result, expected(light, layers, background), rtol=1e-5,
+    np.testing.assert_allclose(result, expected(light, layers, background, holdouts), rtol=1e-5,
                                atol=1e-6)
 
 
@@ -82,7 +85,7 @@ def test_a_transparent_film_seen_through_a_tinted_pane_is_as_opaque_as_the_pane_
                 for name, array in arrays.items()}
     try:
         result = combined_pass(ctx, programs, [textures["direct"]], [textures["indirect"]], [],
-                               textures, None, FACTOR, textures["through"])
+                               textures, None, FACTOR, textures["through"], holdouts=True)
     finally:
         for texture in textures.values():
             texture.release()

@@ -341,10 +341,11 @@ class ComposeStage(TileStage):
             if not scene.film_transparent:  # through this pass's camera (sub-sample offset)
                 work.background = background(scene.world, frame.camera, aa, tile.x0, tile.y0,
                                              *tile.size)
+            holdouts = bool(frame.geometry.holdout.any())
             combined = combined_pass(self.gpu.ctx, self.gpu.programs,
                                      work.direct.color_attachments, work.indirect_light,
                                      work.soft_light, work.gbuffer.textures, work.background,
-                                     aa, work.transmittance)
+                                     aa, work.transmittance, holdouts)
             h, w = combined.shape[:2]
             x0, y0 = tile.x0 // aa, tile.y0 // aa
             frame.output["Combined"][y0:y0 + h, x0:x0 + w] = combined
@@ -353,7 +354,7 @@ class ComposeStage(TileStage):
                 through = None if work.transmittance is None else \
                     partial(read_textures, [work.transmittance])
                 compose(frame.output, work.gbuffer.images, partial(read_light, work), aa,
-                        tile.x0, tile.y0, others, through, bool(frame.geometry.holdout.any()))
+                        tile.x0, tile.y0, others, through, holdouts)
 
 
 def read_light(work: TileWork) -> tuple[np.ndarray, np.ndarray]:
