@@ -67,8 +67,10 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
     ``holdouts``, the supersamples of holdouts (the g-buffer's geometric.w) get nothing, as
     the background does (Cycles writes no pass there)."""
     covered = gbuffer["normal"][..., 3:4]
+    seen_surface = None  # with holdouts: the supersamples whose passes are written
     if holdouts:
-        covered = covered * (gbuffer["geometric"][..., 3:4] <= 0.5)
+        seen_surface = (covered > 0) & (gbuffer["geometric"][..., 3:4] <= 0.5)
+        covered = covered * seen_surface
     seen = read_transmittance()[..., :3] if read_transmittance is not None \
         and passes & SEEN_THROUGH else None
     h, w = covered.shape[0] // aa, covered.shape[1] // aa
@@ -88,8 +90,8 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
             values = image()
             if seen is not None and name in SEEN_THROUGH:
                 values = values * seen
-            if holdouts:
-                values = values * (covered > 0)
+            if seen_surface is not None:
+                values = values * seen_surface
             output[name][region] = downsample(values, aa)
     if "Depth" in passes:
         depth = np.where(covered > 0, gbuffer["position"][..., 3:4], BACKGROUND_DEPTH)
