@@ -246,9 +246,9 @@ class IncrementalVPLs:
         """New anchors: paths from domain points traced to their first hit (misses kept)."""
         n = len(coords)
         origin, direction = domain.rays(coords, offsets)
+        # unit flux: what the hits get is their path's transmittance
         found = trace_hits(tracer, geometry, origin, direction, np.ones((n, 3)),
-                           np.arange(n), epsilon, from_light=True)  # unit flux: the hits'
-        # transmittance
+                           np.arange(n), epsilon, from_light=True)
         hit = np.zeros(n, bool)
         hit[found.rank] = True
         position, normal, albedo = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
