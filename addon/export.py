@@ -27,6 +27,7 @@ from .blender_read import (
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
+    COVERAGE_INVERTED,
     DEFAULT_MATERIAL,
     RENDERED_OBJECT_TYPES,
     AreaShape,
@@ -347,8 +348,9 @@ def _mixed_ior(a: Material, b: Material) -> float:
 
 def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
     """A Principled BSDF that is all transmission (Alpha 0, or Transmission Weight 1 and not
-    metallic) as a clear material; None otherwise, with a warning where some Alpha or
-    Transmission (constant or linked) is not rendered (the surface is rendered opaque)."""
+    metallic) as a clear material; None otherwise, with a warning where some Transmission
+    (constant or linked) is not rendered (the surface is rendered opaque; Alpha below 1 makes
+    a cutout: ``_shader``)."""
     def unlinked(label: str, default: float) -> float:
         socket = node.inputs.get(label)
         return default if socket is None or socket.is_linked else float(socket.default_value)
@@ -363,19 +365,32 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0,
                         transmission=tuple(float(1.0 - alpha + alpha * c) for c in tint),
                         transmission_ior=0.0 if alpha < 1.0 else unlinked("IOR", 1.5))
-    linked = [label for label in ("Alpha", "Transmission Weight")
-              if node.inputs.get(label) is not None and node.inputs[label].is_linked]
+    socket = node.inputs.get("Transmission Weight")
     message = None
-    if linked:  # e.g. a leaf's alpha texture
-        message = (f"material '{name}': Principled BSDF's {' and '.join(linked)} linked to "
-                   f"'{node.inputs[linked[0]].links[0].from_node.bl_label}' "
-                   f"{'is' if len(linked) == 1 else 'are'} not rendered (an opaque surface)")
-    elif alpha < 1.0 or transmitted > 0.0:
-        message = (f"material '{name}': Principled BSDF's Alpha {alpha:g} and Transmission "
-                   f"Weight {weight:g} are not rendered (an opaque surface)")
+    if socket is not None and socket.is_linked:
+        message = (f"material '{name}': Principled BSDF's Transmission Weight linked to "
+                   f"'{socket.links[0].from_node.bl_label}' is not rendered (an opaque "
+                   f"surface)")
+    elif transmitted > 0.0:
+        message = (f"material '{name}': Principled BSDF's Transmission Weight {weight:g} is "
+                   f"not rendered (an opaque surface)")
     if message is not None and message not in warnings:
         warnings.append(message)
     return None
+
+
+def _principled_alpha(node, name: str, images: ImageReader) -> dict[str, object]:
+    """A Principled BSDF's Alpha as a cutout's fields (Material.alpha, coverage_texture,
+    coverage_mode); none, with a warning, where it is linked to something other than an
+    Image Texture (the surface is rendered opaque)."""
+    try:
+        alpha, texture, mode = images.coverage(node, "Alpha", name)
+    except UnsupportedLink as reason:
+        message = f"material '{name}': Principled BSDF's Alpha not rendered ({reason})"
+        if message not in images.warnings:
+            images.warnings.append(message)
+        return {}
+    return {"alpha": alpha, "coverage_texture": texture, "coverage_mode": mode}
 
 
 def _shader(node, name: str, images: ImageReader) -> Material:
@@ -398,7 +413,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          metallic=float(_constant(node, "Metallic", 0.0)),
                          ior=float(_constant(node, "IOR", 1.5)),
                          specular_ior_level=float(_constant(node, "Specular IOR Level", 0.5)),
-                         specular_tint=_rgb(_constant(node, "Specular Tint", (1, 1, 1))))
+                         specular_tint=_rgb(_constant(node, "Specular Tint", (1, 1, 1))),
+                         **_principled_alpha(node, name, images))
     if node.type in CLEAR_SHADERS:
         ior = 0.0 if node.type == "BSDF_TRANSPARENT" else float(_constant(node, "IOR", 1.5))
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission_ior=ior,
@@ -420,6 +436,10 @@ def _shader(node, name: str, images: ImageReader) -> Material:
             return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission=tuple(
                 np.maximum(a.transmission, b.transmission)),
                 transmission_ior=_mixed_ior(a, b))
+        cutout = _transparent_mix(node, a, b, name, images) \
+            if node.type == "MIX_SHADER" else None
+        if cutout is not None:
+            return cutout
         if any((m.base_color_texture, m.emission_texture) != (None, None) for m in (a, b)):
             raise _Unsupported(f"image textures inside '{node.bl_label}' are not supported")
         if node.type == "ADD_SHADER":
@@ -440,6 +460,32 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                         specular_ior_level=(wa * a.specular_ior_level
                                             + wb * b.specular_ior_level) / weight)
     raise _Unsupported(f"shader '{node.bl_label}' is not supported")
+
+
+def _is_transparent(material: Material) -> bool:
+    """A white Transparent BSDF: light passes untouched."""
+    return material.is_clear and material.transmission == (1.0, 1.0, 1.0) \
+        and material.transmission_ior == 0.0
+
+
+def _transparent_mix(node, a: Material, b: Material, name: str, images: ImageReader
+                     ) -> Material | None:
+    """A Mix Shader of a white Transparent BSDF and a surface as that surface made a cutout
+    by the Fac (a constant or an Image Texture: a leaf's mask); None for other mixes."""
+    if _is_transparent(a) == _is_transparent(b) or (a if _is_transparent(b) else b).is_clear:
+        return None
+    try:
+        fac, texture, mode = images.coverage(node, "Fac", name)
+    except UnsupportedLink:
+        return None
+    surface = b if _is_transparent(a) else a  # Fac weighs the second slot
+    if surface is a:
+        fac, mode = 1.0 - fac, mode | COVERAGE_INVERTED
+    if texture is not None and surface.coverage_texture is not None:
+        raise _Unsupported(f"two coverage textures in '{node.bl_label}' are not supported")
+    if texture is None:
+        return replace(surface, alpha=surface.alpha * fac)
+    return replace(surface, coverage_texture=texture, coverage_mode=mode)
 
 
 DEFAULT_PRINCIPLED = Material(DEFAULT_MATERIAL.name, specular_ior_level=0.5)

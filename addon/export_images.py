@@ -15,7 +15,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from .core.scene.model import EXTENSIONS, Texture
+from .core.scene.model import COVERAGE_ALPHA, COVERAGE_LUMINANCE, EXTENSIONS, Texture
 from .core.scene.textures import associate_bytes, missing_texture
 
 RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear"}
@@ -100,6 +100,22 @@ class ImageReader:
                                   f"'{source.bl_label}'")
         _check_vector(source)
         return (1.0, 1.0, 1.0), self.texture(source, material)
+
+    def coverage(self, node, name: str, material: str) -> tuple[float, Texture | None, int]:
+        """A float input read as a cutout's coverage: its constant value (clipped to [0, 1])
+        and no texture, or 1 and the Image Texture linked to it with the mode of the output
+        it comes from (its Alpha, or its Color as a float: COVERAGE_LUMINANCE)."""
+        socket = node.inputs[name]
+        if not socket.is_linked:
+            return float(np.clip(np.nan_to_num(socket.default_value, nan=1.0), 0, 1)), None, 0
+        source = _from_node(socket)
+        output = socket.links[0].from_socket.name
+        if source.type != "TEX_IMAGE" or output not in ("Alpha", "Color"):
+            raise UnsupportedLink(f"input '{name}' of '{node.bl_label}' is linked to "
+                                  f"'{source.bl_label}'")
+        _check_vector(source)
+        mode = COVERAGE_ALPHA if output == "Alpha" else COVERAGE_LUMINANCE
+        return 1.0, self.texture(source, material), mode
 
     def texture(self, node, material: str) -> Texture:
         """The node's image as a Texture with the node's interpolation and extension; magenta,

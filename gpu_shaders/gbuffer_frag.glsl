@@ -7,8 +7,13 @@
 // come from image textures. With GLOSSY (some material has a specular layer) the albedo is the
 // diffuse layer's colour (Cycles' DiffCol) and three more layers hold the pixel's glossy lobe
 // (principled_lib.glsl); the glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w,
-// emission.w), as OpenGL guarantees only eight colour attachments.
+// emission.w), as OpenGL guarantees only eight colour attachments. With CUTOUTS (some
+// material is there only in part) each supersample keeps a cutout's surface with probability
+// its coverage (coverage_lib.glsl), so supersamples average it as Cycles' camera rays do.
 #include "materials_lib.glsl"
+#ifdef CUTOUTS
+#include "coverage_lib.glsl"
+#endif
 #ifdef GLOSSY
 #include "principled_lib.glsl"
 #endif
@@ -41,6 +46,14 @@ layout(location = 7) out vec4 out_lobe_c;
 void main() {
     Material material = material_of(v_triangle);
     if (material.albedo.w > 0.5) discard;  // an object the camera does not see (geometry.HIDDEN)
+#ifdef CUTOUTS
+#ifdef TEXTURED
+    float coverage = surface_coverage(u_textures, u_texture_sizes, material.cutout, v_uv);
+#else
+    float coverage = 1.0 - material.cutout.y;  // no textures: constant alphas only
+#endif
+    if (!surface_kept(coverage, uvec3(gl_FragCoord.xy, v_triangle))) discard;
+#endif
     vec3 to_camera = u_orthographic ? -u_camera_forward : normalize(u_camera_position - v_world);
     vec3 geometric = normalize(cross(dFdx(v_world), dFdy(v_world)));
     if (dot(geometric, to_camera) < 0.0) geometric = -geometric;

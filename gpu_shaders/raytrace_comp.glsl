@@ -23,7 +23,8 @@ struct RtHit {
     float t;
     int triangle;  // original index, -1 on a miss
     vec2 uv;
-    vec4 transmittance;  // rgb: light let through by clear triangles up to the hit (or t_max)
+    vec4 transmittance;  // rgb: light let through by clear triangles up to the hit (or t_max);
+                         // the cutouts passed on the way do not dim it
 };
 layout(std430, binding = RT_BINDING_RESULTS) writeonly buffer RtHits { RtHit rt_hits[]; };
 #endif
@@ -51,7 +52,7 @@ void main() {
     rt_trace(q.origin, q.dir, q.t_min, q.t_max, RT_CLOSEST | rt_flags, hit.t, hit.triangle, hit.uv,
              unused);
     hit.transmittance = vec4(rt_has_clear ? rt_transmittance(q.origin, q.dir, q.t_min, hit.t,
-                                                             rt_flags)
+                                                             rt_flags | RT_PASSED)
                                           : vec3(1.0), 1.0);
     rt_hits[i] = hit;
 #endif

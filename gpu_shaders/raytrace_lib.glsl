@@ -3,13 +3,18 @@
 // being the ray parameter along `dir` (the distance when `dir` is a unit vector; any non-zero
 // length works). A zero `dir` misses everything. Names starting with rt_ / Rt / RT_ are taken.
 // Pass `dir` at run time (a uniform, a buffer, a computed value): NVIDIA's driver 580 missed
-// every ray when it was a compile-time constant (raytrace_test_comp.glsl).
+// every ray when it was a compile-time constant (raytrace_test_comp.glsl). With RT_CUTOUTS
+// (set by RayTracer.upload for scenes with cutouts) cutout triangles are hit with probability
+// their coverage (coverage_lib.glsl), and shadow rays are dimmed by what they let through.
 #ifndef RAYTRACE_LIB_GLSL
 #define RAYTRACE_LIB_GLSL
 #include "fresnel_lib.glsl"
 
 #define RT_BINDING_NODES 10
 #define RT_BINDING_TRIANGLES 11
+#define RT_BINDING_CUTOUTS 14
+#define RT_UNIT_TEXTURES 16  // texture units of the cutouts' image textures and their sizes
+#define RT_UNIT_TEXTURE_SIZES 17
 #define RT_STACK_SIZE 64  // >= the BVH depth (checked when it is built)
 
 // Relative growth of a box's exit distance, covering the rounding of the slab test (2 gamma(3)
@@ -29,9 +34,10 @@ struct RtNode {
 
 // Vertices in leaf order and `id`, the triangle's index in the caller's original list. A clear
 // triangle (clear: packUnorm4x8 of the colour it lets through, alpha 1) is never hit;
-// rt_transmittance dims rays crossing it by its colour and, with ior > 0, the Fresnel loss. A
-// shadowless one (clear = RT_SHADOWLESS, alpha 0: an object whose Shadow ray visibility is
-// off) is opaque to every ray but shadow rays (RT_SHADOW).
+// rt_transmittance dims rays crossing it by its colour and, with ior > 0, the Fresnel loss.
+// Otherwise `clear` holds flags: a shadowless triangle (RT_SHADOWLESS: an object whose Shadow
+// ray visibility is off) is opaque to every ray but shadow rays (RT_SHADOW); a cutout
+// (RT_CUTOUT) has its row of rt_cutouts in `ior`'s bits.
 struct RtTriangle {
     vec3 v0;
     int id;
@@ -45,6 +51,34 @@ layout(std430, binding = RT_BINDING_NODES) readonly buffer RtNodes { RtNode rt_n
 layout(std430, binding = RT_BINDING_TRIANGLES) readonly buffer RtTriangles {
     RtTriangle rt_triangles[];
 };
+
+#ifdef RT_CUTOUTS
+#include "coverage_lib.glsl"
+// A cutout triangle's UVs and its cutout texel (coverage_lib.glsl), its layer one of
+// rt_textures'.
+struct RtCutout {
+    vec2 uv0;
+    vec2 uv1;
+    vec2 uv2;
+    vec2 unused;
+    vec4 cutout;
+};
+layout(std430, binding = RT_BINDING_CUTOUTS) readonly buffer RtCutouts { RtCutout rt_cutouts[]; };
+layout(binding = RT_UNIT_TEXTURES) uniform sampler2DArray rt_textures;
+layout(binding = RT_UNIT_TEXTURE_SIZES) uniform sampler2D rt_texture_sizes;
+
+float rt_coverage(RtTriangle tri, vec2 barycentric) {
+    RtCutout c = rt_cutouts[floatBitsToInt(tri.ior)];
+    vec2 uv = c.uv0 + barycentric.x * (c.uv1 - c.uv0) + barycentric.y * (c.uv2 - c.uv0);
+    return surface_coverage(rt_textures, rt_texture_sizes, c.cutout, uv);
+}
+
+// The key of a ray's choice at a cutout: the same ray makes the same choice.
+uvec3 rt_cutout_key(vec3 origin, vec3 dir, int triangle) {
+    uvec3 o = floatBitsToUint(origin), d = floatBitsToUint(dir);
+    return uvec3(o.x ^ d.y, o.y ^ d.z, o.z ^ d.x ^ uint(triangle));
+}
+#endif
 
 // Per-ray constants: the slab test's inverse direction, and the shear taking the ray to +z
 // for the watertight triangle test (Woop, Benthin, Wald 2013).
@@ -121,11 +155,16 @@ vec3 rt_clear_transmittance(RtTriangle tri, vec3 dir) {
 #define RT_ANY 1
 #define RT_TRANSMIT 2
 #define RT_SHADOW 4  // or'ed into a mode: a shadow ray, which shadowless triangles let through
-#define RT_SHADOWLESS 1u  // RtTriangle.clear of a shadowless triangle
+#define RT_PASSED 8  // or'ed into RT_TRANSMIT: cutouts were passed by chance, they do not dim
+#define RT_SHADOWLESS 1u  // RtTriangle.clear flag of a shadowless triangle
+#define RT_CUTOUT 2u  // RtTriangle.clear flag of a cutout triangle
+#define RT_FLAGS 255u  // RtTriangle.clear values up to this hold flags, not a colour
 
 // Nearest-child-first stack traversal of the opaque triangles. RT_ANY returns at the first hit
-// in range; RT_TRANSMIT multiplies `transmittance` by every clear triangle in range and sets it
-// to 0 at the first opaque hit; with RT_SHADOW or'ed in, shadowless triangles are not hit.
+// in range; RT_TRANSMIT multiplies `transmittance` by every clear triangle in range and by
+// one minus every cutout's coverage (none with RT_PASSED), and sets it to 0 at the first opaque
+// hit; with RT_SHADOW or'ed in, shadowless triangles are not hit. RT_CLOSEST and RT_ANY hit a
+// cutout with probability its coverage.
 bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int flags, out float t,
               out int triangle, out vec2 uv, inout vec3 transmittance) {
     int mode = flags & 3;
@@ -168,8 +207,22 @@ bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int flags, out fl
                 if (rt_hit_triangle(ray, rt_triangles[i], t_min, t, t_hit, uv_hit)) {
                     uint code = rt_triangles[i].clear;
                     if (code != 0u) {  // rare: checked on hits only
-                        if (code == RT_SHADOWLESS) {
-                            if (shadow) continue;
+                        if (code <= RT_FLAGS) {
+                            if (shadow && (code & RT_SHADOWLESS) != 0u) continue;
+#ifdef RT_CUTOUTS
+                            if ((code & RT_CUTOUT) != 0u) {
+                                if (mode == RT_TRANSMIT && (flags & RT_PASSED) != 0) continue;
+                                float coverage = rt_coverage(rt_triangles[i], uv_hit);
+                                if (mode == RT_TRANSMIT) {
+                                    transmittance *= 1.0 - coverage;
+                                    if (transmittance == vec3(0.0)) return true;
+                                    continue;
+                                }
+                                if (!surface_kept(coverage, rt_cutout_key(origin, dir, i))) {
+                                    continue;
+                                }
+                            }
+#endif
                         } else {
                             if (mode == RT_TRANSMIT) {
                                 transmittance *= rt_clear_transmittance(rt_triangles[i], dir);
@@ -216,7 +269,8 @@ bool rt_occluded(vec3 origin, vec3 dir, float t_min, float t_max) {
 }
 
 // The light let through from t_min to t_max: 0 where anything opaque is in the way, else the
-// product of the clear triangles' transmittance; `flags`: 0 or RT_SHADOW.
+// product of the clear triangles' transmittance and the cutouts'; `flags`: 0, RT_SHADOW,
+// RT_PASSED.
 vec3 rt_transmittance(vec3 origin, vec3 dir, float t_min, float t_max, int flags) {
     float t;
     int triangle;

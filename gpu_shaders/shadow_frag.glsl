@@ -1,10 +1,8 @@
 // Stores the occluder's distance: radial from the light (cube faces) or along the axis. With
-// SHADOWLESS, triangles of objects that cast no shadow (geometry.SHADOWLESS) are left out.
+// SHADOWLESS, triangles of objects that cast no shadow (geometry.SHADOWLESS) are left out;
+// with CUTOUTS, a cutout's texels are kept with probability its coverage (cutout_lib.glsl).
 #include "common_lib.glsl"
-#ifdef SHADOWLESS
-#include "materials_lib.glsl"
-flat in int v_triangle;
-#endif
+#include "cutout_lib.glsl"
 
 in vec3 v_world;
 flat in vec3 v_origin;
@@ -19,6 +17,7 @@ void main() {
 #ifdef SHADOWLESS
     if (material_of(v_triangle).texture.w > 0.5) discard;
 #endif
+    if (!cutout_kept()) discard;
     out_distance = v_face >= 0 ? length(v_world - v_origin)
                                : directional_depth(v_world, v_origin, u_scene_centre,
                                                    u_scene_radius);

@@ -1,7 +1,8 @@
 // Shadow-map rendering: every atlas tile (a cube face or a directional map) in one instanced
 // draw (see tiles_lib.glsl). With CLEAR, the clear triangles for an atlas's clear layer
 // (shadow_clear_frag.glsl), with their normals and the light they let through; with
-// SHADOWLESS, the triangle index for shadow_frag.glsl.
+// SHADOWLESS, CUTOUTS or TRIANGLES, the triangle index for the fragment shader (and with
+// CUTOUTS and TEXTURED its UVs; cutout_lib.glsl). Also the vertex shader of rsm_frag.glsl.
 #include "tiles_lib.glsl"
 
 in vec3 in_position;
@@ -10,8 +11,13 @@ out vec3 v_world;
 flat out vec3 v_origin;
 flat out int v_face;
 
-#ifdef SHADOWLESS
+#if defined(SHADOWLESS) || defined(CUTOUTS) || defined(TRIANGLES)
+#define TRIANGLE_INDEX
 flat out int v_triangle;
+#endif
+#if defined(CUTOUTS) && defined(TEXTURED)
+in vec2 in_uv;
+out vec2 v_uv;
 #endif
 #ifdef CLEAR
 in vec3 in_normal;          // the triangle's unit normal
@@ -23,8 +29,11 @@ flat out vec4 v_transmission;
 void main() {
     gl_Position = atlas_tile_position(in_position, gl_InstanceID, v_origin, v_face);
     v_world = in_position;
-#ifdef SHADOWLESS
+#ifdef TRIANGLE_INDEX
     v_triangle = gl_VertexID / 3;  // instanced draws do not reset it
+#endif
+#if defined(CUTOUTS) && defined(TEXTURED)
+    v_uv = in_uv;
 #endif
 #ifdef CLEAR
     v_normal = in_normal;

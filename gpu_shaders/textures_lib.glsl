@@ -1,8 +1,9 @@
 // Image textures packed by core/scene/textures.py: one layer per texture, the image in the
-// layer's lower-left corner; u_texture_sizes holds (width, height, sRGB flag, mode) per layer,
+// layer's lower-left corner; a sizes table holds (width, height, sRGB flag, mode) per layer,
 // mode = interpolation (0 Closest, 1 Linear, 2 Cubic) + 4 × extension (0 Repeat, 1 Extend,
 // 2 Clip, 3 Mirror). Sampled as Cycles samples (the CPU twin is textures.sample): values
-// interpolated as stored, then decoded from sRGB.
+// interpolated as stored, then colour decoded from sRGB (alpha is linear). texture_color
+// samples the g-buffer's arrays (u_textures, u_texture_sizes); texture_sample any pair.
 #ifndef TEXTURES_LIB_GLSL
 #define TEXTURES_LIB_GLSL
 
@@ -44,8 +45,9 @@ vec4 cubic_weights(float t) {
                 3.0 * s * s * s - 6.0 * s * s + 4.0, t * t * t) / 6.0;
 }
 
-vec3 texture_color(int layer, vec2 uv) {
-    vec4 info = texelFetch(u_texture_sizes, ivec2(layer, 0), 0);
+// Decoded colour and alpha of a layer at uv.
+vec4 texture_sample(sampler2DArray textures, sampler2D sizes, int layer, vec2 uv) {
+    vec4 info = texelFetch(sizes, ivec2(layer, 0), 0);
     ivec2 size = ivec2(info.xy);
     int mode = int(info.w + 0.5);
     int interpolation = mode % 4;
@@ -73,17 +75,21 @@ vec3 texture_color(int layer, vec2 uv) {
         }
     }
     first = ivec2(texture_base(p.x, info.x, extension), texture_base(p.y, info.y, extension));
-    vec3 c = vec3(0.0);
+    vec4 c = vec4(0.0);
     for (int b = 0; b < taps; ++b) {
         int y = texture_wrap(first.y + b, size.y, extension);
         for (int a = 0; a < taps; ++a) {
             int x = texture_wrap(first.x + a, size.x, extension);
             if (x >= 0 && y >= 0) {
-                c += wx[a] * wy[b] * texelFetch(u_textures, ivec3(x, y, layer), 0).rgb;
+                c += wx[a] * wy[b] * texelFetch(textures, ivec3(x, y, layer), 0);
             }
         }
     }
-    return info.z > 0.5 ? srgb_to_linear(c) : c;
+    return info.z > 0.5 ? vec4(srgb_to_linear(c.rgb), c.a) : c;
+}
+
+vec3 texture_color(int layer, vec2 uv) {
+    return texture_sample(u_textures, u_texture_sizes, layer, uv).rgb;
 }
 
 #endif

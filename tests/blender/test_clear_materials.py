@@ -61,30 +61,16 @@ def test_glass_with_transparent_shadows_is_clear(blender):
     assert material.is_clear and not warnings
 
 
-def test_partly_clear_surfaces_stay_opaque_and_say_what_is_not_rendered(blender):
+def test_partial_transmission_stays_opaque_and_says_so(blender):
+    """Some Transmission short of all of it is not rendered (partial Alpha makes a cutout:
+    tests/blender/test_cutouts.py)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     warnings: list[str] = []
-    half = export_material(shader_material("Half", "ShaderNodeBsdfPrincipled", Alpha=0.5),
-                           warnings)
-    assert not half.is_clear
-    assert warnings == ["material 'Half': Principled BSDF's Alpha 0.5 and Transmission Weight "
-                        "0 are not rendered (an opaque surface)"]
-    material = shader_material("Veil", "ShaderNodeBsdfTransparent")
-    tree = material.node_tree
-    mix, diffuse = tree.nodes.new("ShaderNodeMixShader"), tree.nodes.new("ShaderNodeBsdfDiffuse")
-    tree.links.new(diffuse.outputs[0], mix.inputs[1])
-    tree.links.new(tree.nodes["Transparent BSDF"].outputs[0], mix.inputs[2])
-    tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    veil = export_material(material, warnings)
-    assert not veil.is_clear and veil.base_color == pytest.approx((0.4, 0.4, 0.4))
-    leaf = shader_material("Leaf", "ShaderNodeBsdfPrincipled")
-    tree = leaf.node_tree
-    texture = tree.nodes.new("ShaderNodeTexImage")
-    tree.links.new(texture.outputs["Alpha"], tree.nodes["Principled BSDF"].inputs["Alpha"])
-    warnings.clear()
-    assert not export_material(leaf, warnings).is_clear
-    assert warnings == ["material 'Leaf': Principled BSDF's Alpha linked to 'Image Texture' is "
-                        "not rendered (an opaque surface)"]
+    half = export_material(shader_material("Half", "ShaderNodeBsdfPrincipled",
+                                           Transmission_Weight=0.5), warnings)
+    assert not half.is_clear and not half.is_cutout
+    assert warnings == ["material 'Half': Principled BSDF's Transmission Weight 0.5 is not "
+                        "rendered (an opaque surface)"]
 
 
 def sunlit_box_behind_clear_panes(kind: str, tint=(1.0, 1.0, 1.0, 1.0),

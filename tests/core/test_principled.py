@@ -75,11 +75,11 @@ def test_path_albedo_leaves_the_material_table_alone():
     """A glossy material's light-path reflectance (diffuse and glossy, cosine-averaged) is
     below its base colour's plus the lobe's, and computing it keeps the table's base colour
     (one row: a slice of it would be a view)."""
-    from addon.core.scene.geometry import SPECULAR, WorldGeometry
+    from addon.core.scene.geometry import CUTOUT, SPECULAR, WorldGeometry
     corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64)
     geometry = WorldGeometry.from_triangles(corners, np.tile([0.0, 0.0, 1.0], (3, 1)),
                                             np.array([[0.9, 0.6, 0.3]]), np.zeros((1, 3)))
-    geometry.materials[0, SPECULAR:] = principled.specular_row(0.4, 1.0, 1.5, 0.5, (1, 1, 1))
+    geometry.materials[0, SPECULAR:CUTOUT] = principled.specular_row(0.4, 1.0, 1.5, 0.5, (1, 1, 1))
     path = geometry.albedo[0]
     assert geometry.materials[0, 0:3] == pytest.approx([0.9, 0.6, 0.3])
     assert (path > 0.3).all() and (path <= 1.0).all()

@@ -84,9 +84,8 @@ def tile_projection(projection: np.ndarray, tile: Tile) -> np.ndarray:
 
 
 def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffers | None,
-                   shapes: SceneBuffers | None,
-                   textures: tuple[moderngl.TextureArray, moderngl.Texture] | None,
-                   camera: Camera, tile: Tile, scope: GpuScope) -> GBuffer:
+                   shapes: SceneBuffers | None, camera: Camera, tile: Tile,
+                   scope: GpuScope) -> GBuffer:
     """Rasterise the scene's triangles and the lights' outlines into the tile's g-buffer,
     whose textures ``scope`` owns."""
     size = tile.size
@@ -106,7 +105,10 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
         "u_view": tuple(camera.view_matrix.T.astype("f4").ravel()),
         **view,
     }
+    textures = scene.textures if scene is not None else None
     scene_defines = {"TEXTURED": 1} if textures else {}
+    if scene is not None and scene.has_cutouts:
+        scene_defines["CUTOUTS"] = 1
     shape_defines = {"ONE_SIDED": 1}
     if glossy:
         scene_defines["GLOSSY"] = shape_defines["GLOSSY"] = 1

@@ -14,7 +14,6 @@ from ..gpu.clear_view import ClearView
 from ..gpu.combined import combined_pass
 from ..gpu.gl import read_textures
 from ..gpu.scene_buffers import SceneBuffers
-from ..gpu.texture_array import upload as upload_textures
 from ..gpu.upsample import upsample
 from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
@@ -40,11 +39,11 @@ MAX_TILE = 2048  # supersampled pixels per image tile edge (later tiles reuse th
 
 @dataclass
 class FrameGpu:
-    """The frame's GPU data: its triangles, the lights' outlines, image textures, maps."""
+    """The frame's GPU data: its triangles (with their image textures), the lights'
+    outlines, maps."""
 
     scene: SceneBuffers | None
     shapes: SceneBuffers | None
-    textures: tuple[moderngl.TextureArray, moderngl.Texture] | None
     maps: FrameMaps
     clear: ClearView | None = None  # the clear triangles, for the camera's view through them
 
@@ -138,7 +137,7 @@ class GBufferStage(TileStage):
     def _render(self, data: FrameGpu, frame: FrameState, work: TileWork, tile: Tile
                 ) -> GBuffer:
         return render_gbuffer(self.gpu.ctx, self.gpu.programs, data.scene, data.shapes,
-                              data.textures, frame.camera, tile, work.scope)
+                              frame.camera, tile, work.scope)
 
 
 class GatherStage(TileStage):
@@ -389,8 +388,6 @@ class RenderImage(Stage):
             geometry = frame.geometry
             scene = _buffers(ctx, geometry, scope)
             shapes = _buffers(ctx, frame.shapes, scope)
-            textures = tuple(scope.own(t) for t in upload_textures(ctx, geometry.textures)) \
-                if geometry.has_textures else None
             clear = scope.own(ClearView(ctx, self.gpu.programs, geometry.clear_triangles,
                                         geometry.clear_transmission)) \
                 if len(geometry.clear_triangles) else None
@@ -398,7 +395,7 @@ class RenderImage(Stage):
                                     bool(geometry.shadowless.any()))
             maps = FrameMaps(atlases, frame.ism_maps, frame.centre, frame.radius,
                              reuse_atlas=len(frame.light_passes) == 1)
-            data = FrameGpu(scene, shapes, textures, maps, clear)
+            data = FrameGpu(scene, shapes, maps, clear)
             if frame.traces_rays:
                 self.gpu.tracer.bind()
             try:

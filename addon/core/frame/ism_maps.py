@@ -46,7 +46,8 @@ class ImperfectShadowMapFrame:
         start = time.perf_counter()
         try:
             uploaded = ism.prepare(self.triangles, settings.ism_points, point_seed,
-                                   kept.versions.shape)
+                                   kept.versions.shape,
+                                   geometry.coverage if geometry.cutout.any() else None)
         except ValueError as exc:  # the area table exceeds the GPU's storage-buffer limit
             raise RenderError(f"imperfect shadow maps: {exc}") from None
         if uploaded:

@@ -39,23 +39,25 @@ def _texture_state(geometry: WorldGeometry) -> tuple[np.ndarray, ...]:
 
 class SceneVersions:
     """Versions of the frame's geometry: ``shape`` changes when triangle positions, clear
-    triangles or the triangles that cast no shadow do (the BVH and shadow maps read them),
-    ``geometry`` when those, materials or textures do (VPLs read all)."""
+    triangles, the triangles that cast no shadow or cutouts do (the BVH and shadow maps read
+    them), ``geometry`` when those, materials or textures do (VPLs read all)."""
 
     def __init__(self) -> None:
         self.shape = 0
         self.geometry = 0
         self._arrays: tuple[np.ndarray, ...] = ()
+        self._shape_length = 0
 
     def note(self, geometry: WorldGeometry) -> None:
         """Compare this frame's geometry with the last one's and bump the versions."""
-        arrays = (geometry.positions, geometry.clear_triangles, geometry.clear_transmission,
-                  geometry.shadowless, geometry.albedo, geometry.emission,
-                  *_texture_state(geometry))
+        shape = (geometry.positions, geometry.clear_triangles, geometry.clear_transmission,
+                 geometry.shadowless, *geometry.cutout_state())
+        arrays = (*shape, geometry.albedo, geometry.emission, *_texture_state(geometry))
         before = self._arrays
         same = [k < len(before) and a.shape == before[k].shape and np.array_equal(a, before[k])
                 for k, a in enumerate(arrays)]
-        if not all(same[:4]):
+        if not all(same[:len(shape)]) or len(shape) != self._shape_length:
+            self._shape_length = len(shape)
             self.shape += 1
         if not all(same) or len(before) != len(arrays):
             self._arrays = tuple(a.copy() for a in arrays)

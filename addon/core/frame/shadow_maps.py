@@ -116,12 +116,13 @@ class ShadowAtlases:
             tiles.use(0)
         if table is not None and self.scene is not None:
             lights = self.shadowless and not s.generation.any()
+            streams, defines = self.scene.cutout_streams()
             program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl",
-                                        {"SHADOWLESS": 1} if lights else {})
-            vao = self.ctx.vertex_array(program, self.scene.streams(normals=False))
+                                        {"SHADOWLESS": 1, **defines} if lights else defines)
+            vao = self.ctx.vertex_array(program, streams)
             own(vao)
-            if lights:
-                self.scene.bind_materials(program)
+            if lights or defines:
+                self.scene.bind_cutouts(program)
             set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
                          u_scene_centre=tuple(centre), u_scene_radius=radius)
             draw_tiles(self.ctx, vao, self.scene.vertex_count, len(table.rows))

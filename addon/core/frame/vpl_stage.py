@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..gpu.gl import GLUnavailableError
-from ..gpu.raytrace import RayTracer
+from ..gpu.raytrace import Cutouts, RayTracer
 from ..gpu.rsm import render_rsm, rsm_hits, rsm_light_samples
 from ..gpu.scene_buffers import SceneBuffers
 from ..scene.geometry import WorldGeometry
@@ -63,6 +63,16 @@ def _triangles_key(kept: KeptProducts) -> tuple:
     return (kept.versions.shape,)
 
 
+def _cutouts(geometry: WorldGeometry) -> Cutouts | None:
+    """The geometry's cutout triangles for the ray tracer, or None without any."""
+    triangles, texels = geometry.cutout_rows()
+    if len(triangles) == 0:
+        return None
+    uv = np.zeros((len(triangles), 3, 2), np.float32) if geometry.uv is None else \
+        geometry.uv.reshape(-1, 3, 2)[triangles]
+    return Cutouts(triangles, uv, texels, geometry.textures)
+
+
 def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometry,
                      stats: Stats) -> RayTracer:
     """The ray tracer with this frame's triangles (its BVH built unless it has them)."""
@@ -76,7 +86,7 @@ def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometr
             tracer.upload(geometry.positions.reshape(-1, 3, 3), instanced=geometry.instanced,
                           clear=geometry.clear_triangles,
                           transmission=geometry.clear_transmission,
-                          shadowless=geometry.shadowless)
+                          shadowless=geometry.shadowless, cutouts=_cutouts(geometry))
         except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
             raise RenderError(f"ray tracing: {exc}") from None
     kept.keep("bvh", _triangles_key(kept))

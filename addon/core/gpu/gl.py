@@ -159,18 +159,40 @@ def load_source(name: str, defines: dict[str, object] | None = None, version: in
     return f"#version {version} core\n" + header + expand(name, ())
 
 
+@cache
+def included(name: str) -> frozenset[str]:
+    """The ``gpu_shaders/`` files ``name`` includes, directly or not."""
+    text = (SHADER_DIR / name).read_text(encoding="utf-8")
+    direct = set(_INCLUDE.findall(text))
+    return frozenset(direct.union(*(included(f) for f in direct)))
+
+
+RAY_LIB = "raytrace_lib.glsl"
+
+
 class ProgramCache:
-    """Compiled programs keyed by their shader files and defines."""
+    """Compiled programs keyed by their shader files and defines. ``ray_defines`` (set by
+    RayTracer.upload: what its scene needs, e.g. RT_CUTOUTS) are added to the defines of every
+    program that includes raytrace_lib.glsl."""
 
     def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self._programs: dict[tuple, moderngl.Program | moderngl.ComputeShader] = {}
+        self.ray_defines: dict[str, object] = {}
+
+    def _defines(self, files: tuple[str, ...], defines: dict[str, object] | None
+                 ) -> dict[str, object]:
+        defines = defines or {}
+        if self.ray_defines and any(RAY_LIB in included(f) for f in files):
+            return {**defines, **self.ray_defines}
+        return defines
 
     def get(self, vertex: str, fragment: str, defines: dict[str, object] | None = None,
             version: int = 410) -> moderngl.Program:
         """The program of two ``gpu_shaders/`` files; ``version=430`` for shaders that include
         raytrace_lib.glsl (storage buffers)."""
-        key = (vertex, fragment, tuple(sorted((defines or {}).items())), version)
+        defines = self._defines((vertex, fragment), defines)
+        key = (vertex, fragment, tuple(sorted(defines.items())), version)
         if key not in self._programs:
             self._programs[key] = self.ctx.program(
                 vertex_shader=load_source(vertex, defines, version),
@@ -184,7 +206,8 @@ class ProgramCache:
     def compute(self, name: str, defines: dict[str, object] | None = None
                 ) -> moderngl.ComputeShader:
         """The compute shader ``gpu_shaders/<name>``, compiled as GLSL 4.30."""
-        key = ("compute", name, tuple(sorted((defines or {}).items())))
+        defines = self._defines((name,), defines)
+        key = ("compute", name, tuple(sorted(defines.items())))
         if key not in self._programs:
             self._programs[key] = self.ctx.compute_shader(load_source(name, defines, 430))
         return self._programs[key]

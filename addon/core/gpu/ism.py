@@ -163,17 +163,18 @@ class ImperfectShadowMaps:
     # -- points ------------------------------------------------------------------------------
 
     def prepare(self, triangles: np.ndarray, points_per_vpl: int, seed: int,
-                version: object = None) -> bool:
+                version: object = None, coverage: np.ndarray | None = None) -> bool:
         """Draw ``points_per_vpl`` points per map from ``seed`` from now on, and upload the
-        triangles' area CDF unless the triangle count and the caller's geometry ``version``
-        repeat (the points follow moved or deformed triangles meanwhile); True when it was
+        triangles' area CDF (each area times its ``coverage`` (T,) where given: cutouts hold
+        fewer points) unless the triangle count and the caller's geometry ``version`` repeat
+        (the points follow moved or deformed triangles meanwhile); True when it was
         uploaded."""
         self._points_per_vpl = points_per_vpl
         self._seed = seed & 0xFFFFFFFF
         count = len(np.asarray(triangles).reshape(-1, 3, 3))
         if (count, version) == self._prepared:
             return False
-        cdf = area_cdf(triangles)
+        cdf = area_cdf(triangles, coverage)
         limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
         if cdf is not None and cdf.nbytes + 4 > limit:
             raise ValueError(f"the area table of {count} triangles needs {cdf.nbytes >> 20} "

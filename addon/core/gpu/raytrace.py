@@ -17,18 +17,24 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
+from ..scene.model import Texture
 from .bvh import BVH
 from .gl import ProgramCache, require_compute
 from .instanced_bvh import build_instanced_bvh
+from .texture_array import upload as upload_textures
 
 BINDING_NODES = 10  # RT_BINDING_NODES in raytrace_lib.glsl
 BINDING_TRIANGLES = 11  # RT_BINDING_TRIANGLES in raytrace_lib.glsl
 BINDING_RAYS = 12  # RT_BINDING_RAYS in raytrace_comp.glsl
 BINDING_RESULTS = 13  # RT_BINDING_RESULTS in raytrace_comp.glsl
+BINDING_CUTOUTS = 14  # RT_BINDING_CUTOUTS in raytrace_lib.glsl
+UNITS_TEXTURES = 16, 17  # RT_UNIT_TEXTURES, RT_UNIT_TEXTURE_SIZES in raytrace_lib.glsl
 LOCAL_SIZE = 64  # local_size_x of raytrace_comp.glsl
 MAX_BATCH = 1 << 20  # rays per dispatch
 RT_SHADOW = 4  # raytrace_lib.glsl: a shadow ray, which shadowless triangles let through
-SHADOWLESS = 1  # RT_SHADOWLESS: RtTriangle.clear of a shadowless triangle
+SHADOWLESS = 1  # RT_SHADOWLESS: RtTriangle.clear flag of a shadowless triangle
+CUTOUT = 2  # RT_CUTOUT: RtTriangle.clear flag of a cutout triangle
+FLAGS = 255  # RT_FLAGS: RtTriangle.clear values up to this are flags, not a colour
 
 TRIANGLE_DTYPE = np.dtype([("v0", "<f4", 3), ("id", "<i4"), ("v1", "<f4", 3), ("clear", "<u4"),
                            ("v2", "<f4", 3), ("ior", "<f4")])
@@ -36,6 +42,20 @@ RAY_DTYPE = np.dtype([("origin", "<f4", 3), ("t_min", "<f4"), ("dir", "<f4", 3),
                       ("t_max", "<f4")])
 RESULT_DTYPE = np.dtype([("t", "<f4"), ("triangle", "<i4"), ("uv", "<f4", 2),
                          ("transmittance", "<f4", 4)])
+
+
+@dataclass
+class Cutouts:
+    """The cutout triangles of a scene (WorldGeometry.cutout_rows): their indices (n,), UVs
+    (n, 3, 2) and cutout texels (n, 4), whose layers are ``textures``' (+ 1)."""
+
+    triangle: np.ndarray
+    uv: np.ndarray
+    texel: np.ndarray
+    textures: list[Texture]
+
+
+PLACEHOLDER = Texture("(no coverage texture)", np.ones((1, 1, 4), np.float32))
 
 
 @dataclass
@@ -79,28 +99,34 @@ class RayTracer:
         self._triangles: moderngl.Buffer | None = None
         self._rays: moderngl.Buffer | None = None
         self._results: moderngl.Buffer | None = None
+        self._cutouts: list = []  # the cutouts' buffer and textures
         self.upload(np.zeros((0, 3, 3), np.float32))
 
     def upload(self, triangles: np.ndarray, leaf_size: int = 4,
                instanced: np.ndarray | tuple = (), clear: np.ndarray | None = None,
                transmission: np.ndarray | None = None,
-               shadowless: np.ndarray | None = None) -> None:
+               shadowless: np.ndarray | None = None, cutouts: Cutouts | None = None) -> None:
         """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene.
         ``instanced`` rows (first triangle, instances, triangles each) mark runs of one mesh's
         copies, whose tree is built once (``instanced_bvh``). ``clear`` triangles (C, 3, 3)
         let rays through, each with its ``transmission`` row (colour, Fresnel IOR or 0): no
         query hits them, and closest hits and shadow rays get the light they let through
         (raytrace_lib.glsl). ``shadowless`` (T,) bool: triangles shadow rays pass (Shadow ray
-        visibility off). Raises ValueError before building when the triangles cannot fit a
-        storage buffer."""
+        visibility off). ``cutouts``: triangles rays hit with probability their coverage and
+        shadow rays pass dimmed by it (RT_CUTOUTS). Raises ValueError before building when the
+        triangles cannot fit a storage buffer."""
         triangles = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
         clear = np.zeros((0, 3, 3), np.float32) if clear is None else clear
         shadowless = None if shadowless is None or not np.any(shadowless) else shadowless
+        cutouts = None if cutouts is None or len(cutouts.triangle) == 0 else cutouts
         codes = None
-        if len(clear) or shadowless is not None:
+        if len(clear) or shadowless is not None or cutouts is not None:
             codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
         if shadowless is not None:
             codes[:len(triangles)][np.asarray(shadowless, bool), 0] = SHADOWLESS
+        if cutouts is not None:
+            codes[cutouts.triangle, 0] |= CUTOUT
+            codes[cutouts.triangle, 1] = np.arange(len(cutouts.triangle), dtype=np.uint32)
         if len(clear):
             rows = np.asarray(transmission, np.float32)
             colour = np.clip(rows[:, :3], 0.0, 1.0)
@@ -111,7 +137,23 @@ class RayTracer:
             triangles = np.concatenate([triangles, np.asarray(clear, np.float32)])
         count = len(triangles)
         self._check_size(count, count * TRIANGLE_DTYPE.itemsize)
-        self.upload_bvh(build_instanced_bvh(triangles, instanced, leaf_size), codes)
+        self.upload_bvh(build_instanced_bvh(triangles, instanced, leaf_size), codes, cutouts)
+
+    def _upload_cutouts(self, cutouts: Cutouts | None) -> None:
+        """The cutouts' rows (raytrace_lib.glsl's RtCutout) and the textures they read, with
+        layers renumbered to those; RT_CUTOUTS in the programs' defines while there are any."""
+        self._release_cutouts()
+        self.programs.ray_defines = {} if cutouts is None else {"RT_CUTOUTS": 1}
+        if cutouts is None:
+            return
+        texel = np.array(cutouts.texel, np.float32)
+        used = np.unique(texel[:, 0][texel[:, 0] > 0]).astype(int)
+        texel[:, 0] = np.searchsorted(used, texel[:, 0].astype(int)) + (texel[:, 0] > 0)
+        rows = np.zeros((len(texel), 12), np.float32)
+        rows[:, 0:6] = np.asarray(cutouts.uv, np.float32).reshape(-1, 6)
+        rows[:, 8:12] = texel
+        textures = [cutouts.textures[k - 1] for k in used] or [PLACEHOLDER]
+        self._cutouts = [self.ctx.buffer(rows), *upload_textures(self.ctx, textures)]
 
     def _check_size(self, triangles: int, nbytes: int) -> None:
         limit = int(self.ctx.info["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
@@ -119,10 +161,11 @@ class RayTracer:
             raise ValueError(f"{triangles} triangles need {nbytes >> 20} MiB of storage buffer; "
                              f"this GPU allows {limit >> 20} MiB")
 
-    def upload_bvh(self, bvh: BVH, clear: np.ndarray | None = None) -> None:
+    def upload_bvh(self, bvh: BVH, clear: np.ndarray | None = None,
+                   cutouts: Cutouts | None = None) -> None:
         """Upload a BVH from ``build_bvh``, replacing the scene; ``clear`` (T, 2) uint32 per
-        original triangle: its packed colour (0 for an opaque one, SHADOWLESS for one shadow
-        rays pass) and its IOR's bits."""
+        original triangle: its packed colour and its IOR's bits, or (0 for an opaque one) its
+        flags (SHADOWLESS for one shadow rays pass, CUTOUT) and its row of ``cutouts``."""
         # raytrace_lib.glsl's RtNode (lo, a, hi, b) and RtTriangle (TRIANGLE_DTYPE) as float32
         # rows, the int fields as their bits, the vertices moved as 12-byte records (a
         # structured array filled field by field took 3× the time)
@@ -138,18 +181,24 @@ class RayTracer:
         tris[:count, :, 3] = 0.0
         tris[:count, 0, 3] = bvh.triangle_ids.astype(np.int32, copy=False).view(np.float32)
         # closest hits trace their transmittance only where a clear triangle can dim it
-        self.has_clear = clear is not None and bool(np.any(clear[:, 0] > SHADOWLESS))
+        self.has_clear = clear is not None and bool(np.any(clear[:, 0] > FLAGS))
         if clear is not None:
             tris[:count, 1:, 3] = clear[bvh.triangle_ids].view(np.float32)
         self._check_size(len(bvh.triangles), max(nodes.nbytes, tris.nbytes))
         self._release_scene()
         self._nodes, self._triangles = self.ctx.buffer(nodes), self.ctx.buffer(tris)
+        self._upload_cutouts(cutouts)
 
     def bind(self) -> None:
         """Bind the scene at RT_BINDING_NODES / RT_BINDING_TRIANGLES for another program's
         dispatch or draw (again after each upload: it makes new buffers)."""
         self._nodes.bind_to_storage_buffer(BINDING_NODES)
         self._triangles.bind_to_storage_buffer(BINDING_TRIANGLES)
+        if self._cutouts:
+            buffer, array, sizes = self._cutouts
+            buffer.bind_to_storage_buffer(BINDING_CUTOUTS)
+            array.use(UNITS_TEXTURES[0])
+            sizes.use(UNITS_TEXTURES[1])
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray,
                   t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf,
@@ -171,6 +220,7 @@ class RayTracer:
 
     def release(self) -> None:
         self._release_scene()
+        self._release_cutouts()
         for buffer in (self._rays, self._results):
             if buffer is not None:
                 buffer.release()
@@ -181,6 +231,11 @@ class RayTracer:
             if buffer is not None:
                 buffer.release()
         self._nodes = self._triangles = None
+
+    def _release_cutouts(self) -> None:
+        for obj in self._cutouts:
+            obj.release()
+        self._cutouts = []
 
     def _run(self, rays: np.ndarray, any_hit: int, out_dtype: np.dtype, shadow: bool
              ) -> np.ndarray:

@@ -67,11 +67,12 @@ def render_rsm(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffer
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         objects[0].use(0)
-        program = programs.get("rsm_vert.glsl", "rsm_frag.glsl")
+        streams, defines = scene.cutout_streams()
+        program = programs.get("shadow_vert.glsl", "rsm_frag.glsl", {"TRIANGLES": 1, **defines})
         set_uniforms(program, u_tiles=0, u_atlas_tiles=(columns, size[1] // res),
                      u_scene_centre=tuple(centre), u_scene_radius=radius)
-        scene.bind_materials(program)
-        vao = ctx.vertex_array(program, scene.streams(normals=False))
+        scene.bind_cutouts(program)
+        vao = ctx.vertex_array(program, streams)
         objects.append(vao)
         draw_tiles(ctx, vao, scene.vertex_count, count)
         images = [np.frombuffer(t.read(), np.float32).reshape(size[1] // res, res, columns, res,

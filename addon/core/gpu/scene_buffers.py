@@ -1,5 +1,6 @@
 """A WorldGeometry on the GPU: its position and normal buffers, its material table and each
-triangle's row (as textures read by gpu_shaders/materials_lib.glsl), and its UVs when textured."""
+triangle's row (as textures read by gpu_shaders/materials_lib.glsl), and its UVs and image
+textures when textured."""
 
 from __future__ import annotations
 
@@ -8,10 +9,12 @@ import numpy as np
 
 from ..scene import principled
 from ..scene.geometry import WorldGeometry
+from .texture_array import upload as upload_textures
 
 MATERIAL_UNITS = 6, 7  # texture units of the triangles' rows and the material table (units
 # 0-5 are the passes' own)
 GGX_TABLES_UNIT = 8  # the glossy lobe's tables (principled_lib.glsl)
+CUTOUT_TEXTURE_UNITS = 9, 10  # the image textures for the cutouts of shadow maps and RSMs
 TABLE_WIDTH = 4096  # texels per line of both tables
 
 
@@ -42,10 +45,13 @@ class SceneBuffers:
             self.normals = self._own(ctx.buffer(geometry.normals))
             rows = geometry.triangle_material.astype(np.int32, copy=False)[:, None]
             self.triangle_material = self._own(_table_texture(ctx, rows, 1, "i4"))
-            table = geometry.materials.reshape(-1, 4)  # five RGBA texels a row
+            table = geometry.materials.reshape(-1, 4)  # six RGBA texels a row
             self.materials = self._own(_table_texture(ctx, table, 4, "f4"))
             self.uv = None if geometry.uv is None else self._own(ctx.buffer(geometry.uv))
+            self.textures = tuple(self._own(t) for t in upload_textures(ctx, geometry.textures)) \
+                if geometry.has_textures else None
             self.has_specular = geometry.has_specular
+            self.has_cutouts = bool(geometry.cutout.any())
             self.ggx_tables = None
             if self.has_specular:
                 values = principled.tables()
@@ -72,6 +78,27 @@ class SceneBuffers:
         self.materials.use(MATERIAL_UNITS[1])
         program["u_triangle_materials"].value = MATERIAL_UNITS[0]
         program["u_materials"].value = MATERIAL_UNITS[1]
+
+    def cutout_streams(self) -> tuple[list[tuple], dict[str, int]]:
+        """For a draw of the positions that leaves cutouts out (shadow_vert.glsl,
+        cutout_lib.glsl): its streams (the positions, and the UVs when textured) and the defines
+        (CUTOUTS where some material is a cutout, TEXTURED with UVs)."""
+        streams = self.streams(normals=False)
+        if not self.has_cutouts:
+            return streams, {}
+        if self.textures is None:
+            return streams, {"CUTOUTS": 1}
+        return [*streams, (self.uv, "2f", "in_uv")], {"CUTOUTS": 1, "TEXTURED": 1}
+
+    def bind_cutouts(self, program: moderngl.Program) -> None:
+        """Bind the material table, and the image textures when textured, for a draw that
+        leaves cutouts out (``cutout_streams``)."""
+        self.bind_materials(program)
+        if self.has_cutouts and self.textures is not None:
+            for texture, unit in zip(self.textures, CUTOUT_TEXTURE_UNITS, strict=True):
+                texture.use(unit)
+            program["u_textures"].value, program["u_texture_sizes"].value = \
+                CUTOUT_TEXTURE_UNITS
 
     def bind_specular(self, program: moderngl.Program) -> None:
         """Bind the glossy lobe's tables for principled_lib.glsl (scenes with specular)."""

@@ -17,12 +17,13 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
-MATERIAL_COLUMNS = 20  # albedo, hidden, emission, holdout, texture attribute, shadowless,
-# specular: five texels
+MATERIAL_COLUMNS = 24  # albedo, hidden, emission, holdout, texture attribute, shadowless,
+# specular, cutout: six texels
 HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 HOLDOUT = 7  # 1 in the rows of holdout instances (gbuffer_frag.glsl, combined_frag.glsl)
 SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl)
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
+CUTOUT = 20  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 
@@ -36,7 +37,8 @@ class WorldGeometry:
     A material row holds the albedo (base colour), the emission, the texture attribute (albedo
     layer, emission layer — NO_TEXTURE for none — and the strength the emission texture is
     multiplied by) and the Principled BSDF's specular parameters (principled.specular_row),
-    laid out as five RGBA texels (gpu_shaders/materials_lib.glsl). Textured materials
+    and the cutout texel (TextureSet.cutout), laid out as six RGBA texels
+    (gpu_shaders/materials_lib.glsl). Textured materials
     have their textures' average colour as albedo and emission (the per-triangle values light
     sampling and path termination use); ``uv`` (per vertex) is set only when some material has
     a texture. ``albedo`` and ``albedo_at`` are what light paths keep at a bounce: the base
@@ -82,8 +84,8 @@ class WorldGeometry:
         return np.take(table, self.triangle_material, axis=0)
 
     def _path_albedo(self, base: np.ndarray, row: int) -> np.ndarray:
-        return np.clip(principled.path_albedo(base.astype(np.float64),
-                                              self.materials[row, SPECULAR:]), 0.0, MAX_ALBEDO)
+        params = self.materials[row, SPECULAR:CUTOUT]
+        return np.clip(principled.path_albedo(base.astype(np.float64), params), 0.0, MAX_ALBEDO)
 
     @property
     def has_specular(self) -> bool:
@@ -109,6 +111,38 @@ class WorldGeometry:
     def holdout(self) -> np.ndarray:
         """(T,) bool: triangles of holdout instances (the camera sees a hole there)."""
         return self.materials[self.triangle_material, HOLDOUT] > 0.5
+
+    @cached_property
+    def cutout(self) -> np.ndarray:
+        """(T,) bool: triangles of cutout materials (Material.is_cutout)."""
+        rows = self.materials[:, CUTOUT:CUTOUT + 2]
+        return ((rows[:, 0] > 0) | (rows[:, 1] > 0))[self.triangle_material]
+
+    @cached_property
+    def coverage(self) -> np.ndarray:
+        """(T,) each triangle's mean coverage: 1, or a cutout's constant alpha times its
+        texture's mean coverage."""
+        table = 1.0 - self.materials[:, CUTOUT + 1].astype(np.float64)
+        for row in np.flatnonzero(self.materials[:, CUTOUT] > 0):
+            texture = self.textures[int(self.materials[row, CUTOUT]) - 1]
+            table[row] *= tex.mean_coverage(texture, int(self.materials[row, CUTOUT + 2]))
+        return table[self.triangle_material]
+
+    def cutout_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """The cutout triangles (n,) and their cutout texels (n, 4) (TextureSet.cutout)."""
+        triangles = np.flatnonzero(self.cutout)
+        rows = self.materials[self.triangle_material[triangles], CUTOUT:CUTOUT + 4]
+        return triangles, np.ascontiguousarray(rows, np.float32)
+
+    def cutout_state(self) -> tuple[np.ndarray, ...]:
+        """What decides which rays cutouts stop: their triangles, texels, UVs and textures'
+        pixels (none without cutouts)."""
+        triangles, rows = self.cutout_rows()
+        if len(triangles) == 0:
+            return ()
+        layers = np.unique(rows[:, 0][rows[:, 0] > 0]).astype(int) - 1
+        uv = () if self.uv is None else (self.uv.reshape(-1, 6)[triangles],)
+        return (triangles, rows, *uv, *(self.textures[k].pixels for k in layers))
 
     @cached_property
     def shadowless(self) -> np.ndarray:
@@ -160,7 +194,7 @@ class WorldGeometry:
         gloss, rough = np.zeros_like(diffuse), np.zeros(len(triangle))
         material = self.triangle_material[triangle]
         for row in np.unique(material):
-            params = self.materials[row, SPECULAR:]
+            params = self.materials[row, SPECULAR:CUTOUT]
             if params[7] <= 0:
                 continue
             group = np.flatnonzero(material == row)
@@ -178,7 +212,7 @@ class WorldGeometry:
         out = np.zeros((len(triangle), principled.LOBE_TEXELS, 4))
         material = self.triangle_material[triangle]
         for row in np.unique(material):
-            params = self.materials[row, SPECULAR:]
+            params = self.materials[row, SPECULAR:CUTOUT]
             if params[7] > 0:
                 group = np.flatnonzero(material == row)
                 out[group] = principled.lobe_texels(base[group], params, mu[group])
@@ -272,6 +306,7 @@ def _material_rows(materials: list[Material], warnings: list[str],
     rows = np.zeros((len(materials), MATERIAL_COLUMNS), np.float32)
     rows[:, 0:3], rows[:, 4:7] = albedo, emission
     rows[:, 8:11] = [textures.columns(m) for m in materials]
+    rows[:, CUTOUT:CUTOUT + 4] = [textures.cutout(m) for m in materials]
     for row, m in enumerate(materials):
         values = np.array([m.roughness, m.metallic, m.ior, m.specular_ior_level,
                            *m.specular_tint], np.float64)
@@ -280,7 +315,7 @@ def _material_rows(materials: list[Material], warnings: list[str],
             if message not in warnings:
                 warnings.append(message)
             continue
-        rows[row, SPECULAR:] = principled.specular_row(m.roughness, m.metallic, m.ior,
+        rows[row, SPECULAR:CUTOUT] = principled.specular_row(m.roughness, m.metallic, m.ior,
                                                        m.specular_ior_level, m.specular_tint)
         if rows[row, SPECULAR + 7] > 0 and m.roughness < principled.MIN_ROUGHNESS:
             clamped.add(m.name)
@@ -516,9 +551,9 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     if clear_count and notes is not None:
         notes.append(f"{clear_count} triangles of clear material(s) "
                      f"{', '.join(repr(n) for n in sorted(table.clear_names))} let light "
-                     f"straight through: their tint and Fresnel loss dim ray-traced light "
-                     f"(lamps and suns, light paths), not shadow-mapped samples or the "
-                     f"camera's view; their reflections and refraction are not rendered")
+                     f"straight through: their tint and Fresnel loss dim direct light, light "
+                     f"paths and the camera's view, not VPLs' light (imperfect shadow maps); "
+                     f"their reflections and refraction are not rendered")
     if table.clamped and notes is not None:
         notes.append(f"glossy roughness below {principled.MIN_ROUGHNESS:g} is rendered at "
                      f"{principled.MIN_ROUGHNESS:g}: {len(table.clamped)} material(s), e.g. "

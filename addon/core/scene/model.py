@@ -42,6 +42,11 @@ class Texture:
                              f"{INTERPOLATIONS} / {EXTENSIONS}")
 
 
+COVERAGE_ALPHA = 0  # Material.coverage_mode: the texture's alpha channel
+COVERAGE_LUMINANCE = 1  # its colour's luminance (an Image Texture's Color output as a float)
+COVERAGE_INVERTED = 2  # one minus it (a Transparent BSDF in a Mix Shader's second slot)
+
+
 @dataclass
 class Material:
     """A material: base colour (albedo), emitted radiance (colour × strength) and the
@@ -53,7 +58,13 @@ class Material:
     the Principled BSDF's inputs; with level 0 and metallic 0 (the defaults here, as for a
     Diffuse BSDF) the material is pure Lambert. ``transmission`` is the colour of the light
     it lets straight through (Transparent, Glass and Refraction BSDFs, a Principled BSDF's
-    Alpha and Transmission); a material that does nothing else is clear (``is_clear``)."""
+    Alpha and Transmission); a material that does nothing else is clear (``is_clear``).
+
+    A cutout (a leaf, a fence: ``is_cutout``) is there in part: ``alpha`` of it, times, with
+    ``coverage_texture``, that texture's alpha (``coverage_mode`` COVERAGE_ALPHA) or its
+    colour's luminance (COVERAGE_LUMINANCE), or one minus those (| COVERAGE_INVERTED); light
+    and rays pass the rest untouched, as a Principled BSDF's Alpha or a Transparent BSDF mixed
+    in by a texture do in Cycles."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
@@ -67,6 +78,15 @@ class Material:
     emission_texture: Texture | None = None
     transmission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     transmission_ior: float = 0.0  # the Fresnel loss's IOR at each crossing (0: none)
+    alpha: float = 1.0
+    coverage_texture: Texture | None = None
+    coverage_mode: int = 0  # COVERAGE_ALPHA or COVERAGE_LUMINANCE, | COVERAGE_INVERTED
+
+    @property
+    def is_cutout(self) -> bool:
+        """Whether the surface is there only in part (``alpha`` below 1 or a coverage
+        texture)."""
+        return self.alpha < 1.0 or self.coverage_texture is not None
 
     @property
     def is_clear(self) -> bool:

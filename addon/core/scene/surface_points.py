@@ -23,10 +23,12 @@ class SurfacePoints:
         return len(self.triangle)
 
 
-def area_cdf(triangles: np.ndarray) -> np.ndarray | None:
-    """(T,) float32 cumulative area / total area of (T, 3, 3) triangles, the last exactly 1
-    (zero-area and non-finite triangles add nothing); None when there is no area."""
-    cumulative = np.cumsum(triangle_areas(triangles))
+def area_cdf(triangles: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray | None:
+    """(T,) float32 cumulative area / total area of (T, 3, 3) triangles, each area times its
+    ``weight`` (T,) where given, the last exactly 1 (zero-area and non-finite triangles add
+    nothing); None when there is no area."""
+    areas = triangle_areas(triangles)
+    cumulative = np.cumsum(areas if weights is None else areas * weights)
     if len(cumulative) == 0 or not cumulative[-1] > 0:
         return None
     cdf = (cumulative / cumulative[-1]).astype(np.float32)

@@ -22,7 +22,14 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from .model import EXTENSIONS, INTERPOLATIONS, Material, Texture
+from .model import (
+    COVERAGE_INVERTED,
+    COVERAGE_LUMINANCE,
+    EXTENSIONS,
+    INTERPOLATIONS,
+    Material,
+    Texture,
+)
 
 MISSING_COLOR = (1.0, 0.0, 1.0)  # Blender's colour for an image it cannot read
 NO_TEXTURE = -1.0
@@ -48,6 +55,7 @@ def associate_bytes(pixels: np.ndarray) -> np.ndarray:
     return out
 
 
+_SRGB_TABLE = decode_srgb(np.arange(256) / 255)  # every byte code, decoded
 _MEANS: WeakKeyDictionary[Texture, np.ndarray] = WeakKeyDictionary()
 
 
@@ -56,8 +64,7 @@ def mean_color(texture: Texture) -> np.ndarray:
     if texture not in _MEANS:
         rgb = texture.pixels[..., :3].reshape(-1, 3)
         if texture.srgb:  # byte images hold k/255: decode through a table of the 256 codes
-            codes = np.clip(np.rint(rgb * 255), 0, 255).astype(np.uint8)
-            rgb = decode_srgb(np.arange(256) / 255)[codes]
+            rgb = _SRGB_TABLE[np.clip(np.rint(rgb * 255), 0, 255).astype(np.uint8)]
         _MEANS[texture] = rgb.mean(axis=0, dtype=np.float64)
     return _MEANS[texture]
 
@@ -101,15 +108,15 @@ def _wrap(i: np.ndarray, size: int, extension: str) -> tuple[np.ndarray, np.ndar
     return np.clip(i, 0, size - 1), inside
 
 
-def sample(texture: Texture, uv: np.ndarray) -> np.ndarray:
-    """Linear RGB (n, 3) at UVs (n, 2), with the texture's interpolation and extension."""
+def _interpolate(texture: Texture, uv: np.ndarray) -> np.ndarray:
+    """Stored RGBA values (n, 4) interpolated at UVs (n, 2), not decoded."""
     pixels = texture.pixels
     h, w = pixels.shape[:2]
     uv = np.nan_to_num(np.asarray(uv, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     uv = np.clip(uv, -1e6, 1e6)  # keeps indices small; float32 holds no texel fraction there
     xs, wx = _taps(uv[:, 0], w, texture.interpolation)
     ys, wy = _taps(uv[:, 1], h, texture.interpolation)
-    value = np.zeros((len(uv), 3))
+    value = np.zeros((len(uv), 4))
     for y, weight_y in zip(ys, wy, strict=True):
         row, row_inside = _wrap(y, h, texture.extension)
         for x, weight_x in zip(xs, wx, strict=True):
@@ -117,8 +124,39 @@ def sample(texture: Texture, uv: np.ndarray) -> np.ndarray:
             weight = weight_x * weight_y
             if row_inside is not None:
                 weight = weight * (row_inside & column_inside)
-            value += weight[:, None] * pixels[row, column, :3]
+            value += weight[:, None] * pixels[row, column]
+    return value
+
+
+def sample(texture: Texture, uv: np.ndarray) -> np.ndarray:
+    """Linear RGB (n, 3) at UVs (n, 2), with the texture's interpolation and extension."""
+    value = _interpolate(texture, uv)[:, :3]
     return decode_srgb(value) if texture.srgb else value
+
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709: Blender's colour-to-float weights
+
+
+def _coverage_of(rgb: np.ndarray, alpha: np.ndarray, mode: int) -> np.ndarray:
+    value = rgb @ LUMINANCE if mode & COVERAGE_LUMINANCE else alpha
+    return 1.0 - value if mode & COVERAGE_INVERTED else value
+
+
+def sample_coverage(texture: Texture, mode: int, uv: np.ndarray) -> np.ndarray:
+    """A cutout texture's coverage (n,) in [0, 1] at UVs (n, 2) (Material.coverage_mode;
+    the GPU twin is coverage_lib.glsl)."""
+    value = _interpolate(texture, uv)
+    rgb = decode_srgb(value[:, :3]) if texture.srgb else value[:, :3]
+    return np.clip(_coverage_of(rgb, value[:, 3], mode), 0.0, 1.0)
+
+
+def mean_coverage(texture: Texture, mode: int) -> float:
+    """A cutout texture's coverage averaged over its texels."""
+    rgb = texture.pixels[..., :3].reshape(-1, 3)
+    if mode & COVERAGE_LUMINANCE and texture.srgb:  # byte codes, decoded through a table
+        rgb = _SRGB_TABLE[np.clip(np.rint(rgb * 255), 0, 255).astype(np.uint8)]
+    value = _coverage_of(rgb, texture.pixels[..., 3].ravel(), mode)
+    return float(np.clip(value, 0.0, 1.0).mean(dtype=np.float64))
 
 
 class TextureSet:
@@ -137,6 +175,13 @@ class TextureSet:
             self._layers[key] = len(self.textures)
             self.textures.append(texture)
         return float(self._layers[key])
+
+    def cutout(self, material: Material) -> tuple[float, float, float, float]:
+        """A material's cutout texel (coverage_lib.glsl): coverage layer + 1 (0 for none),
+        1 − its constant alpha, the coverage mode, 0."""
+        alpha = float(np.clip(np.nan_to_num(material.alpha, nan=1.0), 0.0, 1.0))
+        return (self.layer(material.coverage_texture) + 1.0, 1.0 - alpha,
+                float(material.coverage_mode), 0.0)
 
     def columns(self, material: Material) -> tuple[float, float, float]:
         """A material's texture attribute: albedo layer, emission layer, and the

@@ -1,0 +1,31 @@
+// For the fragment shaders of draws from shadow_vert.glsl (shadow maps, RSMs): the triangle
+// index (with SHADOWLESS, CUTOUTS or TRIANGLES) and cutout_kept(), whether this fragment keeps
+// its surface: with CUTOUTS (some material is a cutout) with probability its coverage
+// (coverage_lib.glsl; TEXTURED: its image textures are bound), else always.
+#ifndef CUTOUT_LIB_GLSL
+#define CUTOUT_LIB_GLSL
+#if defined(SHADOWLESS) || defined(CUTOUTS) || defined(TRIANGLES)
+#include "materials_lib.glsl"
+flat in int v_triangle;
+#endif
+#ifdef CUTOUTS
+#include "coverage_lib.glsl"
+#ifdef TEXTURED
+in vec2 v_uv;
+#endif
+#endif
+
+bool cutout_kept() {
+#ifdef CUTOUTS
+    vec4 cutout = material_of(v_triangle).cutout;
+#ifdef TEXTURED
+    float coverage = surface_coverage(u_textures, u_texture_sizes, cutout, v_uv);
+#else
+    float coverage = 1.0 - cutout.y;  // no textures: constant alphas only
+#endif
+    return surface_kept(coverage, uvec3(gl_FragCoord.xy, v_triangle));
+#else
+    return true;
+#endif
+}
+#endif

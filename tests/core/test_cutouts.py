@@ -1,0 +1,150 @@
+"""Cutouts (a Principled BSDF's Alpha, a Transparent BSDF mixed in: leaves, fences): surfaces
+that are there in part. Rays and rasterised samples keep them with probability their coverage,
+shadow rays pass dimmed by it, as in Cycles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.core.gpu.raytrace import Cutouts
+from addon.core.scene.model import (
+    COVERAGE_INVERTED,
+    COVERAGE_LUMINANCE,
+    Instance,
+    LightKind,
+    Material,
+    Texture,
+)
+from addon.core.scene.surface_points import area_cdf
+from addon.core.scene.textures import mean_coverage, sample_coverage
+from addon.core.settings import Settings
+from tests.core.builders import floor_scene, light, pixel_centres, quad, translation
+
+HALF = 1.5  # the panel's half size: it covers [-1.5, 1.5]² at z = 1
+
+
+def checker() -> Texture:
+    """2×2 texels, Closest: alpha 1 in the lower-left and upper-right quadrants, 0 elsewhere."""
+    pixels = np.ones((2, 2, 4), np.float32)
+    pixels[0, 1, 3] = pixels[1, 0, 3] = 0.0
+    return Texture("checker", pixels, interpolation="Closest")
+
+
+def panel(material: Material, seen: bool = False) -> Instance:
+    mesh = quad(HALF, HALF)
+    mesh.uvs = ((mesh.positions[:, :2] / HALF + 1) / 2).astype(np.float32)
+    # off the pixel grid's diagonal: a ray through the shared edge crosses both triangles
+    return Instance(mesh, translation(0.013, 0.007, 1), [material], visible_to_camera=seen)
+
+
+def sun_scene(material: Material, seen: bool = False):
+    sun = light(LightKind.SUN, np.eye(4), power=3.0)  # straight down
+    return floor_scene([sun], extra=[panel(material, seen)])
+
+
+def quadrant_means(image: np.ndarray, margin: float = 0.35) -> np.ndarray:
+    """The mean of each quadrant under the panel (lower-left, lower-right, upper-left,
+    upper-right), ``margin`` metres from its edges and the texel boundaries."""
+    x, y = pixel_centres()
+    means = []
+    for sy in (-1, 1):
+        for sx in (-1, 1):
+            inside = (np.abs(x - sx * HALF / 2) < HALF / 2 - margin) \
+                & (np.abs(y - sy * HALF / 2) < HALF / 2 - margin)
+            means.append(image[inside].mean())
+    return np.array(means)
+
+
+@pytest.mark.parametrize("shadows", ["ray_traced", "shadow_maps", "hybrid"])
+def test_a_masked_panel_shadows_the_floor_where_its_texture_is_opaque(renderer, shadows):
+    """The sun through a checker mask: dark under its opaque texels, lit under the others
+    (ray traced, shadow-mapped, and the default)."""
+    settings = Settings(bounces=0, antialiasing=1, direct_shadows=shadows)
+    material = Material("leaf", (0.5, 0.5, 0.5), coverage_texture=checker())
+    frame, _ = renderer.render(sun_scene(material), settings)
+    light_on_floor = 3.0 / np.pi  # DiffDir: irradiance / π
+    np.testing.assert_allclose(quadrant_means(frame.passes["DiffDir"][..., 0]),
+                               [0.0, light_on_floor, light_on_floor, 0.0], atol=0.01)
+
+
+def test_a_constant_alpha_lets_its_share_of_the_light_through(renderer):
+    """Alpha 0.3: the floor under the panel gets 0.7 of the sun. Shadow rays are dimmed by it
+    exactly; shadow maps keep the panel in 30 % of their texels (each pixel 0 to 1: their
+    mean over the 576 pixels under the panel, within 2.3 standard deviations)."""
+    share = {}
+    for shadows in ("ray_traced", "shadow_maps"):
+        settings = Settings(bounces=0, antialiasing=1, direct_shadows=shadows)
+        frame, _ = renderer.render(sun_scene(Material("veil", alpha=0.3)), settings)
+        share[shadows] = frame.passes["DiffDir"][..., 0] / (3.0 / np.pi)
+    np.testing.assert_allclose(quadrant_means(share["ray_traced"]), 0.7, atol=1e-4)
+    under = share["shadow_maps"][20:44, 20:44]  # pixels 20 to 43: |x|, |y| < 1.1 m
+    assert abs(under.mean() - 0.7) < 0.03
+    assert under.std() > 0.1  # texels keep the panel or not
+
+
+def test_the_camera_sees_a_constant_alpha_in_part(renderer):
+    """A black panel of alpha 0.3 seen from above, over the floor it shades to 0.7: each
+    pixel averages its supersamples, 70 % of which see the floor (0.7 × 0.7 of the open
+    floor's light)."""
+    settings = Settings(bounces=0, antialiasing=4, direct_shadows="ray_traced")
+    material = Material("veil", (0.0, 0.0, 0.0), alpha=0.3)
+    frame, _ = renderer.render(sun_scene(material, seen=True), settings)
+    open_floor = 3.0 / np.pi * 0.8
+    share = quadrant_means(frame.passes["Combined"][..., 0]) / open_floor
+    np.testing.assert_allclose(share, 0.49, atol=0.02)
+
+
+def cutout_panel(tracer, alpha: float = 1.0, texture: Texture | None = None, mode: int = 0):
+    """Upload one panel (two triangles at z = 1 over [-1.5, 1.5]²) as a cutout."""
+    mesh = quad(HALF, HALF, z=1.0)
+    uv = ((mesh.positions[:, :2] / HALF + 1) / 2).astype(np.float32).reshape(2, 3, 2)
+    texel = np.array([[1.0 if texture else 0.0, 1.0 - alpha, float(mode), 0.0]] * 2, np.float32)
+    tracer.upload(mesh.positions.reshape(2, 3, 3),
+                  cutouts=Cutouts(np.arange(2), uv, texel, [texture] if texture else []))
+
+
+def test_rays_hit_a_cutout_with_probability_its_coverage(tracer):
+    """Closest-hit and any-hit rays from 20 000 origins stop at a panel of alpha 0.3 three
+    times in ten (within 3 standard deviations), a shadow ray's transmittance is 0.7."""
+    cutout_panel(tracer, alpha=0.3)
+    rng = np.random.default_rng(1)
+    origins = np.column_stack([rng.uniform(-1, 1, (20000, 2)), np.full(20000, 2.0)])
+    down = np.tile([0.0, 0.0, -1.0], (20000, 1))
+    bound = 3 * np.sqrt(0.3 * 0.7 / 20000)
+    hits = tracer.intersect(origins, down)
+    assert abs((hits.triangle >= 0).mean() - 0.3) < bound
+    assert abs(tracer.occluded(origins, down, t_max=5.0).mean() - 0.3) < bound
+    tracer.upload(np.zeros((0, 3, 3), np.float32))
+
+
+def test_rays_pass_a_mask_where_it_is_clear(tracer):
+    """A checker mask (Closest): rays hit the opaque texels and pass the others, every time;
+    inverted (a Transparent BSDF in a Mix Shader's second slot), the other way round."""
+    centres = np.array([[-0.75, -0.75, 2], [0.75, -0.75, 2], [-0.75, 0.75, 2], [0.75, 0.75, 2]])
+    down = np.tile([0.0, 0.0, -1.0], (4, 1))
+    cutout_panel(tracer, texture=checker())
+    np.testing.assert_array_equal(tracer.intersect(centres, down).triangle >= 0,
+                                  [True, False, False, True])
+    cutout_panel(tracer, texture=checker(), mode=COVERAGE_INVERTED)
+    np.testing.assert_array_equal(tracer.occluded(centres, down, t_max=5.0),
+                                  [False, True, True, False])
+    tracer.upload(np.zeros((0, 3, 3), np.float32))
+
+
+def test_coverage_from_a_colour_is_its_luminance():
+    """An Image Texture's Color output as the coverage: Rec. 709 luminance of the decoded
+    colour (white 1, pure green 0.7152 in linear values); the mean is over the texels."""
+    pixels = np.array([[[1, 1, 1, 1], [0, 1, 0, 1]]], np.float32)
+    texture = Texture("mask", pixels, interpolation="Closest")
+    values = sample_coverage(texture, COVERAGE_LUMINANCE, np.array([[0.25, 0.5], [0.75, 0.5]]))
+    np.testing.assert_allclose(values, [1.0, 0.7152])
+    assert mean_coverage(texture, COVERAGE_LUMINANCE) == pytest.approx((1 + 0.7152) / 2)
+    assert mean_coverage(texture, COVERAGE_LUMINANCE | COVERAGE_INVERTED) == \
+        pytest.approx((0 + 0.2848) / 2)
+
+
+def test_imperfect_shadow_maps_put_fewer_points_on_cutouts():
+    """The ISM points' area table weighs each triangle by its mean coverage."""
+    triangles = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]] * 2, np.float32)
+    np.testing.assert_allclose(area_cdf(triangles, np.array([1.0, 0.25])), [0.8, 1.0])
