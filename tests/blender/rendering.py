@@ -3,6 +3,8 @@ get the linear image back as numpy."""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from pathlib import Path
 
 import bpy
@@ -109,3 +111,24 @@ def shader_material(name: str, kind: str, **inputs) -> bpy.types.Material:
         node.inputs[label.replace("_", " ")].default_value = value
     tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
     return material
+
+
+def sunlit_box(roof: Callable[[], bpy.types.Material]) -> bpy.types.Scene:
+    """A new scene: a grey box (1.5 m) on a grey floor under a sun of angle 0 (3 W/m², 25° from
+    the zenith) and a black world, with a 6 m roof of the material ``roof()`` makes 3 m above
+    the floor; no camera yet."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
+    bpy.ops.mesh.primitive_plane_add(size=40)
+    bpy.context.object.data.materials.append(grey)
+    bpy.ops.mesh.primitive_cube_add(size=1.5, location=(0, 0, 0.75))
+    bpy.context.object.data.materials.append(grey)
+    bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 0, 3.0))
+    bpy.context.object.data.materials.append(roof())
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy, sun.data.angle = 3.0, 0.0
+    sun.rotation_euler = (math.radians(25), 0.0, math.radians(30))
+    scene.collection.objects.link(sun)
+    scene.world = bpy.data.worlds.new("Black")
+    return scene

@@ -18,6 +18,7 @@ from tests.blender.rendering import (
     plain_world,
     render_linear,
     shader_material,
+    sunlit_box,
 )
 
 SIZE = 64
@@ -75,28 +76,14 @@ def test_partial_transmission_stays_opaque_and_says_so(blender):
 
 def sunlit_box_behind_clear_panes(kind: str, tint=(1.0, 1.0, 1.0, 1.0),
                                   pane_tint=(1.0, 1.0, 1.0, 1.0)) -> bpy.types.Scene:
-    """A grey box on a grey floor under a sun, a pane of material "Roof" (a ``kind`` node of
-    colour ``tint``) over it and one of "Pane" (colour ``pane_tint``) between it and the
-    camera (a window the camera looks through: the whole view passes it)."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
+    """``sunlit_box`` under a roof of material "Roof" (a ``kind`` node of colour ``tint``),
+    with one of "Pane" (colour ``pane_tint``) between it and the camera (a window the camera
+    looks through: the whole view passes it)."""
+    scene = sunlit_box(lambda: shader_material("Roof", kind, Color=tint))
     pane = shader_material("Pane", kind, Color=pane_tint)
-    roof = shader_material("Roof", kind, Color=tint)
-    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
-    bpy.ops.mesh.primitive_plane_add(size=40)
-    bpy.context.object.data.materials.append(grey)
-    bpy.ops.mesh.primitive_cube_add(size=1.5, location=(0, 0, 0.75))
-    bpy.context.object.data.materials.append(grey)
-    bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 0, 3.0))
-    bpy.context.object.data.materials.append(roof)
     bpy.ops.mesh.primitive_plane_add(size=6, location=(0, -4.0, 2.0),
                                      rotation=(math.radians(90), 0, 0))
     bpy.context.object.data.materials.append(pane)
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy, sun.data.angle = 3.0, 0.0
-    sun.rotation_euler = (math.radians(25), 0.0, math.radians(30))
-    scene.collection.objects.link(sun)
-    scene.world = bpy.data.worlds.new("Black")
     add_camera(scene, SIZE, (0.0, -7.0, 3.5), (math.radians(70), 0.0, 0.0)).data.lens = 30
     return scene
 

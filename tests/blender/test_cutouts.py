@@ -17,6 +17,7 @@ from tests.blender.rendering import (
     cycles_and_ours,
     render_linear,
     shader_material,
+    sunlit_box,
 )
 
 SIZE = 64
@@ -97,22 +98,9 @@ def test_an_alpha_from_other_nodes_is_one_warning_and_opaque(blender):
 
 
 def sunlit_box_under_leaves(leaf) -> bpy.types.Scene:
-    """A grey box on a grey floor under a sun, seen from above and in front, under a 6 m
-    roof of the material ``leaf()`` makes (its mask's texels 0.75 m wide)."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
-    bpy.ops.mesh.primitive_plane_add(size=40)
-    bpy.context.object.data.materials.append(grey)
-    bpy.ops.mesh.primitive_cube_add(size=1.5, location=(0, 0, 0.75))
-    bpy.context.object.data.materials.append(grey)
-    bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 0, 3.0))
-    bpy.context.object.data.materials.append(leaf())
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy, sun.data.angle = 3.0, 0.0
-    sun.rotation_euler = (math.radians(25), 0.0, math.radians(30))
-    scene.collection.objects.link(sun)
-    scene.world = bpy.data.worlds.new("Black")
+    """``sunlit_box`` under a roof of the material ``leaf()`` makes (its mask's texels 0.75 m
+    wide), seen from above and in front."""
+    scene = sunlit_box(leaf)
     add_camera(scene, SIZE, (0.0, -7.0, 5.0), (math.radians(55), 0.0, 0.0)).data.lens = 24
     return scene
 
