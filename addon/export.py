@@ -419,6 +419,10 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         ior = 0.0 if node.type == "BSDF_TRANSPARENT" else float(_constant(node, "IOR", 1.5))
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission_ior=ior,
                         transmission=_rgb(_constant(node, "Color", (1, 1, 1))))
+    if node.type == "BSDF_GLOSSY":  # no Fresnel: a metal whose Schlick edge brightens a bit
+        base, texture = images.color(node, "Color", (0.8,) * 3, name)
+        return Material(name, base, roughness=float(_constant(node, "Roughness", 0.5)),
+                        metallic=1.0, base_color_texture=texture)
     if node.type == "BSDF_DIFFUSE":
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
         return Material(name, base, roughness=1.0, base_color_texture=texture)

@@ -4,7 +4,7 @@
   IOR Level 0.5) on every surface, direct light (the direct-light test's bounds) and with
   indirect light (Cycles: as many glossy as diffuse bounces, Filter Glossy 0);
 - a glossy floor (roughness 0.3 and 0.5) under an area light, next to a coloured wall;
-- a metallic sphere under a point light.
+- a metallic sphere under a point light (a Principled BSDF, and a Glossy BSDF).
 
 Each case is also rendered with the specular layer removed from VPL GI's material table
 (``without_specular``): that image must fail the bounds the real one passes, so a test cannot
@@ -20,7 +20,13 @@ import bpy
 import numpy as np
 import pytest
 
-from tests.blender.rendering import add_camera, configure_cycles, open_scene, render_linear
+from tests.blender.rendering import (
+    add_camera,
+    configure_cycles,
+    open_scene,
+    render_linear,
+    shader_material,
+)
 from tests.blender.test_cycles_direct import errors
 from tests.blender.versions import ensure_nodes
 
@@ -142,13 +148,23 @@ def test_glossy_floor_under_area_light(blender, tmp_path, without_specular, roug
     compare(scene, tmp_path, without_specular, (0.01, 0.02, 0.04), f"floor {roughness}")
 
 
-def test_metallic_sphere(blender, tmp_path, without_specular):
+def glossy_bsdf(name: str, color: tuple[float, float, float], roughness: float
+                ) -> bpy.types.Material:
+    """A Glossy BSDF material (Blender's default distribution, Multiscatter GGX)."""
+    return shader_material(name, "ShaderNodeBsdfGlossy", Color=(*color, 1.0),
+                           Roughness=roughness)
+
+
+@pytest.mark.parametrize("material", ["principled", "glossy_bsdf"])
+def test_metallic_sphere(blender, tmp_path, without_specular, material):
+    """A Principled BSDF of Metallic 1, and a Glossy BSDF (rendered as one)."""
     blender.ops.wm.read_factory_settings(use_empty=True)
     scene = blender.context.scene
     blender.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=64, ring_count=32)
     blender.ops.object.shade_smooth()
     blender.context.object.data.materials.append(
-        principled_material("Metal", (0.9, 0.6, 0.3), 0.4, metallic=1.0))
+        principled_material("Metal", (0.9, 0.6, 0.3), 0.4, metallic=1.0)
+        if material == "principled" else glossy_bsdf("Metal", (0.9, 0.6, 0.3), 0.4))
     lamp = blender.data.lights.new("Point", "POINT")
     lamp.energy, lamp.shadow_soft_size = 500.0, 0.0
     light = blender.data.objects.new("Point", lamp)
@@ -159,7 +175,8 @@ def test_metallic_sphere(blender, tmp_path, without_specular):
     settings = scene.vpl_gi
     settings.bounces, settings.antialiasing, settings.light_samples = 0, 4, 64
     # a black world: outside the highlight the image is black, so the overall error counts
-    compare(scene, tmp_path, without_specular, (0.01, 0.03, 0.03), "metallic sphere")
+    compare(scene, tmp_path, without_specular, (0.01, 0.03, 0.03),
+            f"metallic sphere, {material}")
 
 
 @pytest.mark.parametrize("roughness, inside", [(0.1, False), (0.2, True)])
