@@ -19,7 +19,7 @@ float surface_coverage(sampler2DArray textures, sampler2D sizes, vec4 cutout, ve
         int mode = int(cutout.z + 0.5);
         float value = (mode & 1) != 0 ? dot(s.rgb, COVERAGE_LUMINANCE) : s.a;
         if ((mode & 2) != 0) value = 1.0 - value;
-        coverage *= clamp(value, 0.0, 1.0);
+        coverage *= value > 0.0 ? min(value, 1.0) : 0.0;  // NaN: 0, as the export reads it
     }
     return coverage;
 }

@@ -148,3 +148,20 @@ def test_imperfect_shadow_maps_put_fewer_points_on_cutouts():
     """The ISM points' area table weighs each triangle by its mean coverage."""
     triangles = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]] * 2, np.float32)
     np.testing.assert_allclose(area_cdf(triangles, np.array([1.0, 0.25])), [0.8, 1.0])
+
+
+def test_bad_coverage_values_render_finite(renderer):
+    """NaN, infinite and negative alphas in a cutout's texture, and a NaN constant alpha:
+    NaN reads as 0 (as the export reads NaN texels), the rest is clamped to [0, 1]; every
+    ray-traced and mapped pixel stays finite."""
+    pixels = np.ones((2, 2, 4), np.float32)
+    pixels[..., 3] = [[np.nan, np.inf], [-3.0, 0.5]]
+    texture = Texture("bad", pixels, interpolation="Closest")
+    for material in (Material("bad", coverage_texture=texture),
+                     Material("nan", alpha=float("nan"))):
+        for shadows in ("ray_traced", "shadow_maps"):
+            settings = Settings(bounces=1, antialiasing=1, direct_shadows=shadows,
+                                vpl_count=64)
+            frame, _ = renderer.render(sun_scene(material, seen=True), settings)
+            assert all(np.isfinite(p).all() for p in frame.passes.values())
+    assert mean_coverage(texture, 0) == pytest.approx((0 + 1 + 0 + 0.5) / 4)

@@ -139,7 +139,8 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709: Blender's colour-to-
 
 def _coverage_of(rgb: np.ndarray, alpha: np.ndarray, mode: int) -> np.ndarray:
     value = rgb @ LUMINANCE if mode & COVERAGE_LUMINANCE else alpha
-    return 1.0 - value if mode & COVERAGE_INVERTED else value
+    value = 1.0 - value if mode & COVERAGE_INVERTED else value
+    return np.nan_to_num(value, nan=0.0)  # as the shader and the export read NaN
 
 
 def sample_coverage(texture: Texture, mode: int, uv: np.ndarray) -> np.ndarray:
