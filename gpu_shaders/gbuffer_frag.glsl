@@ -9,10 +9,12 @@
 // (principled_lib.glsl); the glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w,
 // emission.w), as OpenGL guarantees only eight colour attachments. With CUTOUTS (some
 // material is there only in part) each supersample keeps a cutout's surface with probability
-// its coverage (coverage_lib.glsl), so supersamples average it as Cycles' camera rays do.
+// its coverage (coverage_lib.glsl), in a pattern of each pass's own (u_cutout_seed), so
+// supersamples and passes average it as Cycles' camera rays do.
 #include "materials_lib.glsl"
 #ifdef CUTOUTS
 #include "coverage_lib.glsl"
+uniform int u_cutout_seed;
 #endif
 #ifdef GLOSSY
 #include "principled_lib.glsl"
@@ -52,7 +54,8 @@ void main() {
 #else
     float coverage = 1.0 - material.cutout.y;  // no textures: constant alphas only
 #endif
-    if (!surface_kept(coverage, uvec3(gl_FragCoord.xy, v_triangle))) discard;
+    uint key = uint(v_triangle) + 2654435769u * uint(u_cutout_seed);
+    if (!surface_kept(coverage, uvec3(gl_FragCoord.xy, key))) discard;
 #endif
     vec3 to_camera = u_orthographic ? -u_camera_forward : normalize(u_camera_position - v_world);
     vec3 geometric = normalize(cross(dFdx(v_world), dFdy(v_world)));

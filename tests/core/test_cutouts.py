@@ -165,3 +165,20 @@ def test_bad_coverage_values_render_finite(renderer):
             frame, _ = renderer.render(sun_scene(material, seen=True), settings)
             assert all(np.isfinite(p).all() for p in frame.passes.values())
     assert mean_coverage(texture, 0) == pytest.approx((0 + 1 + 0 + 0.5) / 4)
+
+
+def test_passes_average_a_partial_alpha(renderer):
+    """One supersample per pixel: a pass sees the veil of alpha 0.3 or the floor in each
+    pixel; each pass draws its own pattern, so 16 passes average it (the pixels' spread under
+    the panel falls by about 4, their mean stays 0.49 of the open floor)."""
+    material = Material("veil", (0.0, 0.0, 0.0), alpha=0.3)
+    spread, mean = [], []
+    for passes in (1, 16):
+        settings = Settings(bounces=0, antialiasing=1, direct_shadows="ray_traced",
+                            passes=passes)
+        frame, _ = renderer.render_progressive(sun_scene(material, seen=True), settings)
+        share = frame.passes["Combined"][20:44, 20:44, 0] / (3.0 / np.pi * 0.8)
+        spread.append(share.std())
+        mean.append(share.mean())
+    assert spread[1] < 0.4 * spread[0], spread
+    np.testing.assert_allclose(mean, 0.49, atol=0.03)

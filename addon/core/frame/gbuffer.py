@@ -85,9 +85,10 @@ def tile_projection(projection: np.ndarray, tile: Tile) -> np.ndarray:
 
 def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBuffers | None,
                    shapes: SceneBuffers | None, camera: Camera, tile: Tile,
-                   scope: GpuScope) -> GBuffer:
+                   scope: GpuScope, pass_index: int = 0) -> GBuffer:
     """Rasterise the scene's triangles and the lights' outlines into the tile's g-buffer,
-    whose textures ``scope`` owns."""
+    whose textures ``scope`` owns; cutouts keep their supersamples in a pattern of their own
+    in each pass (``pass_index``), so that passes average them."""
     size = tile.size
     glossy = scene is not None and scene.has_specular
     names = LAYERS + GLOSSY_LAYERS if glossy else LAYERS
@@ -109,6 +110,7 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
     scene_defines = {"TEXTURED": 1} if textures else {}
     if scene is not None and scene.has_cutouts:
         scene_defines["CUTOUTS"] = 1
+        uniforms["u_cutout_seed"] = pass_index
     shape_defines = {"ONE_SIDED": 1}
     if glossy:
         scene_defines["GLOSSY"] = shape_defines["GLOSSY"] = 1

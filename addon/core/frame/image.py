@@ -137,7 +137,7 @@ class GBufferStage(TileStage):
     def _render(self, data: FrameGpu, frame: FrameState, work: TileWork, tile: Tile
                 ) -> GBuffer:
         return render_gbuffer(self.gpu.ctx, self.gpu.programs, data.scene, data.shapes,
-                              frame.camera, tile, work.scope)
+                              frame.camera, tile, work.scope, frame.pass_index)
 
 
 class GatherStage(TileStage):
