@@ -45,8 +45,9 @@ from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, read_pixels
 
-RAY_FLAGS = {"visible_camera": "camera", "visible_diffuse": "diffuse",
-             "visible_shadow": "shadow"}
+RAY_FLAGS = ("visible_camera", "visible_diffuse", "visible_shadow")
+"""An object's ray visibility that VPL GI honours (glossy, transmission and volume rays reach
+closures it does not render)."""
 
 
 def _matrix(m) -> np.ndarray:
@@ -774,23 +775,14 @@ class _Export:
         self.bake_resolution = bake.settings_of(depsgraph.scene)[0]
 
     def include(self, obj: bpy.types.Object) -> bool:
-        """False for geometry no ray sees; warns once per object about Diffuse visibility off,
-        which is not honoured (camera and shadow visibility and holdout are: ``Instance``)."""
-        original = obj.original
-        pointer = original.as_pointer()
+        """False for geometry no ray sees (camera, diffuse and shadow visibility all off;
+        each alone is honoured: ``Instance``)."""
+        pointer = obj.original.as_pointer()
         known = self.visibility.get(pointer)
-        if known is not None:
-            return known
-        off = [label for flag, label in RAY_FLAGS.items() if not getattr(obj, flag, True)]
-        include = len(off) < len(RAY_FLAGS)
-        if include and "diffuse" in off:
-            shadows = "" if "shadow" in off else "casts shadows and "
-            self.result.warnings.append(
-                f"object '{original.name}': ray visibility diffuse off is not supported "
-                f"(rendered as a {'hidden' if 'camera' in off else 'visible'} surface that "
-                f"{shadows}reflects light)")
-        self.visibility[pointer] = include
-        return include
+        if known is None:
+            known = self.visibility[pointer] = any(getattr(obj, flag, True)
+                                                   for flag in RAY_FLAGS)
+        return known
 
     def holdout(self, obj: bpy.types.Object) -> bool:
         """Whether the view layer renders the object as a holdout (``Instance.holdout``)."""
@@ -915,7 +907,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         entry = placements.get(memo)
         if entry is None:
             known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
-                     state.holdout(obj), bool(getattr(obj, "visible_shadow", True))) \
+                     state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
+                     bool(getattr(obj, "visible_diffuse", True))) \
                 if state.include(obj) else None
             entry = placements[memo] = (known, bool(known and known[0].triangle_count))
         elif entry[0]:

@@ -39,7 +39,7 @@ vec3 compensation_sum(ivec2 pixel, vec3 origin, vec3 normal, int first, int coun
         int triangle;
         vec2 uv;
         vec3 radiance;
-        if (rt_closest_hit(origin, dir, 0.0, u_clamp_distance, t, triangle, uv)
+        if (rt_diffuse_hit(origin, dir, 0.0, u_clamp_distance, t, triangle, uv)
             && hit_radiance(origin, dir, t, triangle, radiance)) {
             sum += (1.0 - t * t / c2) * radiance;
         }

@@ -4,7 +4,9 @@
 // update renders a few tiles). The point's position comes from the current triangle vertices,
 // so points follow moved and deformed triangles. Depths are distances (positive floats, whose
 // bits compare like the floats as uints), kept with imageAtomicMin over the texels of the
-// point's footprint: the ellipse its disc projects to (a square in directional maps).
+// point's footprint: the ellipse its disc projects to (a square in directional maps). A point on
+// a triangle diffuse bounces pass (its vertices' w = 1) is splatted as ISM_FAR: lit, but not a
+// hole for pull-push to fill with nearer surfaces' depths.
 #include "ism_lib.glsl"
 #include "ism_points_lib.glsl"
 
@@ -13,7 +15,7 @@
 
 layout(local_size_x = 64) in;
 
-// three per triangle
+// three per triangle; w 1 on triangles diffuse bounces pass
 layout(std430, binding = ISM_BINDING_VERTICES) readonly buffer IsmVertices { vec4 ism_vertices[]; };
 // (position, directional flag), (normal or direction of travel, atlas tile) per VPL
 layout(std430, binding = ISM_BINDING_VPLS) readonly buffer IsmVpls { vec4 ism_vpls[]; };
@@ -63,6 +65,7 @@ void main() {
     vec3 e1 = ism_vertices[tri + 1].xyz - v0;
     vec3 e2 = ism_vertices[tri + 2].xyz - v0;
     vec3 world = v0 + bary.x * e1 + bary.y * e2;
+    bool passed = ism_vertices[tri].w > 0.5;
 
     vec4 origin = ism_vpls[2 * row];
     vec3 n = ism_vpls[2 * row + 1].xyz;
@@ -83,7 +86,8 @@ void main() {
         ivec2 hi = min(first + side, ivec2(u_resolution));
         for (int y = lo.y; y < hi.y; ++y) {
             for (int x = lo.x; x < hi.x; ++x) {
-                imageAtomicMin(u_splat, tile + ivec2(x, y), floatBitsToUint(max(depth, 0.0)));
+                imageAtomicMin(u_splat, tile + ivec2(x, y),
+                               floatBitsToUint(passed ? ISM_FAR : max(depth, 0.0)));
             }
         }
         return;
@@ -124,7 +128,7 @@ void main() {
             vec2 offset = vec2(x, y) + 0.5 - c;
             if (dot(offset, inverse_sigma * offset) > 1.0) continue;
             vec2 uv = (vec2(x, y) + 0.5) * texel_uv - 1.0;
-            float depth = plane_depth(t, b, n, uv, surface, d, distance);
+            float depth = passed ? ISM_FAR : plane_depth(t, b, n, uv, surface, d, distance);
             imageAtomicMin(u_splat, tile + ivec2(x, y), floatBitsToUint(depth));
         }
     }

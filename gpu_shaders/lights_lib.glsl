@@ -290,11 +290,11 @@ const float SHADOW_RAY_NORMAL_SHARE = 0.1;
 // One ray: the light let through on the segment from `world` to the sample (or along its
 // direction): 1 where nothing is in the way, 0 where something opaque is, clear surfaces'
 // colour and Fresnel loss between. A light's sample casts a shadow ray (shadowless objects let
-// it through, as Cycles' shadow rays); a VPL's is a diffuse path's segment.
+// it through, as Cycles' shadow rays); a VPL's is a diffuse bounce (diffuse-hidden ones do).
 vec3 traced_visibility(LightSample s, vec3 world, vec3 geometric_normal) {
     vec3 origin = world + geometric_normal * (u_ray_offset * SHADOW_RAY_NORMAL_SHARE);
     float t_min = u_ray_offset;
-    int flags = s.generation == 0 ? RT_SHADOW : 0;
+    int flags = s.generation == 0 ? RT_SHADOW : RT_DIFFUSE;
     if (s.kind == KIND_DIRECTIONAL) {
         return rt_transmittance(origin, -s.axis, t_min, 3.0e38, flags);
     }

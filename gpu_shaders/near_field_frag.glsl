@@ -83,7 +83,7 @@ void main() {
     float t;
     int triangle;
     vec2 uv;
-    if (!rt_closest_hit(origin, dir, 0.0, u_clamp_distance, t, triangle, uv)) return;
+    if (!rt_diffuse_hit(origin, dir, 0.0, u_clamp_distance, t, triangle, uv)) return;
     float weight = (1.0 - t * t / (u_clamp_distance * u_clamp_distance)) / float(u_samples);
     vec3 radiance;
     if (hit_radiance(origin, dir, t, triangle, radiance)) {

@@ -30,7 +30,7 @@ layout(std430, binding = RT_BINDING_RESULTS) writeonly buffer RtHits { RtHit rt_
 #endif
 
 uniform uint rt_ray_count;
-uniform int rt_flags;  // 0, or RT_SHADOW for shadow rays (shadowless triangles let them through)
+uniform int rt_flags;  // 0, RT_SHADOW (shadow rays) or RT_DIFFUSE (diffuse bounces)
 #if !RT_ANY_HIT
 uniform bool rt_has_clear;  // the scene has clear triangles (else the transmittance is 1)
 #endif

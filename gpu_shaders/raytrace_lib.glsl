@@ -36,8 +36,9 @@ struct RtNode {
 // triangle (clear: packUnorm4x8 of the colour it lets through, alpha 1) is never hit;
 // rt_transmittance dims rays crossing it by its colour and, with ior > 0, the Fresnel loss.
 // Otherwise `clear` holds flags: a shadowless triangle (RT_SHADOWLESS: an object whose Shadow
-// ray visibility is off) is opaque to every ray but shadow rays (RT_SHADOW); a cutout
-// (RT_CUTOUT) has its row of rt_cutouts in `ior`'s bits.
+// ray visibility is off) is opaque to every ray but shadow rays (RT_SHADOW), a diffuse-hidden
+// one (RT_DIFFUSE_HIDDEN: Diffuse ray visibility off) to every ray but diffuse bounces
+// (RT_DIFFUSE); a cutout (RT_CUTOUT) has its row of rt_cutouts in `ior`'s bits.
 struct RtTriangle {
     vec3 v0;
     int id;
@@ -156,19 +157,22 @@ vec3 rt_clear_transmittance(RtTriangle tri, vec3 dir) {
 #define RT_TRANSMIT 2
 #define RT_SHADOW 4  // or'ed into a mode: a shadow ray, which shadowless triangles let through
 #define RT_PASSED 8  // or'ed into RT_TRANSMIT: cutouts were passed by chance, they do not dim
+#define RT_DIFFUSE 16  // or'ed into a mode: a diffuse bounce, which diffuse-hidden triangles pass
 #define RT_SHADOWLESS 1u  // RtTriangle.clear flag of a shadowless triangle
 #define RT_CUTOUT 2u  // RtTriangle.clear flag of a cutout triangle
+#define RT_DIFFUSE_HIDDEN 4u  // RtTriangle.clear flag of a diffuse-hidden triangle
 #define RT_FLAGS 255u  // RtTriangle.clear values up to this hold flags, not a colour
 
 // Nearest-child-first stack traversal of the opaque triangles. RT_ANY returns at the first hit
 // in range; RT_TRANSMIT multiplies `transmittance` by every clear triangle in range and by
 // one minus every cutout's coverage (none with RT_PASSED), and sets it to 0 at the first opaque
-// hit; with RT_SHADOW or'ed in, shadowless triangles are not hit. RT_CLOSEST and RT_ANY hit a
-// cutout with probability its coverage.
+// hit; with RT_SHADOW or'ed in, shadowless triangles are not hit, with RT_DIFFUSE
+// diffuse-hidden ones. RT_CLOSEST and RT_ANY hit a cutout with probability its coverage.
 bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int flags, out float t,
               out int triangle, out vec2 uv, inout vec3 transmittance) {
     int mode = flags & 3;
-    bool shadow = (flags & RT_SHADOW) != 0;
+    uint passed = ((flags & RT_SHADOW) != 0 ? RT_SHADOWLESS : 0u)
+                  | ((flags & RT_DIFFUSE) != 0 ? RT_DIFFUSE_HIDDEN : 0u);
     t = t_max;
     triangle = -1;
     uv = vec2(0.0);
@@ -208,7 +212,7 @@ bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int flags, out fl
                     uint code = rt_triangles[i].clear;
                     if (code != 0u) {  // rare: checked on hits only
                         if (code <= RT_FLAGS) {
-                            if (shadow && (code & RT_SHADOWLESS) != 0u) continue;
+                            if ((code & passed) != 0u) continue;
 #ifdef RT_CUTOUTS
                             if ((code & RT_CUTOUT) != 0u) {
                                 if (mode == RT_TRANSMIT && (flags & RT_PASSED) != 0) continue;
@@ -259,6 +263,13 @@ bool rt_closest_hit(vec3 origin, vec3 dir, float t_min, float t_max, out float t
     return rt_trace(origin, dir, t_min, t_max, RT_CLOSEST, t, triangle, uv, unused);
 }
 
+// rt_closest_hit of a diffuse bounce (RT_DIFFUSE: diffuse-hidden triangles are passed).
+bool rt_diffuse_hit(vec3 origin, vec3 dir, float t_min, float t_max, out float t,
+                    out int triangle, out vec2 uv) {
+    vec3 unused = vec3(1.0);
+    return rt_trace(origin, dir, t_min, t_max, RT_CLOSEST | RT_DIFFUSE, t, triangle, uv, unused);
+}
+
 // Whether anything opaque is hit with t_min < t < t_max (any hit, early exit).
 bool rt_occluded(vec3 origin, vec3 dir, float t_min, float t_max) {
     float t;
@@ -269,8 +280,8 @@ bool rt_occluded(vec3 origin, vec3 dir, float t_min, float t_max) {
 }
 
 // The light let through from t_min to t_max: 0 where anything opaque is in the way, else the
-// product of the clear triangles' transmittance and the cutouts'; `flags`: 0, RT_SHADOW,
-// RT_PASSED.
+// product of the clear triangles' transmittance and the cutouts'; `flags`: 0 or RT_SHADOW or
+// RT_DIFFUSE, and RT_PASSED.
 vec3 rt_transmittance(vec3 origin, vec3 dir, float t_min, float t_max, int flags) {
     float t;
     int triangle;

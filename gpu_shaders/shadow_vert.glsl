@@ -1,8 +1,9 @@
 // Shadow-map rendering: every atlas tile (a cube face or a directional map) in one instanced
 // draw (see tiles_lib.glsl). With CLEAR, the clear triangles for an atlas's clear layer
 // (shadow_clear_frag.glsl), with their normals and the light they let through; with
-// SHADOWLESS, CUTOUTS or TRIANGLES, the triangle index for the fragment shader (and with
-// CUTOUTS and TEXTURED its UVs; cutout_lib.glsl). Also the vertex shader of rsm_frag.glsl.
+// SHADOWLESS, DIFFUSE_HIDDEN, CUTOUTS or TRIANGLES, the triangle index for the fragment
+// shader (and with CUTOUTS and TEXTURED its UVs; cutout_lib.glsl). Also the vertex shader of
+// rsm_frag.glsl.
 #include "tiles_lib.glsl"
 
 in vec3 in_position;
@@ -11,7 +12,7 @@ out vec3 v_world;
 flat out vec3 v_origin;
 flat out int v_face;
 
-#if defined(SHADOWLESS) || defined(CUTOUTS) || defined(TRIANGLES)
+#if defined(SHADOWLESS) || defined(DIFFUSE_HIDDEN) || defined(CUTOUTS) || defined(TRIANGLES)
 #define TRIANGLE_INDEX
 flat out int v_triangle;
 #endif

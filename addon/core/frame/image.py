@@ -392,7 +392,8 @@ class RenderImage(Stage):
                                         geometry.clear_transmission)) \
                 if len(geometry.clear_triangles) else None
             atlases = ShadowAtlases(ctx, self.gpu.programs, scene, kept, clear,
-                                    bool(geometry.shadowless.any()))
+                                    bool(geometry.shadowless.any()),
+                                    bool(geometry.diffuse_hidden.any()))
             maps = FrameMaps(atlases, frame.ism_maps, frame.centre, frame.radius,
                              reuse_atlas=len(frame.light_passes) == 1)
             data = FrameGpu(scene, shapes, maps, clear)

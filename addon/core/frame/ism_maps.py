@@ -47,7 +47,9 @@ class ImperfectShadowMapFrame:
         try:
             uploaded = ism.prepare(self.triangles, settings.ism_points, point_seed,
                                    kept.versions.shape,
-                                   geometry.coverage if geometry.cutout.any() else None)
+                                   geometry.coverage if geometry.cutout.any() else None,
+                                   geometry.diffuse_hidden if geometry.diffuse_hidden.any()
+                                   else None)
         except ValueError as exc:  # the area table exceeds the GPU's storage-buffer limit
             raise RenderError(f"imperfect shadow maps: {exc}") from None
         if uploaded:

@@ -48,17 +48,20 @@ class ShadowAtlases:
     one is rendered or ``release`` (kept atlases belong to KeptAtlases). With ``clear``
     surfaces each atlas has a clear layer (``clear_atlas``); with ``shadowless`` triangles
     (objects that cast no shadow) the atlases of lights leave them out, those of VPLs keep
-    them (their light comes along diffuse paths, which such objects block)."""
+    them (their light comes along diffuse paths, which such objects block); with
+    ``diffuse_hidden`` ones (Diffuse visibility off) the other way round."""
 
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache,
                  scene: SceneBuffers | None, kept: KeptAtlases,
-                 clear: ClearView | None = None, shadowless: bool = False) -> None:
+                 clear: ClearView | None = None, shadowless: bool = False,
+                 diffuse_hidden: bool = False) -> None:
         self.ctx = ctx
         self.programs = programs
         self.scene = scene
         self.kept = kept
         self.clear = clear
         self.shadowless = shadowless
+        self.diffuse_hidden = diffuse_hidden
         self._current = GpuScope()
         self._last: tuple[moderngl.Texture, Batch] | None = None
         self._placeholder: moderngl.Texture | None = None
@@ -115,13 +118,15 @@ class ShadowAtlases:
             own(tiles)
             tiles.use(0)
         if table is not None and self.scene is not None:
-            lights = self.shadowless and not s.generation.any()
             streams, defines = self.scene.cutout_streams()
-            program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl",
-                                        {"SHADOWLESS": 1, **defines} if lights else defines)
+            if self.shadowless and not s.generation.any():  # lights' samples
+                defines["SHADOWLESS"] = 1
+            if self.diffuse_hidden and s.generation.all():  # VPLs
+                defines["DIFFUSE_HIDDEN"] = 1
+            program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl", defines)
             vao = self.ctx.vertex_array(program, streams)
             own(vao)
-            if lights or defines:
+            if defines:
                 self.scene.bind_cutouts(program)
             set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
                          u_scene_centre=tuple(centre), u_scene_radius=radius)

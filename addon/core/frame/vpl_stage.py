@@ -86,7 +86,8 @@ def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometr
             tracer.upload(geometry.positions.reshape(-1, 3, 3), instanced=geometry.instanced,
                           clear=geometry.clear_triangles,
                           transmission=geometry.clear_transmission,
-                          shadowless=geometry.shadowless, cutouts=_cutouts(geometry))
+                          shadowless=geometry.shadowless, cutouts=_cutouts(geometry),
+                          diffuse_hidden=geometry.diffuse_hidden)
         except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
             raise RenderError(f"ray tracing: {exc}") from None
     kept.keep("bvh", _triangles_key(kept))

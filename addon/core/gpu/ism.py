@@ -103,11 +103,14 @@ def level_resolutions(resolution: int, levels: int) -> list[int]:
     return sizes
 
 
-def _vertices(triangles: np.ndarray) -> np.ndarray:
-    """(T * 3, 4) float32: the vertices as vec4, at least one."""
+def _vertices(triangles: np.ndarray, passed: np.ndarray | None = None) -> np.ndarray:
+    """(T * 3, 4) float32: the vertices as vec4, at least one; w 1 on ``passed`` (T,)
+    triangles' (ism_splat_comp.glsl)."""
     tris = np.asarray(triangles, np.float32).reshape(-1, 3)
     out = np.zeros((max(1, len(tris)), 4), np.float32)
     out[:len(tris), :3] = tris
+    if passed is not None:
+        out[:len(tris), 3] = np.repeat(np.asarray(passed, np.float32), 3)
     return out
 
 
@@ -150,6 +153,7 @@ class ImperfectShadowMaps:
         self._prepared: tuple | None = None  # (triangle count, version) of the uploaded CDF
         self._has_area = False
         self._points_per_vpl = 0
+        self._passed: np.ndarray | None = None  # (T,) triangles splatted as lit (prepare)
         self._seed = 0
         self._triangle_count = 0
         self._buffers: dict[int, moderngl.Buffer] = {}
@@ -163,13 +167,17 @@ class ImperfectShadowMaps:
     # -- points ------------------------------------------------------------------------------
 
     def prepare(self, triangles: np.ndarray, points_per_vpl: int, seed: int,
-                version: object = None, coverage: np.ndarray | None = None) -> bool:
+                version: object = None, coverage: np.ndarray | None = None,
+                passed: np.ndarray | None = None) -> bool:
         """Draw ``points_per_vpl`` points per map from ``seed`` from now on, and upload the
         triangles' area CDF (each area times its ``coverage`` (T,) where given: cutouts hold
         fewer points) unless the triangle count and the caller's geometry ``version`` repeat
         (the points follow moved or deformed triangles meanwhile); True when it was
-        uploaded."""
+        uploaded. The points of ``passed`` (T,) triangles (diffuse bounces pass them) are
+        splatted as lit texels: they shade nothing, and keep pull-push from filling the maps
+        where they lie with nearer surfaces' depths (which shaded them from behind)."""
         self._points_per_vpl = points_per_vpl
+        self._passed = passed
         self._seed = seed & 0xFFFFFFFF
         count = len(np.asarray(triangles).reshape(-1, 3, 3))
         if (count, version) == self._prepared:
@@ -234,7 +242,7 @@ class ImperfectShadowMaps:
         positions = np.asarray(vpl_position, np.float64).reshape(-1, 3)
         vpl_count = len(positions)
         self._allocate(max(vpl_count, tile_count), resolution, pull_push_levels)
-        self._write(BINDING_VERTICES, _vertices(tris))
+        self._write(BINDING_VERTICES, _vertices(tris, self._passed))
         self._write(BINDING_VPLS, _vpl_data(positions, vpl_normal, directional, tiles))
         listed = 0
         if tiles is not None:

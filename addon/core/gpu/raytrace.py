@@ -32,8 +32,10 @@ UNITS_TEXTURES = 16, 17  # RT_UNIT_TEXTURES, RT_UNIT_TEXTURE_SIZES in raytrace_l
 LOCAL_SIZE = 64  # local_size_x of raytrace_comp.glsl
 MAX_BATCH = 1 << 20  # rays per dispatch
 RT_SHADOW = 4  # raytrace_lib.glsl: a shadow ray, which shadowless triangles let through
+RT_DIFFUSE = 16  # raytrace_lib.glsl: a diffuse bounce, which diffuse-hidden triangles pass
 SHADOWLESS = 1  # RT_SHADOWLESS: RtTriangle.clear flag of a shadowless triangle
 CUTOUT = 2  # RT_CUTOUT: RtTriangle.clear flag of a cutout triangle
+DIFFUSE_HIDDEN = 4  # RT_DIFFUSE_HIDDEN: RtTriangle.clear flag of a diffuse-hidden triangle
 FLAGS = 255  # RT_FLAGS: RtTriangle.clear values up to this are flags, not a colour
 
 TRIANGLE_DTYPE = np.dtype([("v0", "<f4", 3), ("id", "<i4"), ("v1", "<f4", 3), ("clear", "<u4"),
@@ -87,6 +89,11 @@ def _pack_rays(origins: np.ndarray, directions: np.ndarray, t_min: float | np.nd
     return rays
 
 
+def _flags(shadow: bool, diffuse: bool) -> int:
+    """raytrace_lib.glsl's query flags of a shadow ray or a diffuse bounce."""
+    return (RT_SHADOW if shadow else 0) | (RT_DIFFUSE if diffuse else 0)
+
+
 class RayTracer:
     """One uploaded triangle scene and its GPU queries (needs OpenGL 4.3)."""
 
@@ -105,25 +112,29 @@ class RayTracer:
     def upload(self, triangles: np.ndarray, leaf_size: int = 4,
                instanced: np.ndarray | tuple = (), clear: np.ndarray | None = None,
                transmission: np.ndarray | None = None,
-               shadowless: np.ndarray | None = None, cutouts: Cutouts | None = None) -> None:
+               shadowless: np.ndarray | None = None, cutouts: Cutouts | None = None,
+               diffuse_hidden: np.ndarray | None = None) -> None:
         """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene.
         ``instanced`` rows (first triangle, instances, triangles each) mark runs of one mesh's
         copies, whose tree is built once (``instanced_bvh``). ``clear`` triangles (C, 3, 3)
         let rays through, each with its ``transmission`` row (colour, Fresnel IOR or 0): no
         query hits them, and closest hits and shadow rays get the light they let through
         (raytrace_lib.glsl). ``shadowless`` (T,) bool: triangles shadow rays pass (Shadow ray
+        visibility off), ``diffuse_hidden`` (T,) bool those diffuse bounces pass (Diffuse
         visibility off). ``cutouts``: triangles rays hit with probability their coverage and
         shadow rays pass dimmed by it (RT_CUTOUTS). Raises ValueError before building when the
         triangles cannot fit a storage buffer."""
         triangles = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
         clear = np.zeros((0, 3, 3), np.float32) if clear is None else clear
-        shadowless = None if shadowless is None or not np.any(shadowless) else shadowless
+        flagged = [(np.asarray(mask, bool), flag) for mask, flag in
+                   ((shadowless, SHADOWLESS), (diffuse_hidden, DIFFUSE_HIDDEN))
+                   if mask is not None and np.any(mask)]
         cutouts = None if cutouts is None or len(cutouts.triangle) == 0 else cutouts
         codes = None
-        if len(clear) or shadowless is not None or cutouts is not None:
+        if len(clear) or flagged or cutouts is not None:
             codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
-        if shadowless is not None:
-            codes[:len(triangles)][np.asarray(shadowless, bool), 0] = SHADOWLESS
+        for mask, flag in flagged:
+            codes[:len(triangles)][mask, 0] |= flag
         if cutouts is not None:
             codes[cutouts.triangle, 0] |= CUTOUT
             codes[cutouts.triangle, 1] = np.arange(len(cutouts.triangle), dtype=np.uint32)
@@ -165,7 +176,8 @@ class RayTracer:
                    cutouts: Cutouts | None = None) -> None:
         """Upload a BVH from ``build_bvh``, replacing the scene; ``clear`` (T, 2) uint32 per
         original triangle: its packed colour and its IOR's bits, or (0 for an opaque one) its
-        flags (SHADOWLESS for one shadow rays pass, CUTOUT) and its row of ``cutouts``."""
+        flags (SHADOWLESS for one shadow rays pass, DIFFUSE_HIDDEN, CUTOUT) and its row of
+        ``cutouts``."""
         # raytrace_lib.glsl's RtNode (lo, a, hi, b) and RtTriangle (TRIANGLE_DTYPE) as float32
         # rows, the int fields as their bits, the vertices moved as 12-byte records (a
         # structured array filled field by field took 3× the time)
@@ -202,21 +214,24 @@ class RayTracer:
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray,
                   t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf,
-                  shadow: bool = False) -> Hits:
+                  shadow: bool = False, diffuse: bool = False) -> Hits:
         """Closest hit of each ray (R, 3) with ``t_min < t < t_max`` (per ray or shared);
-        ``shadow``: light's rays, which shadowless triangles let through."""
-        out = self._run(_pack_rays(origins, directions, t_min, t_max), 0, RESULT_DTYPE, shadow)
+        ``shadow``: light's rays, which shadowless triangles let through; ``diffuse``: diffuse
+        bounces, which diffuse-hidden ones do."""
+        out = self._run(_pack_rays(origins, directions, t_min, t_max), 0, RESULT_DTYPE,
+                        _flags(shadow, diffuse))
         hit = out["triangle"] >= 0
         return Hits(np.where(hit, out["t"], np.float32(np.inf)), out["triangle"].copy(),
                     np.where(hit[:, None], out["uv"], np.float32(0.0)),
                     out["transmittance"][:, :3].copy())
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: float | np.ndarray,
-                 t_min: float | np.ndarray = 0.0, shadow: bool = False) -> np.ndarray:
+                 t_min: float | np.ndarray = 0.0, shadow: bool = False,
+                 diffuse: bool = False) -> np.ndarray:
         """Whether each ray hits anything with ``t_min < t < t_max`` (any hit, early exit);
-        ``shadow``: shadow rays, which shadowless triangles let through."""
+        ``shadow`` and ``diffuse`` as for ``intersect``."""
         return self._run(_pack_rays(origins, directions, t_min, t_max), 1, np.dtype("<i4"),
-                         shadow) != 0
+                         _flags(shadow, diffuse)) != 0
 
     def release(self) -> None:
         self._release_scene()
@@ -237,7 +252,7 @@ class RayTracer:
             obj.release()
         self._cutouts = []
 
-    def _run(self, rays: np.ndarray, any_hit: int, out_dtype: np.dtype, shadow: bool
+    def _run(self, rays: np.ndarray, any_hit: int, out_dtype: np.dtype, flags: int
              ) -> np.ndarray:
         """Trace ``rays`` in batches of at most ``batch_size`` with raytrace_comp.glsl."""
         shader = self.programs.compute("raytrace_comp.glsl", {"RT_ANY_HIT": any_hit})
@@ -250,7 +265,7 @@ class RayTracer:
             self._rays.bind_to_storage_buffer(BINDING_RAYS)
             self._results.bind_to_storage_buffer(BINDING_RESULTS)
             shader["rt_ray_count"] = len(batch)
-            shader["rt_flags"] = RT_SHADOW if shadow else 0
+            shader["rt_flags"] = flags
             if not any_hit:
                 shader["rt_has_clear"] = self.has_clear
             shader.run(-(-len(batch) // LOCAL_SIZE))

@@ -18,12 +18,13 @@ UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within floa
 
 
 MATERIAL_COLUMNS = 24  # albedo, hidden, emission, holdout, texture attribute, shadowless,
-# specular, cutout: six texels
+# specular, cutout, diffuse-hidden: six texels
 HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 HOLDOUT = 7  # 1 in the rows of holdout instances (gbuffer_frag.glsl, combined_frag.glsl)
 SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl)
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
 CUTOUT = 20  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
+DIFFUSE_HIDDEN = 23  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 
@@ -129,7 +130,8 @@ class WorldGeometry:
         return table[self.triangle_material]
 
     def cutout_rows(self) -> tuple[np.ndarray, np.ndarray]:
-        """The cutout triangles (n,) and their cutout texels (n, 4) (TextureSet.cutout)."""
+        """The cutout triangles (n,) and their cutout texels (n, 4) (TextureSet.cutout; the
+        last column is DIFFUSE_HIDDEN's, which the texel does not use)."""
         triangles = np.flatnonzero(self.cutout)
         rows = self.materials[self.triangle_material[triangles], CUTOUT:CUTOUT + 4]
         return triangles, np.ascontiguousarray(rows, np.float32)
@@ -143,6 +145,11 @@ class WorldGeometry:
         layers = np.unique(rows[:, 0][rows[:, 0] > 0]).astype(int) - 1
         uv = () if self.uv is None else (self.uv.reshape(-1, 6)[triangles],)
         return (triangles, rows, *uv, *(self.textures[k].pixels for k in layers))
+
+    @cached_property
+    def diffuse_hidden(self) -> np.ndarray:
+        """(T,) bool: triangles of instances diffuse bounces pass (Diffuse visibility off)."""
+        return self.materials[self.triangle_material, DIFFUSE_HIDDEN] > 0.5
 
     @cached_property
     def shadowless(self) -> np.ndarray:
@@ -344,20 +351,21 @@ class _MaterialTable:
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
 
-    def block(self, materials: list[Material], flags: tuple[bool, bool, bool]
+    def block(self, materials: list[Material], flags: tuple[bool, bool, bool, bool]
               ) -> tuple[int, int]:
         """The first row and row count of a material list's block (added on first use) for
         instances of ``flags`` (Instance.flags): the rows of instances the camera does not see
         are marked (column HIDDEN), those of holdouts (HOLDOUT) and those that cast no shadow
-        (SHADOWLESS)."""
+        (SHADOWLESS) and those diffuse bounces pass (DIFFUSE_HIDDEN)."""
         key = (*(id(m) for m in materials), *flags)
         if key not in self._first:
             self._first[key] = self.row_count
             rows = _material_rows(materials, self.warnings, self.textures, self.clamped)
-            visible_to_camera, holdout, casts_shadow = flags
+            visible_to_camera, holdout, casts_shadow, visible_to_diffuse = flags
             rows[:, HIDDEN] = 0.0 if visible_to_camera else 1.0
             rows[:, HOLDOUT] = 1.0 if holdout else 0.0
             rows[:, SHADOWLESS] = 0.0 if casts_shadow else 1.0
+            rows[:, DIFFUSE_HIDDEN] = 0.0 if visible_to_diffuse else 1.0
             self.blocks.append(rows)
             self.clear.extend(m.is_clear for m in materials)
             self.transmission.extend(_transmission_row(m) for m in materials)

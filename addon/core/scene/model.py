@@ -147,7 +147,10 @@ class Instance:
     visibility), and so does a ``holdout``, which the camera sees as a hole: black, alpha 0
     (the view layer's holdout collections and objects); one that does not ``cast_shadow``
     lets the shadow rays of lights through (Cycles' Shadow ray visibility: a bulb round its
-    lamp), and is seen and reflects light."""
+    lamp), and is seen and reflects light; one not ``visible_to_diffuse`` is passed by
+    diffuse bounces (Cycles' Diffuse ray visibility): it neither reflects light onto other
+    surfaces nor shades them from others' reflected light, and is seen, lit and casts
+    shadows."""
 
     mesh: Mesh
     matrix: Matrix4
@@ -155,11 +158,13 @@ class Instance:
     visible_to_camera: bool = True
     holdout: bool = False
     cast_shadow: bool = True
+    visible_to_diffuse: bool = True
 
     @property
-    def flags(self) -> tuple[bool, bool, bool]:
-        """What its material rows mark: (visible_to_camera, holdout, cast_shadow)."""
-        return self.visible_to_camera, self.holdout, self.cast_shadow
+    def flags(self) -> tuple[bool, bool, bool, bool]:
+        """What its material rows mark: (visible_to_camera, holdout, cast_shadow,
+        visible_to_diffuse)."""
+        return self.visible_to_camera, self.holdout, self.cast_shadow, self.visible_to_diffuse
 
 
 class LightKind(StrEnum):

@@ -141,7 +141,8 @@ def contributions(vpls: VPLs, points: CameraPoints, tracer: RayCaster, epsilon: 
     if len(vpl):
         towards = (p[point] - x[vpl]) / distance[:, None]
         origin = vpls.position[vpl] + vpls.normal[vpl] * epsilon
-        hits = tracer.intersect(origin, towards, 0.0, distance * (1 - 1e-4) - epsilon)
+        hits = tracer.intersect(origin, towards, 0.0, distance * (1 - 1e-4) - epsilon,
+                                diffuse=True)
         value[hits.triangle >= 0] = 0.0
     return np.bincount(vpl, weights=value, minlength=len(vpls))
 

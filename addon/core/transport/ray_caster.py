@@ -21,12 +21,14 @@ class RayCaster(Protocol):
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray,
                   t_min: float | np.ndarray = 0.0, t_max: float | np.ndarray = np.inf,
-                  shadow: bool = False) -> RayHits:
+                  shadow: bool = False, diffuse: bool = False) -> RayHits:
         """Closest hit of each ray (R, 3) with ``t_min < t < t_max``; ``shadow``: a light's
-        rays (Cycles' shadow rays), which objects with Shadow visibility off let through."""
+        rays (Cycles' shadow rays), which objects with Shadow visibility off let through;
+        ``diffuse``: diffuse bounces, which objects with Diffuse visibility off let through."""
         ...
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: float | np.ndarray,
-                 t_min: float | np.ndarray = 0.0, shadow: bool = False) -> np.ndarray:
+                 t_min: float | np.ndarray = 0.0, shadow: bool = False,
+                 diffuse: bool = False) -> np.ndarray:
         """Whether each ray (R, 3) hits anything opaque with ``t_min < t < t_max``."""
         ...

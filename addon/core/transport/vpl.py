@@ -355,9 +355,14 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
     """The surfaces the rays hit (misses dropped), normals turned towards the ray, the flux
     dimmed by the clear surfaces crossed on the way; the base colour is looked up once per hit
     (the path albedo and the lobes derive from it). Rays ``from_light`` are its light's direct
-    path (Cycles' shadow rays): objects whose Shadow visibility is off let them through."""
-    hits = tracer.intersect(origin, direction, epsilon, np.inf, shadow=from_light)
+    path (Cycles' shadow rays): objects whose Shadow visibility is off let them through, and
+    those whose Diffuse visibility is off end them (no diffuse bounce sees their light); the
+    others are diffuse bounces, which the latter let through."""
+    hits = tracer.intersect(origin, direction, epsilon, np.inf, shadow=from_light,
+                            diffuse=not from_light)
     hit = hits.triangle >= 0
+    if from_light and geometry.diffuse_hidden.any():
+        hit[hit] = ~geometry.diffuse_hidden[hits.triangle[hit]]
     tri = hits.triangle[hit]
     position = origin[hit] + direction[hit] * hits.distance[hit, None].astype(np.float64)
     t = geometry.positions.reshape(-1, 3, 3)[tri].astype(np.float64)
