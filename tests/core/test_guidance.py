@@ -73,7 +73,7 @@ class BlockingTracer:
     def __init__(self, blocked: set[int] = frozenset()) -> None:
         self.blocked = blocked
 
-    def intersect(self, origin, direction, t_min, t_max):
+    def intersect(self, origin, direction, t_min, t_max, shadow=False, diffuse=False):
         hit = np.array([i in self.blocked for i in range(len(origin))])
         return SimpleNamespace(triangle=np.where(hit, 0, -1), distance=np.where(hit, 1.0, np.inf))
 
