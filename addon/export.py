@@ -424,7 +424,12 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
         return Material(name, base, roughness=float(_constant(node, "Roughness", 0.5)),
                         metallic=1.0, base_color_texture=texture)
-    if node.type == "BSDF_DIFFUSE":
+    if node.type in ("BSDF_DIFFUSE", "BSDF_TRANSLUCENT"):
+        if node.type == "BSDF_TRANSLUCENT":  # a leaf's: its light leaves the lit side here
+            message = (f"material '{name}': Translucent BSDF rendered as a Diffuse BSDF (its "
+                       f"light reflected on the lit side, not let through to the other)")
+            if message not in images.warnings:
+                images.warnings.append(message)
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
         return Material(name, base, roughness=1.0, base_color_texture=texture)
     if node.type == "EMISSION":
@@ -445,8 +450,6 @@ def _shader(node, name: str, images: ImageReader) -> Material:
             if node.type == "MIX_SHADER" else None
         if cutout is not None:
             return cutout
-        if any((m.base_color_texture, m.emission_texture) != (None, None) for m in (a, b)):
-            raise _Unsupported(f"image textures inside '{node.bl_label}' are not supported")
         if node.type == "ADD_SHADER":
             wa = wb = 1.0
         else:
@@ -463,8 +466,30 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                         metallic=(wa * a.metallic + wb * b.metallic) / weight,
                         ior=glossy.ior, specular_tint=glossy.specular_tint,
                         specular_ior_level=(wa * a.specular_ior_level
-                                            + wb * b.specular_ior_level) / weight)
+                                            + wb * b.specular_ior_level) / weight,
+                        **_mixed_maps(node, a, b, wa, wb))
     raise _Unsupported(f"shader '{node.bl_label}' is not supported")
+
+
+def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[str, object]:
+    """The image textures and cutout of a mix of two shaders with weights ``wa`` and ``wb``
+    (summing to 1 in a Mix Shader): one base colour texture both use (the mix of a texture
+    with itself is the texture), no emission texture, and one coverage texture both use or
+    constant alphas, mixed by the weights (Cycles mixes the Transparent closures they hold)."""
+    label = node.bl_label
+    if a.emission_texture is not None or b.emission_texture is not None or \
+            a.base_color_texture is not b.base_color_texture:
+        raise _Unsupported(f"image textures inside '{label}' other than one base colour "
+                           f"texture both shaders use are not supported")
+    maps: dict[str, object] = {"base_color_texture": a.base_color_texture}
+    if not (a.is_cutout or b.is_cutout):
+        return maps
+    if node.type == "ADD_SHADER":
+        raise _Unsupported(f"an Alpha inside '{label}' is not supported")
+    if (a.coverage_texture, a.coverage_mode) == (b.coverage_texture, b.coverage_mode):
+        return {**maps, "alpha": wa * a.alpha + wb * b.alpha,
+                "coverage_texture": a.coverage_texture, "coverage_mode": a.coverage_mode}
+    raise _Unsupported(f"an Alpha texture on one side of '{label}' is not supported")
 
 
 def _is_transparent(material: Material) -> bool:

@@ -130,3 +130,53 @@ def test_sunlight_through_leaves_as_in_cycles(blender, tmp_path, leaf):
     assert abs(energy) < 0.03
     assert error < 0.10
     assert opaque_error > 3 * error
+
+
+def translucent_leaf() -> bpy.types.Material:
+    """A leaf as plant libraries build it: a Mix Shader of a Transparent BSDF and (Fac: the
+    mask's alpha) a mix of a Principled BSDF and a Translucent BSDF sharing a colour
+    texture."""
+    material = shader_material("Leaf", "ShaderNodeBsdfPrincipled")
+    tree = material.node_tree
+    colour, mask = image_node(tree, mask_image("Colour")), image_node(tree, mask_image())
+    principled = tree.nodes["Principled BSDF"]
+    translucent = tree.nodes.new("ShaderNodeBsdfTranslucent")
+    surface, outer = tree.nodes.new("ShaderNodeMixShader"), tree.nodes.new("ShaderNodeMixShader")
+    transparent = tree.nodes.new("ShaderNodeBsdfTransparent")
+    tree.links.new(colour.outputs["Color"], principled.inputs["Base Color"])
+    tree.links.new(colour.outputs["Color"], translucent.inputs["Color"])
+    surface.inputs["Fac"].default_value = 0.3
+    tree.links.new(principled.outputs[0], surface.inputs[1])
+    tree.links.new(translucent.outputs[0], surface.inputs[2])
+    tree.links.new(mask.outputs["Alpha"], outer.inputs["Fac"])
+    tree.links.new(transparent.outputs[0], outer.inputs[1])
+    tree.links.new(surface.outputs[0], outer.inputs[2])
+    tree.links.new(outer.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return material
+
+
+def test_mixes_keep_a_shared_texture_and_mix_their_alphas(blender):
+    """A plant library's leaf is a textured cutout (its Translucent BSDF reflects, with one
+    warning); Mix Shaders mix constant alphas by their weights; an Alpha texture on one side
+    of a mix only is not rendered (the viewport colour, with a warning)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    warnings: list[str] = []
+    leaf = export_material(translucent_leaf(), warnings)
+    assert leaf.base_color_texture is not None and leaf.coverage_texture is not None
+    assert leaf.coverage_mode == COVERAGE_ALPHA and leaf.alpha == 1.0
+    assert warnings == ["material 'Leaf': Translucent BSDF rendered as a Diffuse BSDF (its "
+                        "light reflected on the lit side, not let through to the other)"]
+    material = shader_material("Veil", "ShaderNodeBsdfPrincipled", Alpha=0.5)
+    tree = material.node_tree
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.5
+    tree.links.new(tree.nodes["Principled BSDF"].outputs[0], mix.inputs[1])
+    tree.links.new(tree.nodes.new("ShaderNodeBsdfDiffuse").outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    warnings.clear()
+    assert export_material(material, warnings).alpha == pytest.approx(0.75) and not warnings
+    tree.links.new(image_node(tree, mask_image()).outputs["Alpha"],
+                   tree.nodes["Principled BSDF"].inputs["Alpha"])
+    assert not export_material(material, warnings).is_cutout
+    assert warnings == ["material 'Veil': an Alpha texture on one side of 'Mix Shader' is not "
+                        "supported; using its viewport colour"]

@@ -327,9 +327,10 @@ def test_unsupported_texture_settings_warn_once_per_material(blender):
         "material 'Mapped': input 'Vector' of 'Image Texture' is linked to 'Mapping' (nodes: "
         "Image Texture, Mapping); using its viewport colour (not baked: bakes run before "
         "background renders, in the viewport and by Bake Materials)",
-        "material 'Mixed': image textures inside 'Mix Shader' are not supported (nodes: Image "
-        "Texture); using its viewport colour (not baked: bakes run before background renders, "
-        "in the viewport and by Bake Materials)"]
+        "material 'Mixed': image textures inside 'Mix Shader' other than one base colour "
+        "texture both shaders use are not supported (nodes: Image Texture); using its viewport "
+        "colour (not baked: bakes run before background renders, in the viewport and by Bake "
+        "Materials)"]
     mesh = scene.instances[0].mesh
     # triangles (0, 1, 2) and (0, 2, 3) of the quad (Blender's split of this one)
     np.testing.assert_allclose(mesh.corner_uvs(), np.array(uvs)[[0, 1, 2, 0, 2, 3]])
