@@ -113,6 +113,24 @@ def shader_material(name: str, kind: str, **inputs) -> bpy.types.Material:
     return material
 
 
+def add_primitive(kind: str, material: bpy.types.Material, **options) -> bpy.types.Object:
+    """A new mesh from ``bpy.ops.mesh.primitive_<kind>_add(**options)`` with ``material``."""
+    getattr(bpy.ops.mesh, f"primitive_{kind}_add")(**options)
+    obj = bpy.context.object
+    obj.data.materials.append(material)
+    return obj
+
+
+def add_sun(scene: bpy.types.Scene, rotation: tuple[float, float, float],
+            energy: float = 3.0) -> bpy.types.Object:
+    """A sun of angle 0 turned by Euler ``rotation`` (degrees), ``energy`` W/m²."""
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy, sun.data.angle = energy, 0.0
+    sun.rotation_euler = tuple(math.radians(a) for a in rotation)
+    scene.collection.objects.link(sun)
+    return sun
+
+
 def sunlit_box(roof: Callable[[], bpy.types.Material]) -> bpy.types.Scene:
     """A new scene: a grey box (1.5 m) on a grey floor under a sun of angle 0 (3 W/m², 25° from
     the zenith) and a black world, with a 6 m roof of the material ``roof()`` makes 3 m above
@@ -120,15 +138,9 @@ def sunlit_box(roof: Callable[[], bpy.types.Material]) -> bpy.types.Scene:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
-    bpy.ops.mesh.primitive_plane_add(size=40)
-    bpy.context.object.data.materials.append(grey)
-    bpy.ops.mesh.primitive_cube_add(size=1.5, location=(0, 0, 0.75))
-    bpy.context.object.data.materials.append(grey)
-    bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 0, 3.0))
-    bpy.context.object.data.materials.append(roof())
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy, sun.data.angle = 3.0, 0.0
-    sun.rotation_euler = (math.radians(25), 0.0, math.radians(30))
-    scene.collection.objects.link(sun)
+    add_primitive("plane", grey, size=40)
+    add_primitive("cube", grey, size=1.5, location=(0, 0, 0.75))
+    add_primitive("plane", roof(), size=6, location=(0, 0, 3.0))
+    add_sun(scene, (25, 0, 30))
     scene.world = bpy.data.worlds.new("Black")
     return scene

@@ -13,6 +13,8 @@ import numpy as np
 
 from tests.blender.rendering import (
     add_camera,
+    add_primitive,
+    add_sun,
     against,
     cycles_and_ours,
     plain_world,
@@ -174,19 +176,12 @@ def test_a_wall_diffuse_bounces_pass_bleeds_no_colour_as_in_cycles(blender, tmp_
     scene = bpy.context.scene
     grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1.0))
     red = shader_material("Red", "ShaderNodeBsdfDiffuse", Color=(0.8, 0.1, 0.1, 1.0))
-    bpy.ops.mesh.primitive_plane_add(size=30)
-    bpy.context.object.data.materials.append(grey)
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(-1.0, 1.0, 0.5))
-    bpy.context.object.data.materials.append(grey)
-    bpy.ops.mesh.primitive_plane_add(size=4, location=(0, 2.0, 2.0),
-                                     rotation=(math.radians(90), 0, 0))
-    wall = bpy.context.object
-    wall.data.materials.append(red)
+    add_primitive("plane", grey, size=30)
+    add_primitive("cube", grey, size=1.0, location=(-1.0, 1.0, 0.5))
+    wall = add_primitive("plane", red, size=4, location=(0, 2.0, 2.0),
+                         rotation=(math.radians(90), 0, 0))
     wall.visible_diffuse = False
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy, sun.data.angle = 3.0, 0.0
-    sun.rotation_euler = (math.radians(45), 0.0, math.radians(15))
-    scene.collection.objects.link(sun)
+    add_sun(scene, (45, 0, 15))
     scene.world = bpy.data.worlds.new("Black")
     add_camera(scene, SIZE, (0.0, -6.0, 3.0), (math.radians(65), 0.0, 0.0)).data.lens = 30
     reference, ours = cycles_and_ours(scene, tmp_path, 64, 1)
