@@ -380,6 +380,32 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
     return None
 
 
+def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
+    """A shader's Normal input as Material fields: a tangent-space Normal Map node's image
+    and strength (normal_texture, normal_strength); none, with one warning, for a Normal
+    input linked to anything else (a Bump node: smooth shading normals instead)."""
+    socket = node.inputs.get("Normal")
+    if socket is None or not socket.is_linked:
+        return {}
+    source = socket.links[0].from_node
+    while source.type == "REROUTE" and source.inputs[0].is_linked:
+        source = source.inputs[0].links[0].from_node
+    try:
+        if source.type != "NORMAL_MAP" or source.space != "TANGENT":
+            raise _Unsupported(f"linked to '{source.bl_label}'"
+                               + (f" in {source.space.title()} space"
+                                  if source.type == "NORMAL_MAP" else ""))
+        strength = float(_constant(source, "Strength", 1.0))
+        _, texture = images.color(source, "Color", (0.5, 0.5, 1.0), name)
+    except (_Unsupported, UnsupportedLink) as reason:
+        message = (f"material '{name}': the Normal input of '{node.bl_label}' is not rendered "
+                   f"({reason}): smooth shading normals")
+        if message not in images.warnings:
+            images.warnings.append(message)
+        return {}
+    return {} if texture is None else {"normal_texture": texture, "normal_strength": strength}
+
+
 def _principled_alpha(node, name: str, images: ImageReader) -> dict[str, object]:
     """A Principled BSDF's Alpha as a cutout's fields (Material.alpha, coverage_texture,
     coverage_mode); none, with a warning, where it is linked to something other than an
@@ -415,7 +441,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          ior=float(_constant(node, "IOR", 1.5)),
                          specular_ior_level=float(_constant(node, "Specular IOR Level", 0.5)),
                          specular_tint=_rgb(_constant(node, "Specular Tint", (1, 1, 1))),
-                         **_principled_alpha(node, name, images))
+                         **_principled_alpha(node, name, images),
+                         **_normal_map(node, name, images))
     if node.type in CLEAR_SHADERS:
         ior = 0.0 if node.type == "BSDF_TRANSPARENT" else float(_constant(node, "IOR", 1.5))
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission_ior=ior,
@@ -423,7 +450,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
     if node.type == "BSDF_GLOSSY":  # no Fresnel: a metal whose Schlick edge brightens a bit
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
         return Material(name, base, roughness=float(_constant(node, "Roughness", 0.5)),
-                        metallic=1.0, base_color_texture=texture)
+                        metallic=1.0, base_color_texture=texture,
+                        **_normal_map(node, name, images))
     if node.type in ("BSDF_DIFFUSE", "BSDF_TRANSLUCENT"):
         if node.type == "BSDF_TRANSLUCENT":  # a leaf's: its light leaves the lit side here
             message = (f"material '{name}': Translucent BSDF rendered as a Diffuse BSDF (its "
@@ -431,7 +459,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
             if message not in images.warnings:
                 images.warnings.append(message)
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
-        return Material(name, base, roughness=1.0, base_color_texture=texture)
+        return Material(name, base, roughness=1.0, base_color_texture=texture,
+                        **_normal_map(node, name, images))
     if node.type == "EMISSION":
         return _emissive(name, (0.0, 0.0, 0.0), None,
                          *images.color(node, "Color", (1, 1, 1), name),
@@ -474,14 +503,18 @@ def _shader(node, name: str, images: ImageReader) -> Material:
 def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[str, object]:
     """The image textures and cutout of a mix of two shaders with weights ``wa`` and ``wb``
     (summing to 1 in a Mix Shader): one base colour texture both use (the mix of a texture
-    with itself is the texture), no emission texture, and one coverage texture both use or
-    constant alphas, mixed by the weights (Cycles mixes the Transparent closures they hold)."""
+    with itself is the texture), no emission texture, one side's normal map, and one coverage
+    texture both use or constant alphas, mixed by the weights (Cycles mixes the Transparent
+    closures they hold)."""
     label = node.bl_label
     if a.emission_texture is not None or b.emission_texture is not None or \
             a.base_color_texture is not b.base_color_texture:
         raise _Unsupported(f"image textures inside '{label}' other than one base colour "
                            f"texture both shaders use are not supported")
-    maps: dict[str, object] = {"base_color_texture": a.base_color_texture}
+    normal = a if a.normal_texture is not None else b  # mixed normals: one side's map
+    maps: dict[str, object] = {"base_color_texture": a.base_color_texture,
+                               "normal_texture": normal.normal_texture,
+                               "normal_strength": normal.normal_strength}
     if not (a.is_cutout or b.is_cutout):
         return maps
     if node.type == "ADD_SHADER":

@@ -4,7 +4,7 @@
 // angle can face away from the camera on a front face (turning it then shaded the face from
 // behind: black under a light in front). With ONE_SIDED (visible light shapes) the back side
 // is not drawn. With TEXTURED the albedo (capped to 1, as base colours are) and the emission
-// come from image textures. With GLOSSY (some material has a specular layer) the albedo is the
+// come from image textures, and a normal map bends the shading normal. With GLOSSY (some material has a specular layer) the albedo is the
 // diffuse layer's colour (Cycles' DiffCol) and three more layers hold the pixel's glossy lobe
 // (principled_lib.glsl); the glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w,
 // emission.w), as OpenGL guarantees only eight colour attachments. With CUTOUTS (some
@@ -32,6 +32,25 @@ uniform mat4 u_view;
 #ifdef TEXTURED
 #include "textures_lib.glsl"
 in vec2 v_uv;
+
+// Cycles' Normal Map node in tangent space: the map's colour (2c - 1) in a frame whose tangent
+// follows the UVs' u on the surface and whose bitangent is n x tangent, signed by v's direction
+// (Blender's MikkTSpace tangents, here from the derivatives of position and UV), mixed with n
+// by the strength (map: layer + 1, strength).
+vec3 mapped_normal(vec3 n, vec4 map) {
+    vec3 dp1 = dFdx(v_world), dp2 = dFdy(v_world);
+    vec2 duv1 = dFdx(v_uv), duv2 = dFdy(v_uv);
+    vec3 dp2perp = cross(dp2, n), dp1perp = cross(n, dp1);
+    vec3 along_u = dp2perp * duv1.x + dp1perp * duv2.x;
+    vec3 along_v = dp2perp * duv1.y + dp1perp * duv2.y;
+    vec3 tangent = along_u - n * dot(n, along_u);
+    if (!(dot(tangent, tangent) > 0.0)) return n;  // no UV gradient here: no frame
+    tangent = normalize(tangent);
+    vec3 bitangent = cross(n, tangent) * (dot(cross(n, tangent), along_v) < 0.0 ? -1.0 : 1.0);
+    vec3 c = 2.0 * texture_color(int(map.x + 0.5) - 1, v_uv) - 1.0;
+    vec3 mapped = normalize(c.x * tangent + c.y * bitangent + c.z * n);
+    return map.y == 1.0 ? mapped : normalize(n + (mapped - n) * map.y);
+}
 #endif
 
 layout(location = 0) out vec4 out_position;  // xyz world, w = view-space depth (Blender's Z)
@@ -61,6 +80,9 @@ void main() {
     vec3 geometric = normalize(cross(dFdx(v_world), dFdy(v_world)));
     if (dot(geometric, to_camera) < 0.0) geometric = -geometric;
     vec3 shading = normalize(v_normal);
+#ifdef TEXTURED
+    if (material.normal_map.x > 0.5) shading = mapped_normal(shading, material.normal_map);
+#endif
 #ifdef ONE_SIDED
     if (dot(shading, to_camera) <= 0.0) discard;
 #endif

@@ -45,7 +45,7 @@ class SceneBuffers:
             self.normals = self._own(ctx.buffer(geometry.normals))
             rows = geometry.triangle_material.astype(np.int32, copy=False)[:, None]
             self.triangle_material = self._own(_table_texture(ctx, rows, 1, "i4"))
-            table = geometry.materials.reshape(-1, 4)  # six RGBA texels a row
+            table = geometry.materials.reshape(-1, 4)  # seven RGBA texels a row
             self.materials = self._own(_table_texture(ctx, table, 4, "f4"))
             self.uv = None if geometry.uv is None else self._own(ctx.buffer(geometry.uv))
             self.textures = tuple(self._own(t) for t in upload_textures(ctx, geometry.textures)) \

@@ -17,14 +17,15 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
-MATERIAL_COLUMNS = 24  # albedo, hidden, emission, holdout, texture attribute, shadowless,
-# specular, cutout, diffuse-hidden: six texels
+MATERIAL_COLUMNS = 28  # albedo, hidden, emission, holdout, texture attribute, shadowless,
+# specular, cutout, diffuse-hidden, normal map: seven texels
 HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 HOLDOUT = 7  # 1 in the rows of holdout instances (gbuffer_frag.glsl, combined_frag.glsl)
 SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl)
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
 CUTOUT = 20  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
 DIFFUSE_HIDDEN = 23  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
+NORMAL_MAP = 24  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 
@@ -38,7 +39,8 @@ class WorldGeometry:
     A material row holds the albedo (base colour), the emission, the texture attribute (albedo
     layer, emission layer — NO_TEXTURE for none — and the strength the emission texture is
     multiplied by) and the Principled BSDF's specular parameters (principled.specular_row),
-    and the cutout texel (TextureSet.cutout), laid out as six RGBA texels
+    the cutout texel (TextureSet.cutout) and the normal map's (TextureSet.normal), laid out
+    as seven RGBA texels
     (gpu_shaders/materials_lib.glsl). Textured materials
     have their textures' average colour as albedo and emission (the per-triangle values light
     sampling and path termination use); ``uv`` (per vertex) is set only when some material has
@@ -314,6 +316,7 @@ def _material_rows(materials: list[Material], warnings: list[str],
     rows[:, 0:3], rows[:, 4:7] = albedo, emission
     rows[:, 8:11] = [textures.columns(m) for m in materials]
     rows[:, CUTOUT:CUTOUT + 4] = [textures.cutout(m) for m in materials]
+    rows[:, NORMAL_MAP:NORMAL_MAP + 4] = [textures.normal(m) for m in materials]
     for row, m in enumerate(materials):
         values = np.array([m.roughness, m.metallic, m.ior, m.specular_ior_level,
                            *m.specular_tint], np.float64)

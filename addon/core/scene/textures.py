@@ -184,6 +184,12 @@ class TextureSet:
         return (self.layer(material.coverage_texture) + 1.0, 1.0 - alpha,
                 float(material.coverage_mode), 0.0)
 
+    def normal(self, material: Material) -> tuple[float, float, float, float]:
+        """A material's normal-map texel (gbuffer_frag.glsl): normal map layer + 1 (0 for
+        none), its strength (finite, >= 0), 0, 0."""
+        strength = float(np.nan_to_num(material.normal_strength, nan=0.0, posinf=0.0))
+        return self.layer(material.normal_texture) + 1.0, max(strength, 0.0), 0.0, 0.0
+
     def columns(self, material: Material) -> tuple[float, float, float]:
         """A material's texture attribute: albedo layer, emission layer, and the
         emission strength the emission texture is multiplied by."""
