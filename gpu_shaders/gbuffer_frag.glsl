@@ -33,6 +33,13 @@ uniform mat4 u_view;
 #include "textures_lib.glsl"
 in vec2 v_uv;
 
+// v / |v|, or `otherwise` where v is zero, not finite or so long that squaring overflows (a
+// normal map's texel of (0.5, 0.5, 0.5), NaN or infinite).
+vec3 safe_unit(vec3 v, vec3 otherwise) {
+    float squared = dot(v, v);
+    return squared > 1.0e-20 && squared < 1.0e30 ? v * inversesqrt(squared) : otherwise;
+}
+
 // Cycles' Normal Map node in tangent space: the map's colour (2c - 1) in a frame whose tangent
 // follows the UVs' u on the surface and whose bitangent is n x tangent, signed by v's direction
 // (Blender's MikkTSpace tangents, here from the derivatives of position and UV), mixed with n
@@ -48,8 +55,8 @@ vec3 mapped_normal(vec3 n, vec4 map) {
     tangent = normalize(tangent);
     vec3 bitangent = cross(n, tangent) * (dot(cross(n, tangent), along_v) < 0.0 ? -1.0 : 1.0);
     vec3 c = 2.0 * texture_color(int(map.x + 0.5) - 1, v_uv) - 1.0;
-    vec3 mapped = normalize(c.x * tangent + c.y * bitangent + c.z * n);
-    return map.y == 1.0 ? mapped : normalize(n + (mapped - n) * map.y);
+    vec3 mapped = safe_unit(c.x * tangent + c.y * bitangent + c.z * n, n);
+    return map.y == 1.0 ? mapped : safe_unit(n + (mapped - n) * map.y, n);
 }
 #endif
 

@@ -256,3 +256,22 @@ def test_a_new_sampling_mode_makes_new_vpls():
         floor = Instance(textured_quad(1.0), np.eye(4), [Material("m", base_color_texture=texture)])
         versions.note(flatten_instances(Scene([floor]), []))
         assert versions.geometry == expected
+
+
+def test_bad_normal_maps_render_finite(renderer):
+    """A normal map's texels of (0.5, 0.5, 0.5) (no direction), NaN and infinity, and a NaN
+    strength: the surface's own normal there, every pixel finite."""
+    from addon.core.scene.model import LightKind
+    from tests.core.builders import floor_scene, light, rotation_x
+    pixels = np.ones((2, 2, 4), np.float32)
+    pixels[0, 0, :3], pixels[0, 1, :3], pixels[1, 0, :3] = 0.5, np.nan, np.inf
+    bad = Texture("bad normals", pixels, interpolation="Closest")
+    sun = light(LightKind.SUN, rotation_x(0.5), power=3.0)
+    for strength in (1.0, 0.5, float("nan")):
+        scene = floor_scene([sun])
+        floor = scene.instances[0]
+        floor.mesh.uvs = ((floor.mesh.positions[:, :2] / 5 + 1) / 2).astype(np.float32)
+        floor.materials[0] = Material("floor", normal_texture=bad, normal_strength=strength)
+        frame, _ = renderer.render(scene, Settings(bounces=1, antialiasing=1, vpl_count=64))
+        assert all(np.isfinite(p).all() for p in frame.passes.values())
+        assert frame.passes["DiffDir"].min() > 0  # lit everywhere: no texel turns it away
