@@ -382,28 +382,39 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
 
 def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
     """A shader's Normal input as Material fields: a tangent-space Normal Map node's image
-    and strength (normal_texture, normal_strength); none, with one warning, for a Normal
-    input linked to anything else (a Bump node: smooth shading normals instead)."""
+    and strength, or a Bump node's image (its colour's luminance the height), strength and
+    distance (normal_texture, normal_strength, bump_distance); none, with one warning, for a
+    Normal input linked to anything else (smooth shading normals instead)."""
     socket = node.inputs.get("Normal")
     if socket is None or not socket.is_linked:
         return {}
     source = socket.links[0].from_node
     while source.type == "REROUTE" and source.inputs[0].is_linked:
         source = source.inputs[0].links[0].from_node
+    fields: dict[str, object] = {}
     try:
-        if source.type != "NORMAL_MAP" or source.space != "TANGENT":
+        if source.type == "BUMP":
+            if source.inputs["Normal"].is_linked:
+                raise _Unsupported("a Normal input chained into 'Bump'")
+            distance = float(_constant(source, "Distance", 1.0))
+            fields["bump_distance"] = -distance if source.invert else distance
+            image_input = "Height"
+        elif source.type == "NORMAL_MAP" and source.space == "TANGENT":
+            image_input = "Color"
+        else:
             raise _Unsupported(f"linked to '{source.bl_label}'"
                                + (f" in {source.space.title()} space"
                                   if source.type == "NORMAL_MAP" else ""))
-        strength = float(_constant(source, "Strength", 1.0))
-        _, texture = images.color(source, "Color", (0.5, 0.5, 1.0), name)
+        fields["normal_strength"] = float(_constant(source, "Strength", 1.0))
+        texture = images.color(source, image_input, (0.5, 0.5, 1.0), name)[1] \
+            if source.inputs[image_input].is_linked else None
     except (_Unsupported, UnsupportedLink) as reason:
         message = (f"material '{name}': the Normal input of '{node.bl_label}' is not rendered "
                    f"({reason}): smooth shading normals")
         if message not in images.warnings:
             images.warnings.append(message)
         return {}
-    return {} if texture is None else {"normal_texture": texture, "normal_strength": strength}
+    return {} if texture is None else {**fields, "normal_texture": texture}
 
 
 def _principled_alpha(node, name: str, images: ImageReader) -> dict[str, object]:
@@ -514,7 +525,8 @@ def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[st
     normal = a if a.normal_texture is not None else b  # mixed normals: one side's map
     maps: dict[str, object] = {"base_color_texture": a.base_color_texture,
                                "normal_texture": normal.normal_texture,
-                               "normal_strength": normal.normal_strength}
+                               "normal_strength": normal.normal_strength,
+                               "bump_distance": normal.bump_distance}
     if not (a.is_cutout or b.is_cutout):
         return maps
     if node.type == "ADD_SHADER":

@@ -4,7 +4,7 @@
 // angle can face away from the camera on a front face (turning it then shaded the face from
 // behind: black under a light in front). With ONE_SIDED (visible light shapes) the back side
 // is not drawn. With TEXTURED the albedo (capped to 1, as base colours are) and the emission
-// come from image textures, and a normal map bends the shading normal. With GLOSSY (some material has a specular layer) the albedo is the
+// come from image textures, and a normal or bump map bends the shading normal. With GLOSSY (some material has a specular layer) the albedo is the
 // diffuse layer's colour (Cycles' DiffCol) and three more layers hold the pixel's glossy lobe
 // (principled_lib.glsl); the glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w,
 // emission.w), as OpenGL guarantees only eight colour attachments. With CUTOUTS (some
@@ -58,6 +58,30 @@ vec3 mapped_normal(vec3 n, vec4 map) {
     vec3 mapped = safe_unit(c.x * tangent + c.y * bitangent + c.z * n, n);
     return map.y == 1.0 ? mapped : safe_unit(n + (mapped - n) * map.y, n);
 }
+
+const vec3 HEIGHT_LUMINANCE = vec3(0.2126, 0.7152, 0.0722);  // a colour as a float, Rec. 709
+
+float bump_height(int layer, vec2 uv) {
+    return dot(texture_color(layer, uv), HEIGHT_LUMINANCE);
+}
+
+// Cycles' Bump node (svm_node_set_bump): the height's differences towards the neighbouring
+// supersamples over the surface's (the screen-space surface gradient, Mikkelsen 2010), scaled
+// by the distance (negative: inverted), mixed with n by the strength (map: layer + 1,
+// strength, 1, distance).
+vec3 bumped_normal(vec3 n, vec4 map) {
+    int layer = int(map.x + 0.5) - 1;
+    vec3 dp_dx = dFdx(v_world), dp_dy = dFdy(v_world);
+    float h = bump_height(layer, v_uv);
+    float dh_dx = bump_height(layer, v_uv + dFdx(v_uv)) - h;
+    float dh_dy = bump_height(layer, v_uv + dFdy(v_uv)) - h;
+    vec3 rx = cross(dp_dy, n), ry = cross(n, dp_dx);
+    float det = dot(dp_dx, rx);
+    if (!(abs(det) > 0.0)) return n;  // no area between the supersamples: no gradient
+    vec3 gradient = (dh_dx * rx + dh_dy * ry) / det;  // the height's, along the surface
+    vec3 bumped = safe_unit(n - map.w * gradient, n);
+    return map.y == 1.0 ? bumped : safe_unit(map.y * bumped + (1.0 - map.y) * n, n);
+}
 #endif
 
 layout(location = 0) out vec4 out_position;  // xyz world, w = view-space depth (Blender's Z)
@@ -88,7 +112,10 @@ void main() {
     if (dot(geometric, to_camera) < 0.0) geometric = -geometric;
     vec3 shading = normalize(v_normal);
 #ifdef TEXTURED
-    if (material.normal_map.x > 0.5) shading = mapped_normal(shading, material.normal_map);
+    if (material.normal_map.x > 0.5) {
+        shading = material.normal_map.z > 0.5 ? bumped_normal(shading, material.normal_map)
+                                               : mapped_normal(shading, material.normal_map);
+    }
 #endif
 #ifdef ONE_SIDED
     if (dot(shading, to_camera) <= 0.0) discard;

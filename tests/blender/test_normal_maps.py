@@ -1,5 +1,5 @@
-"""Tangent-space normal maps (a Normal Map node's image in a shader's Normal input), against
-Cycles."""
+"""Tangent-space normal maps and bump maps (a Normal Map or Bump node's image in a shader's
+Normal input), against Cycles."""
 
 from __future__ import annotations
 
@@ -38,44 +38,69 @@ def normal_image() -> bpy.types.Image:
     return image
 
 
-def bumpy_material(strength: float = 1.0) -> bpy.types.Material:
-    """A grey Diffuse BSDF whose Normal is a Normal Map node of ``normal_image``."""
+def height_image() -> bpy.types.Image:
+    """A 16×16 byte Non-Color image of seeded random grey heights."""
+    rgba = np.ones((16, 16, 4), np.float32)
+    rgba[..., :3] = np.random.default_rng(5).random((16, 16, 1))
+    image = bpy.data.images.new("Heights", 16, 16)
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()
+    return image
+
+
+def bumpy_material(strength: float = 1.0, bump: bool = False) -> bpy.types.Material:
+    """A grey Diffuse BSDF whose Normal is a Normal Map node of ``normal_image`` (Closest), or
+    with ``bump`` a Bump node (Distance 0.1) of ``height_image`` (Linear)."""
     material = shader_material("Bumpy", "ShaderNodeBsdfDiffuse", Color=(0.8, 0.8, 0.8, 1))
     tree = material.node_tree
     texture = tree.nodes.new("ShaderNodeTexImage")
-    texture.image, texture.interpolation = normal_image(), "Closest"
-    normal_map = tree.nodes.new("ShaderNodeNormalMap")
-    normal_map.inputs["Strength"].default_value = strength
-    tree.links.new(texture.outputs["Color"], normal_map.inputs["Color"])
-    tree.links.new(normal_map.outputs["Normal"], tree.nodes["Diffuse BSDF"].inputs["Normal"])
+    if bump:
+        texture.image, texture.interpolation = height_image(), "Linear"
+        node = tree.nodes.new("ShaderNodeBump")
+        node.inputs["Distance"].default_value = 0.1
+        tree.links.new(texture.outputs["Color"], node.inputs["Height"])
+    else:
+        texture.image, texture.interpolation = normal_image(), "Closest"
+        node = tree.nodes.new("ShaderNodeNormalMap")
+        tree.links.new(texture.outputs["Color"], node.inputs["Color"])
+    node.inputs["Strength"].default_value = strength
+    tree.links.new(node.outputs["Normal"], tree.nodes["Diffuse BSDF"].inputs["Normal"])
     return material
 
 
-def test_a_normal_map_exports_its_image_and_strength(blender):
+def test_normal_and_bump_maps_export_their_image_strength_and_distance(blender):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     warnings: list[str] = []
     material = export_material(bumpy_material(0.5), warnings)
     assert material.normal_texture is not None and material.normal_strength == 0.5
+    assert material.bump_distance is None
+    bumped = bumpy_material(0.25, bump=True)
+    bumped.node_tree.nodes["Bump"].invert = True
+    material = export_material(bumped, warnings)
+    assert material.normal_texture is not None and material.normal_strength == 0.25
+    assert material.bump_distance == pytest.approx(-0.1)
     assert not warnings
-    bump = shader_material("Bump", "ShaderNodeBsdfDiffuse")
-    tree = bump.node_tree
-    tree.links.new(tree.nodes.new("ShaderNodeBump").outputs["Normal"],
+    other = shader_material("Other", "ShaderNodeBsdfDiffuse")
+    tree = other.node_tree
+    tree.links.new(tree.nodes.new("ShaderNodeNormal").outputs["Normal"],
                    tree.nodes["Diffuse BSDF"].inputs["Normal"])
-    assert export_material(bump, warnings).normal_texture is None
-    assert warnings == ["material 'Bump': the Normal input of 'Diffuse BSDF' is not rendered "
-                        "(linked to 'Bump'): smooth shading normals"]
+    assert export_material(other, warnings).normal_texture is None
+    assert warnings == ["material 'Other': the Normal input of 'Diffuse BSDF' is not rendered "
+                        "(linked to 'Normal'): smooth shading normals"]
 
 
-@pytest.mark.parametrize("layout", ["plain", "turned", "mirrored"])
+@pytest.mark.parametrize("layout", ["plain", "turned", "mirrored", "bump"])
 def test_a_normal_mapped_floor_is_shaded_as_in_cycles(blender, tmp_path, layout):
     """A floor of normals tilted up to 40° (16² texels over 4 m, Closest), under a sun 50°
     high, seen from above, direct light (Cycles 64 samples): each texel's shade follows its
     normal; also with the floor turned 70° about Z and with its UVs mirrored in u (the
-    tangent frame turns and flips with them). Measured (bpy 4.5, llvmpipe): see the
-    printout; the map left out (flat shading): relRMSE several times larger."""
+    tangent frame turns and flips with them), and with a bump map of random heights instead.
+    Measured (bpy 4.5, llvmpipe): see the printout; the map left out (flat shading): relRMSE
+    several times larger."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    floor = add_primitive("plane", bumpy_material(), size=4,
+    floor = add_primitive("plane", bumpy_material(bump=layout == "bump"), size=4,
                           rotation=(0, 0, math.radians(70 if layout == "turned" else 0)))
     if layout == "mirrored":
         uv = floor.data.uv_layers.active.uv

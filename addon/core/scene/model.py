@@ -65,7 +65,8 @@ class Material:
     colour's luminance (COVERAGE_LUMINANCE), or one minus those (| COVERAGE_INVERTED); light
     and rays pass the rest untouched, as a Principled BSDF's Alpha or a Transparent BSDF mixed
     in by a texture do in Cycles. ``normal_texture`` bends the shading normal in the mesh's
-    UV tangent space (a Normal Map node's, by ``normal_strength``)."""
+    UV tangent space (a Normal Map node's, by ``normal_strength``), or with ``bump_distance``
+    its colour's luminance is a height (a Bump node's)."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
@@ -82,8 +83,9 @@ class Material:
     alpha: float = 1.0
     coverage_texture: Texture | None = None
     coverage_mode: int = 0  # COVERAGE_ALPHA or COVERAGE_LUMINANCE, | COVERAGE_INVERTED
-    normal_texture: Texture | None = None  # a tangent-space normal map (Normal Map node)
+    normal_texture: Texture | None = None  # a tangent-space normal map, or a bump map
     normal_strength: float = 1.0
+    bump_distance: float | None = None  # a Bump node's Distance (negative: inverted)
 
     @property
     def is_cutout(self) -> bool:

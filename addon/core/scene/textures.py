@@ -185,10 +185,14 @@ class TextureSet:
                 float(material.coverage_mode), 0.0)
 
     def normal(self, material: Material) -> tuple[float, float, float, float]:
-        """A material's normal-map texel (gbuffer_frag.glsl): normal map layer + 1 (0 for
-        none), its strength (finite, >= 0), 0, 0."""
+        """A material's normal-map texel (gbuffer_frag.glsl): normal or bump map layer + 1
+        (0 for none), its strength (finite, >= 0), 1 for a bump map (else 0), its distance
+        (finite)."""
         strength = float(np.nan_to_num(material.normal_strength, nan=0.0, posinf=0.0))
-        return self.layer(material.normal_texture) + 1.0, max(strength, 0.0), 0.0, 0.0
+        bump = material.bump_distance is not None
+        distance = float(np.nan_to_num(material.bump_distance or 0.0, posinf=0.0, neginf=0.0))
+        return (self.layer(material.normal_texture) + 1.0, max(strength, 0.0), float(bump),
+                distance)
 
     def columns(self, material: Material) -> tuple[float, float, float]:
         """A material's texture attribute: albedo layer, emission layer, and the
