@@ -80,6 +80,15 @@ def test_normal_and_bump_maps_export_their_image_strength_and_distance(blender):
     material = export_material(bumped, warnings)
     assert material.normal_texture is not None and material.normal_strength == 0.25
     assert material.bump_distance == pytest.approx(-0.1)
+    principled = shader_material("Principled", "ShaderNodeBsdfPrincipled")
+    tree = principled.node_tree
+    normal_map, texture = tree.nodes.new("ShaderNodeNormalMap"), tree.nodes.new(
+        "ShaderNodeTexImage")
+    tree.links.new(normal_map.outputs["Normal"], tree.nodes["Principled BSDF"].inputs["Normal"])
+    assert export_material(principled, warnings).normal_texture is None  # no image: flat
+    texture.image = normal_image()
+    tree.links.new(texture.outputs["Color"], normal_map.inputs["Color"])
+    assert export_material(principled, warnings).normal_texture is not None
     assert not warnings
     other = shader_material("Other", "ShaderNodeBsdfDiffuse")
     tree = other.node_tree
