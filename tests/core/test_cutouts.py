@@ -182,3 +182,18 @@ def test_passes_average_a_partial_alpha(renderer):
         mean.append(share.mean())
     assert spread[1] < 0.4 * spread[0], spread
     np.testing.assert_allclose(mean, 0.49, atol=0.03)
+
+
+def test_an_emissive_cutout_lights_with_the_part_that_is_there(renderer):
+    """A glowing panel of alpha 0.4 (hidden from the camera) over the floor: the floor gets
+    0.4 of the light the opaque panel gives it."""
+    settings = Settings(bounces=0, antialiasing=1, emission_samples=256,
+                        direct_shadows="ray_traced")
+    light_on_floor = []
+    for alpha in (1.0, 0.4):
+        glow = Material("glow", (0.0, 0.0, 0.0), emission=(2.0, 2.0, 2.0), alpha=alpha)
+        scene = floor_scene([], extra=[panel(glow)])
+        frame, _ = renderer.render(scene, settings)
+        light_on_floor.append(frame.passes["DiffDir"][20:44, 20:44, 0].mean())
+    assert light_on_floor[0] > 0.1
+    assert light_on_floor[1] / light_on_floor[0] == pytest.approx(0.4, rel=0.02)

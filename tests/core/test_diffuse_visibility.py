@@ -54,3 +54,18 @@ def test_a_panel_hidden_from_diffuse_bounces_lets_reflected_light_through(render
         light_under[name] = frame.passes["DiffInd"][UNDER_PANEL][..., 0].mean()
     assert light_under["hidden"] == pytest.approx(light_under["none"], rel=0.05), light_under
     assert light_under["seen"] < 0.7 * light_under["none"], light_under
+
+
+def test_an_emitter_hidden_from_diffuse_bounces_lights_nothing(renderer):
+    """A glowing panel over the floor (its normal up, away from the floor: emission is
+    two-sided): with Diffuse visibility off, diffuse surfaces do not see its light (as in
+    Cycles). One bounce: the view probe tests the panel's samples (it culled them all before
+    stop 54, as if the panel emitted upwards only)."""
+    glow = Material("glow", (0.0, 0.0, 0.0), emission=(2.0, 2.0, 2.0))
+    light_on_floor = []
+    for seen in (True, False):
+        panel = Instance(quad(1.5, 1.5), translation(0, 0, 1), [glow], visible_to_camera=False,
+                         visible_to_diffuse=seen)
+        frame, _ = renderer.render(floor_scene([], extra=[panel]), SETTINGS)
+        light_on_floor.append(frame.passes["DiffDir"][20:44, 20:44].mean())
+    assert light_on_floor[0] > 0.1 and light_on_floor[1] == 0.0

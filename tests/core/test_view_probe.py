@@ -12,6 +12,7 @@ from addon.core.settings import Settings
 from addon.core.transport.guidance import CameraPoints
 from addon.core.transport.lights import (
     KIND_COSINE,
+    KIND_COSINE2,
     KIND_DIRECTIONAL,
     KIND_OMNI,
     LightSamples,
@@ -37,8 +38,9 @@ def test_a_ray_from_some_camera_point_decides(tracer):
     """Floor points under a roof (z = 1, x up to 2): light from above is blocked, light from
     low in +x comes in under the roof's edge, light from below the floor never arrives; a point
     light under the roof reaches them, one above it does not, unless it casts no shadow or is
-    an area light's sample (kept with the others of its light); an emitter under the roof
-    facing up lights nothing below it, one facing down does."""
+    an area light's sample (kept with the others of its light); a one-sided emitter under the
+    roof facing up lights nothing below it, one facing down does, and an emissive triangle's
+    sample (two-sided) does either way."""
     floor = quad(5, 5).positions
     roof = quad(3.5, 5, z=1.0).positions + np.array([-1.5, 0.0, 0.0], np.float32)
     tracer.upload(np.concatenate([floor, roof]).reshape(-1, 3, 3))
@@ -54,13 +56,16 @@ def test_a_ray_from_some_camera_point_decides(tracer):
             (KIND_OMNI, (1, 0, 3.0), (0, 0, 1), True),  # above it
             (KIND_OMNI, (1, 0, 3.0), (0, 0, 1), False),  # above it, no shadow
             (KIND_COSINE, (1, 0, 0.5), (0, 0, 1), True),  # facing up, away from the floor
-            (KIND_COSINE, (1, 0, 0.5), (0, 0, -1), True)]  # facing the floor
+            (KIND_COSINE, (1, 0, 0.5), (0, 0, -1), True),  # facing the floor
+            (KIND_COSINE2, (1, 0, 0.5), (0, 0, 1), True)]  # emissive, its normal up
     reached = reaches_view(samples(rows), points, tracer, 1e-4)
-    np.testing.assert_array_equal(reached, [False, True, False, True, False, True, False, True])
+    np.testing.assert_array_equal(reached,
+                                  [False, True, False, True, False, True, False, True, True])
     of_area_lights = samples(rows)
-    of_area_lights.shape = np.array([-1, -1, -1, -1, 0, -1, -1, -1])  # one area light's sample
+    of_area_lights.shape = np.array([-1, -1, -1, -1, 0, -1, -1, -1, -1])  # an area light's
     reached = reaches_view(of_area_lights, points, tracer, 1e-4)
-    np.testing.assert_array_equal(reached, [False, True, False, True, True, True, False, True])
+    np.testing.assert_array_equal(reached,
+                                  [False, True, False, True, True, True, False, True, True])
 
 
 def room_with_a_window_scene():

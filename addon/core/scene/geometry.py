@@ -100,6 +100,16 @@ class WorldGeometry:
         """Each triangle's emitted radiance, (T, 3) float32."""
         return self._per_triangle(4)
 
+    @cached_property
+    def light_emission(self) -> np.ndarray:
+        """Each triangle's emitted radiance as a light of the other surfaces (T, 3): its
+        emission times its mean coverage (a cutout emits from the part that is there), none
+        where diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
+        if not (self.cutout.any() or self.diffuse_hidden.any()):
+            return self.emission
+        share = np.where(self.diffuse_hidden, 0.0, self.coverage)
+        return (self.emission * share[:, None]).astype(np.float32)
+
     @property
     def texture(self) -> np.ndarray | None:
         """Each triangle's texture attribute (T, 3), or None without textures."""

@@ -316,7 +316,7 @@ def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator)
 
 def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
                   rng: np.random.Generator) -> None:
-    emission = geometry.emission
+    emission = geometry.light_emission
     emitting = np.flatnonzero(emission.max(axis=1) > 0)
     if len(emitting) == 0:
         return

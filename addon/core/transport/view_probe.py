@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .guidance import CameraPoints
-from .lights import KIND_COSINE, KIND_COSINE2, KIND_DIRECTIONAL, LightSamples
+from .lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples
 from .ray_caster import RayCaster
 
 FIRST_POINTS = 256  # camera points every sample is tested from first
@@ -19,9 +19,10 @@ def reaches_view(samples: LightSamples, points: CameraPoints, tracer: RayCaster,
                  offset: float) -> np.ndarray:
     """(n,) bool: whether a ray from some camera point (moved ``offset`` off its surface)
     reaches each sample unblocked: towards a directional sample's light, to a point sample in
-    front of its emitting side. True, untested, for samples that cast no shadow (they reach
-    through anything) and for an area light's samples (its exact unshadowed light is scaled
-    by the share of its samples a draw holds, so they are kept together)."""
+    front of its emitting side (either side of an emissive triangle's). True, untested, for
+    samples that cast no shadow (they reach through anything) and for an area light's samples
+    (its exact unshadowed light is scaled by the share of its samples a draw holds, so they
+    are kept together)."""
     reached = ~samples.casts_shadow.astype(bool)
     if samples.shape is not None:
         reached |= samples.shape >= 0
@@ -47,8 +48,9 @@ def _unblocked(samples: LightSamples, todo: np.ndarray, origin: np.ndarray,
     distance = np.linalg.norm(to_light, axis=-1)
     direction = to_light / np.maximum(distance, 1e-30)[..., None]
     t_max = np.where(directional, np.inf, distance * (1.0 - 1e-4))
-    emitting = np.isin(kind, (KIND_COSINE, KIND_COSINE2))
-    behind = emitting & ((direction * axis).sum(axis=-1) >= 0.0)  # the emitter faces away
+    # a one-sided emitter (KIND_COSINE) facing away; emissive triangles (KIND_COSINE2) emit
+    # from both sides
+    behind = (kind == KIND_COSINE) & ((direction * axis).sum(axis=-1) >= 0.0)
     shape = direction.shape[:2]
     blocked = tracer.occluded(np.broadcast_to(origin[None], (*shape, 3)).reshape(-1, 3),
                               direction.reshape(-1, 3), t_max.reshape(-1), shadow=True)

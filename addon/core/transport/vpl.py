@@ -270,7 +270,7 @@ def _portal_emitter(world: World, portals: list[Light]) -> _Emitter | None:
 
 def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
     """Emissive triangles, two-sided Lambertian: flux 2 π L A each."""
-    emission = geometry.emission.astype(np.float64)
+    emission = geometry.light_emission.astype(np.float64)
     emitting = np.flatnonzero(emission.max(axis=1) > 0)
     if len(emitting) == 0:
         return None
