@@ -334,6 +334,13 @@ def _emissive(name: str, base, base_texture, color, color_texture, strength: flo
                     emission_texture=color_texture if strength != 0 else None, **values)
 
 
+AS_DIFFUSE = {
+    "BSDF_TRANSLUCENT": "(its light reflected on the lit side, not let through to the other)",
+    "SUBSURFACE_SCATTERING": "of its colour (no light scattered under the surface)",
+}
+"""Shaders rendered as a Diffuse BSDF of their Color, with what that leaves out (a leaf's
+translucency, skin's or wax's subsurface scattering): nearer than the viewport colour."""
+
 CLEAR_SHADERS = ("BSDF_TRANSPARENT", "BSDF_GLASS", "BSDF_REFRACTION")
 """Shaders that let light straight through (Glass and Refraction: their reflection, Fresnel
 and roughness are not rendered)."""
@@ -463,10 +470,10 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         return Material(name, base, roughness=float(_constant(node, "Roughness", 0.5)),
                         metallic=1.0, base_color_texture=texture,
                         **_normal_map(node, name, images))
-    if node.type in ("BSDF_DIFFUSE", "BSDF_TRANSLUCENT"):
-        if node.type == "BSDF_TRANSLUCENT":  # a leaf's: its light leaves the lit side here
-            message = (f"material '{name}': Translucent BSDF rendered as a Diffuse BSDF (its "
-                       f"light reflected on the lit side, not let through to the other)")
+    if node.type in ("BSDF_DIFFUSE", *AS_DIFFUSE):
+        if node.type in AS_DIFFUSE:
+            message = (f"material '{name}': {node.bl_label} rendered as a Diffuse BSDF "
+                       f"{AS_DIFFUSE[node.type]}")
             if message not in images.warnings:
                 images.warnings.append(message)
         base, texture = images.color(node, "Color", (0.8,) * 3, name)

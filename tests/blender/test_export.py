@@ -571,3 +571,15 @@ def test_light_portal_guides_world_light_and_emits_nothing(blender):
     assert [light.name for light in scene.lights] == ["AreaLight.001"]
     assert [p.name for p in scene.portals] == ["AreaLight"]
     assert scene.portals[0].world_area == pytest.approx(1.5**2)
+
+
+def test_subsurface_scattering_is_diffuse_in_its_colour_with_a_warning(blender):
+    from addon.export import export_material
+    from tests.blender.rendering import shader_material
+    blender.ops.wm.read_factory_settings(use_empty=True)
+    warnings: list[str] = []
+    skin = export_material(shader_material("Skin", "ShaderNodeSubsurfaceScattering",
+                                           Color=(0.8, 0.5, 0.4, 1.0)), warnings)
+    assert skin.base_color == pytest.approx((0.8, 0.5, 0.4)) and skin.metallic == 0.0
+    assert warnings == ["material 'Skin': Subsurface Scattering rendered as a Diffuse BSDF of "
+                        "its colour (no light scattered under the surface)"]
