@@ -461,6 +461,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          specular_tint=_rgb(_constant(node, "Specular Tint", (1, 1, 1))),
                          **_principled_alpha(node, name, images),
                          **_normal_map(node, name, images))
+    if node.type == "HOLDOUT":
+        return Material(name, (0.0, 0.0, 0.0), roughness=1.0, holdout=True)
     if node.type in CLEAR_SHADERS:
         ior = 0.0 if node.type == "BSDF_TRANSPARENT" else float(_constant(node, "IOR", 1.5))
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission_ior=ior,
@@ -488,6 +490,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
             if node.type == "MIX_SHADER" else (node.inputs[0], node.inputs[1])
         a = _shader(_linked_shader(first_socket), name, images)
         b = _shader(_linked_shader(second_socket), name, images)
+        if a.holdout or b.holdout:
+            raise _Unsupported(f"a Holdout shader inside '{node.bl_label}' is not supported")
         if node.type == "MIX_SHADER" and node.inputs["Fac"].is_linked and a.is_clear \
                 and b.is_clear:  # e.g. glass for camera rays, transparent for shadow rays
             return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission=tuple(

@@ -583,3 +583,12 @@ def test_subsurface_scattering_is_diffuse_in_its_colour_with_a_warning(blender):
     assert skin.base_color == pytest.approx((0.8, 0.5, 0.4)) and skin.metallic == 0.0
     assert warnings == ["material 'Skin': Subsurface Scattering rendered as a Diffuse BSDF of "
                         "its colour (no light scattered under the surface)"]
+
+
+def test_a_holdout_shader_is_a_holdout_material(blender):
+    from addon.export import export_material
+    from tests.blender.rendering import shader_material
+    blender.ops.wm.read_factory_settings(use_empty=True)
+    warnings: list[str] = []
+    hole = export_material(shader_material("Hole", "ShaderNodeHoldout"), warnings)
+    assert hole.holdout and hole.base_color == (0.0, 0.0, 0.0) and not warnings

@@ -1,6 +1,7 @@
 """Cutouts (a Principled BSDF's Alpha, a Transparent BSDF mixed in: leaves, fences): surfaces
 that are there in part. Rays and rasterised samples keep them with probability their coverage,
-shadow rays pass dimmed by it, as in Cycles."""
+shadow rays pass dimmed by it, as in Cycles. And the Holdout shader, a surface the camera sees
+as a hole."""
 
 from __future__ import annotations
 
@@ -197,3 +198,17 @@ def test_an_emissive_cutout_lights_with_the_part_that_is_there(renderer):
         light_on_floor.append(frame.passes["DiffDir"][20:44, 20:44, 0].mean())
     assert light_on_floor[0] > 0.1
     assert light_on_floor[1] / light_on_floor[0] == pytest.approx(0.4, rel=0.02)
+
+
+def test_a_holdout_shader_is_a_hole_for_the_camera_and_black_to_light(renderer):
+    """A panel whose material is a Holdout shader, seen from above over a sunlit floor: black
+    with alpha 0 where the camera sees it, and it still shades the floor (camera-hidden,
+    the floor under it is dark)."""
+    settings = Settings(bounces=1, antialiasing=1, direct_shadows="ray_traced", vpl_count=64)
+    hole = Material("hole", (0.0, 0.0, 0.0), holdout=True)
+    seen, _ = renderer.render(sun_scene(hole, seen=True), settings)
+    under = (slice(20, 44), slice(20, 44))
+    np.testing.assert_array_equal(seen.passes["Combined"][under], 0.0)
+    assert seen.passes["Combined"][2:8, 2:8, 3].min() == 1.0  # the open floor is opaque
+    hidden, _ = renderer.render(sun_scene(hole), settings)
+    assert hidden.passes["DiffDir"][under].max() < 1e-6

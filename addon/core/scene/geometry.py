@@ -122,7 +122,8 @@ class WorldGeometry:
 
     @cached_property
     def holdout(self) -> np.ndarray:
-        """(T,) bool: triangles of holdout instances (the camera sees a hole there)."""
+        """(T,) bool: triangles of holdout instances or materials (the camera sees a hole
+        there)."""
         return self.materials[self.triangle_material, HOLDOUT] > 0.5
 
     @cached_property
@@ -376,7 +377,7 @@ class _MaterialTable:
             rows = _material_rows(materials, self.warnings, self.textures, self.clamped)
             visible_to_camera, holdout, casts_shadow, visible_to_diffuse = flags
             rows[:, HIDDEN] = 0.0 if visible_to_camera else 1.0
-            rows[:, HOLDOUT] = 1.0 if holdout else 0.0
+            rows[:, HOLDOUT] = [1.0 if holdout or m.holdout else 0.0 for m in materials]
             rows[:, SHADOWLESS] = 0.0 if casts_shadow else 1.0
             rows[:, DIFFUSE_HIDDEN] = 0.0 if visible_to_diffuse else 1.0
             self.blocks.append(rows)

@@ -66,7 +66,8 @@ class Material:
     and rays pass the rest untouched, as a Principled BSDF's Alpha or a Transparent BSDF mixed
     in by a texture do in Cycles. ``normal_texture`` bends the shading normal in the mesh's
     UV tangent space (a Normal Map node's, by ``normal_strength``), or with ``bump_distance``
-    its colour's luminance is a height (a Bump node's)."""
+    its colour's luminance is a height (a Bump node's). A ``holdout`` (the Holdout shader) is
+    a hole for the camera, as a holdout object is, and black to light."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
@@ -86,6 +87,7 @@ class Material:
     normal_texture: Texture | None = None  # a tangent-space normal map, or a bump map
     normal_strength: float = 1.0
     bump_distance: float | None = None  # a Bump node's Distance (negative: inverted)
+    holdout: bool = False  # a Holdout shader: a hole for the camera, black to light
 
     @property
     def is_cutout(self) -> bool:
