@@ -91,6 +91,22 @@ def against(image: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
             metrics.relative_rmse(image, reference))
 
 
+def assert_near_cycles(label: str, ours: np.ndarray, reference: np.ndarray,
+                       bounds: tuple[float, float], without: np.ndarray,
+                       without_label: str, factor: float = 3.0) -> None:
+    """Print and check ``ours`` against Cycles' ``reference``: finite, energy and relRMSE
+    within ``bounds``; and the render ``without`` the feature under test (``without_label``)
+    off by ``factor`` times the relRMSE or more, so that the test fails without it."""
+    assert np.isfinite(ours).all()
+    energy, error = against(ours, reference)
+    without_error = against(without, reference)[1]
+    print(f"{label} vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; {without_label}: "
+          f"relRMSE {without_error:.4f}")
+    assert abs(energy) < bounds[0]
+    assert error < bounds[1]
+    assert without_error > factor * error
+
+
 def plain_world(scene: bpy.types.Scene, colour: tuple[float, float, float]) -> None:
     """A new world of one colour, through its Background node (no deprecated use_nodes)."""
     scene.world = bpy.data.worlds.new("Plain")

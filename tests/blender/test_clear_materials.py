@@ -14,6 +14,7 @@ from addon.export import export_material
 from tests.blender.rendering import (
     add_camera,
     against,
+    assert_near_cycles,
     cycles_and_ours,
     plain_world,
     render_linear,
@@ -100,14 +101,8 @@ def test_light_and_the_camera_pass_a_transparent_pane_as_in_cycles(blender, tmp_
                        tree.nodes["Material Output"].inputs["Surface"])
     opaque = render_linear(scene, "VPL_GI", tmp_path / "opaque.exr")
 
-    assert np.isfinite(ours).all()
-    energy, error = against(ours, reference)
-    opaque_error = against(opaque, reference)[1]
-    print(f"transparent panes vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; "
-          f"opaque panes: relRMSE {opaque_error:.4f}")
-    assert abs(energy) < 0.02
-    assert error < 0.04
-    assert opaque_error > 10 * error
+    assert_near_cycles("transparent panes", ours, reference, (0.02, 0.04), opaque,
+                       "opaque panes", factor=10.0)
 
 
 def test_light_through_a_tinted_roof_is_tinted_direct_and_indirect(blender, tmp_path):

@@ -13,7 +13,7 @@ from addon.core.scene.model import COVERAGE_ALPHA, COVERAGE_INVERTED, COVERAGE_L
 from addon.export import export_material
 from tests.blender.rendering import (
     add_camera,
-    against,
+    assert_near_cycles,
     cycles_and_ours,
     render_linear,
     shader_material,
@@ -122,14 +122,7 @@ def test_sunlight_through_leaves_as_in_cycles(blender, tmp_path, leaf):
         mix.inputs["Fac"].default_value = 1.0  # all Diffuse
     opaque = render_linear(scene, "VPL_GI", tmp_path / "opaque.exr")
 
-    assert np.isfinite(ours).all()
-    energy, error = against(ours, reference)
-    opaque_error = against(opaque, reference)[1]
-    print(f"{leaf.__name__} vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; the roof "
-          f"opaque: relRMSE {opaque_error:.4f}")
-    assert abs(energy) < 0.03
-    assert error < 0.10
-    assert opaque_error > 3 * error
+    assert_near_cycles(leaf.__name__, ours, reference, (0.03, 0.10), opaque, "the roof opaque")
 
 
 def translucent_leaf() -> bpy.types.Material:

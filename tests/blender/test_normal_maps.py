@@ -14,7 +14,7 @@ from tests.blender.rendering import (
     add_camera,
     add_primitive,
     add_sun,
-    against,
+    assert_near_cycles,
     cycles_and_ours,
     render_linear,
     shader_material,
@@ -125,11 +125,5 @@ def test_a_normal_mapped_floor_is_shaded_as_in_cycles(blender, tmp_path, layout)
     tree.links.remove(tree.nodes["Diffuse BSDF"].inputs["Normal"].links[0])
     flat = render_linear(scene, "VPL_GI", tmp_path / "flat.exr")
 
-    assert np.isfinite(ours).all()
-    energy, error = against(ours, reference)
-    flat_error = against(flat, reference)[1]
-    print(f"normal-mapped floor ({layout}) vs Cycles: energy {energy:+.4f} relRMSE "
-          f"{error:.4f}; the map left out: relRMSE {flat_error:.4f}")
-    assert abs(energy) < 0.02
-    assert error < 0.05
-    assert flat_error > 3 * error
+    assert_near_cycles(f"normal-mapped floor ({layout})", ours, reference, (0.02, 0.05), flat,
+                       "the map left out")
