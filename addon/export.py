@@ -405,6 +405,8 @@ def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
                 raise _Unsupported("a Normal input chained into 'Bump'")
             distance = float(_constant(source, "Distance", 1.0))
             fields["bump_distance"] = -distance if source.invert else distance
+            # Cycles 4.2 takes the height's differences over a whole pixel (no Filter Width)
+            fields["bump_filter_width"] = float(_constant(source, "Filter Width", 0.1))
             image_input = "Height"
         elif source.type == "NORMAL_MAP" and source.space == "TANGENT":
             image_input = "Color"
@@ -537,7 +539,8 @@ def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[st
     maps: dict[str, object] = {"base_color_texture": a.base_color_texture,
                                "normal_texture": normal.normal_texture,
                                "normal_strength": normal.normal_strength,
-                               "bump_distance": normal.bump_distance}
+                               "bump_distance": normal.bump_distance,
+                               "bump_filter_width": normal.bump_filter_width}
     if not (a.is_cutout or b.is_cutout):
         return maps
     if node.type == "ADD_SHADER":

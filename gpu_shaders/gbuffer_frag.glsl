@@ -32,6 +32,7 @@ uniform mat4 u_view;
 #ifdef TEXTURED
 #include "textures_lib.glsl"
 in vec2 v_uv;
+uniform float u_samples_per_pixel;  // across the screen: the g-buffer's supersamples
 
 // v / |v|, or `otherwise` where v is zero, not finite or so long that squaring overflows (a
 // normal map's texel of (0.5, 0.5, 0.5), NaN or infinite).
@@ -65,16 +66,17 @@ float bump_height(int layer, vec2 uv) {
     return dot(texture_color(layer, uv), HEIGHT_LUMINANCE);
 }
 
-// Cycles' Bump node (svm_node_set_bump): the height's differences towards the neighbouring
-// supersamples over the surface's (the screen-space surface gradient, Mikkelsen 2010), scaled
-// by the distance (negative: inverted), mixed with n by the strength (map: layer + 1,
-// strength, 1, distance).
+// Cycles' Bump node (svm_node_set_bump): the height's differences over the filter width (in
+// pixels: u_samples_per_pixel samples each) across the screen over the surface's (the
+// screen-space surface gradient, Mikkelsen 2010), scaled by the distance (negative:
+// inverted), mixed with n by the strength (map: layer + 1, strength, filter width, distance).
 vec3 bumped_normal(vec3 n, vec4 map) {
     int layer = int(map.x + 0.5) - 1;
-    vec3 dp_dx = dFdx(v_world), dp_dy = dFdy(v_world);
+    float width = map.z * u_samples_per_pixel;
+    vec3 dp_dx = dFdx(v_world) * width, dp_dy = dFdy(v_world) * width;
     float h = bump_height(layer, v_uv);
-    float dh_dx = bump_height(layer, v_uv + dFdx(v_uv)) - h;
-    float dh_dy = bump_height(layer, v_uv + dFdy(v_uv)) - h;
+    float dh_dx = bump_height(layer, v_uv + dFdx(v_uv) * width) - h;
+    float dh_dy = bump_height(layer, v_uv + dFdy(v_uv) * width) - h;
     vec3 rx = cross(dp_dy, n), ry = cross(n, dp_dx);
     float det = dot(dp_dx, rx);
     if (!(abs(det) > 0.0)) return n;  // no area between the supersamples: no gradient
@@ -113,7 +115,7 @@ void main() {
     vec3 shading = normalize(v_normal);
 #ifdef TEXTURED
     if (material.normal_map.x > 0.5) {
-        shading = material.normal_map.z > 0.5 ? bumped_normal(shading, material.normal_map)
+        shading = material.normal_map.z > 0.0 ? bumped_normal(shading, material.normal_map)
                                                : mapped_normal(shading, material.normal_map);
     }
 #endif

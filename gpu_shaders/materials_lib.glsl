@@ -18,7 +18,7 @@ struct Material {
     vec4 specular;
     vec4 tint;
     vec4 cutout;
-    vec4 normal_map;  // layer + 1 (0: none), strength, 1 for a bump map, its distance
+    vec4 normal_map;  // layer + 1 (0: none), strength, a bump map's filter width, its distance
 };
 
 vec4 material_texel(int i) {

@@ -19,6 +19,7 @@ from tests.blender.rendering import (
     render_linear,
     shader_material,
 )
+from tests.blender.versions import VERSION
 
 SIZE = 64
 
@@ -125,5 +126,9 @@ def test_a_normal_mapped_floor_is_shaded_as_in_cycles(blender, tmp_path, layout)
     tree.links.remove(tree.nodes["Diffuse BSDF"].inputs["Normal"].links[0])
     flat = render_linear(scene, "VPL_GI", tmp_path / "flat.exr")
 
-    assert_near_cycles(f"normal-mapped floor ({layout})", ours, reference, (0.02, 0.05), flat,
-                       "the map left out")
+    # Cycles 4.2's Bump node (before its Filter Width input) shades the floor a little
+    # differently from 4.3's and later, whose default VPL GI follows: measured 4.4 % there
+    older_bump = layout == "bump" and VERSION < (4, 3)
+    assert_near_cycles(f"normal-mapped floor ({layout})", ours, reference,
+                       (0.02, 0.06 if older_bump else 0.05), flat, "the map left out",
+                       factor=2.0 if older_bump else 3.0)

@@ -104,6 +104,7 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
     uniforms = {
         "u_view_projection": tuple(view_projection.T.astype("f4").ravel()),
         "u_view": tuple(camera.view_matrix.T.astype("f4").ravel()),
+        "u_samples_per_pixel": tile.width / camera.width,
         **view,
     }
     textures = scene.textures if scene is not None else None

@@ -186,13 +186,14 @@ class TextureSet:
 
     def normal(self, material: Material) -> tuple[float, float, float, float]:
         """A material's normal-map texel (gbuffer_frag.glsl): normal or bump map layer + 1
-        (0 for none), its strength (finite, >= 0), 1 for a bump map (else 0), its distance
-        (finite)."""
+        (0 for none), its strength (finite, >= 0), for a bump map its filter width in pixels
+        (> 0; 0 for a normal map), its distance (finite)."""
         strength = float(np.nan_to_num(material.normal_strength, nan=0.0, posinf=0.0))
-        bump = material.bump_distance is not None
+        width = 0.0
+        if material.bump_distance is not None:
+            width = float(np.clip(np.nan_to_num(material.bump_filter_width, nan=1.0), 1e-3, 1e3))
         distance = float(np.nan_to_num(material.bump_distance or 0.0, posinf=0.0, neginf=0.0))
-        return (self.layer(material.normal_texture) + 1.0, max(strength, 0.0), float(bump),
-                distance)
+        return self.layer(material.normal_texture) + 1.0, max(strength, 0.0), width, distance
 
     def columns(self, material: Material) -> tuple[float, float, float]:
         """A material's texture attribute: albedo layer, emission layer, and the
