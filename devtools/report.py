@@ -146,7 +146,7 @@ def cycles_settings(samples: int, bounces: int, seed: int, denoise: bool = False
     """Cycles set up like VPL GI: CPU, diffuse bounces only, no adaptive sampling, clamping or
     light-sampling cut-off, a one-pixel box filter; no denoiser, or with ``denoise``
     OpenImageDenoise with albedo and normal guides (Blender's defaults, as users render).
-    With ``clear`` (a scene with clear materials, which VPL GI lets light through),
+    With ``clear`` (a scene with clear or cutout materials, which VPL GI lets light through),
     Blender's default transparent (8) and transmission (12) bounces."""
     settings: dict[str, object] = {
         "device": "CPU", "samples": samples, "seed": seed,
@@ -493,10 +493,11 @@ REFERENCE_WHY = (
 
 
 def has_clear_materials(scene: bpy.types.Scene) -> bool:
-    """Whether a rendered object of ``scene`` has a material VPL GI renders clear."""
+    """Whether a rendered object of ``scene`` has a material VPL GI lets light through: clear,
+    or a cutout (Cycles renders either's transparency as black without transparent bounces)."""
     materials = {slot.material for obj in scene.objects if obj.type in RENDERED_OBJECT_TYPES
                  for slot in obj.material_slots if slot.material is not None}
-    return any(export_material(m, []).is_clear for m in materials)
+    return any(m.is_clear or m.is_cutout for m in (export_material(m, []) for m in materials))
 
 
 def run(scene_path: Path, out_dir: Path, options: Options) -> dict[str, object]:

@@ -173,3 +173,13 @@ def test_mixes_keep_a_shared_texture_and_mix_their_alphas(blender):
     assert not export_material(material, warnings).is_cutout
     assert warnings == ["material 'Veil': an Alpha texture on one side of 'Mix Shader' is not "
                         "supported; using its viewport colour"]
+
+
+def test_the_report_gives_cycles_transparent_bounces_for_cutouts(blender):
+    """The report's Cycles references see through cutouts (transparent bounces), else Cycles
+    renders their clear texels black: the leaf roof's report measured VPL GI 54.8 % off,
+    energy +22.8 %, against such references."""
+    from devtools.report import has_clear_materials
+    assert has_clear_materials(sunlit_box_under_leaves(principled_leaf))
+    assert not has_clear_materials(sunlit_box_under_leaves(
+        lambda: shader_material("Plain", "ShaderNodeBsdfDiffuse")))
