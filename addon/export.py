@@ -43,7 +43,7 @@ from .core.scene.model import (
 )
 from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
-from .export_images import ImageReader, UnsupportedLink, read_pixels
+from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
 
 RAY_FLAGS = ("visible_camera", "visible_diffuse", "visible_shadow")
 """An object's ray visibility that VPL GI honours (glossy, transmission and volume rays reach
@@ -395,9 +395,7 @@ def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
     socket = node.inputs.get("Normal")
     if socket is None or not socket.is_linked:
         return {}
-    source = socket.links[0].from_node
-    while source.type == "REROUTE" and source.inputs[0].is_linked:
-        source = source.inputs[0].links[0].from_node
+    source = linked_node(socket)
     fields: dict[str, object] = {}
     try:
         if source.type == "BUMP":
@@ -405,7 +403,7 @@ def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
                 raise _Unsupported("a Normal input chained into 'Bump'")
             distance = float(_constant(source, "Distance", 1.0))
             fields["bump_distance"] = -distance if source.invert else distance
-            # Cycles 4.2 takes the height's differences over a whole pixel (no Filter Width)
+            # Blender 4.2's Bump node has no Filter Width: Cycles 4.3's default
             fields["bump_filter_width"] = float(_constant(source, "Filter Width", 0.1))
             image_input = "Height"
         elif source.type == "NORMAL_MAP" and source.space == "TANGENT":
@@ -418,10 +416,8 @@ def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
         texture = images.color(source, image_input, (0.5, 0.5, 1.0), name)[1] \
             if source.inputs[image_input].is_linked else None
     except (_Unsupported, UnsupportedLink) as reason:
-        message = (f"material '{name}': the Normal input of '{node.bl_label}' is not rendered "
-                   f"({reason}): smooth shading normals")
-        if message not in images.warnings:
-            images.warnings.append(message)
+        images.warn(f"material '{name}': the Normal input of '{node.bl_label}' is not "
+                    f"rendered ({reason}): smooth shading normals")
         return {}
     return {} if texture is None else {**fields, "normal_texture": texture}
 
@@ -433,9 +429,7 @@ def _principled_alpha(node, name: str, images: ImageReader) -> dict[str, object]
     try:
         alpha, texture, mode = images.coverage(node, "Alpha", name)
     except UnsupportedLink as reason:
-        message = f"material '{name}': Principled BSDF's Alpha not rendered ({reason})"
-        if message not in images.warnings:
-            images.warnings.append(message)
+        images.warn(f"material '{name}': Principled BSDF's Alpha not rendered ({reason})")
         return {}
     return {"alpha": alpha, "coverage_texture": texture, "coverage_mode": mode}
 
@@ -476,10 +470,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                         **_normal_map(node, name, images))
     if node.type in ("BSDF_DIFFUSE", *AS_DIFFUSE):
         if node.type in AS_DIFFUSE:
-            message = (f"material '{name}': {node.bl_label} rendered as a Diffuse BSDF "
-                       f"{AS_DIFFUSE[node.type]}")
-            if message not in images.warnings:
-                images.warnings.append(message)
+            images.warn(f"material '{name}': {node.bl_label} rendered as a Diffuse BSDF "
+                        f"{AS_DIFFUSE[node.type]}")
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
         return Material(name, base, roughness=1.0, base_color_texture=texture,
                         **_normal_map(node, name, images))

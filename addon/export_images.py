@@ -26,7 +26,8 @@ class UnsupportedLink(Exception):
     """A colour input linked to something other than a supported Image Texture."""
 
 
-def _from_node(socket):
+def linked_node(socket):
+    """The node a linked input comes from, through any Reroute nodes."""
     node = socket.links[0].from_node
     while node.type == "REROUTE" and node.inputs[0].is_linked:
         node = node.inputs[0].links[0].from_node
@@ -38,7 +39,7 @@ def _check_vector(node) -> None:
     if socket is None or not socket.is_linked:
         return
     link = socket.links[0]
-    source = _from_node(socket)
+    source = linked_node(socket)
     if source.type == "UVMAP" or (source.type == "TEX_COORD" and link.from_socket.name == "UV"):
         return
     raise UnsupportedLink(f"input 'Vector' of '{node.bl_label}' is linked to "
@@ -83,7 +84,8 @@ class ImageReader:
         self._associated: dict[str, np.ndarray] = {}
         self._textures: dict[tuple[str, bool, str, str], Texture] = {}
 
-    def _warn(self, message: str) -> None:
+    def warn(self, message: str) -> None:
+        """Add ``message`` to the export's warnings unless it is there already."""
         if message not in self.warnings:
             self.warnings.append(message)
 
@@ -94,7 +96,7 @@ class ImageReader:
         if socket is None or not socket.is_linked:
             value = default if socket is None else socket.default_value
             return (float(value[0]), float(value[1]), float(value[2])), None
-        source = _from_node(socket)
+        source = linked_node(socket)
         if source.type != "TEX_IMAGE" or socket.links[0].from_socket.name != "Color":
             raise UnsupportedLink(f"input '{name}' of '{node.bl_label}' is linked to "
                                   f"'{source.bl_label}'")
@@ -108,7 +110,7 @@ class ImageReader:
         socket = node.inputs[name]
         if not socket.is_linked:
             return float(np.clip(np.nan_to_num(socket.default_value, nan=1.0), 0, 1)), None, 0
-        source = _from_node(socket)
+        source = linked_node(socket)
         output = socket.links[0].from_socket.name
         if source.type != "TEX_IMAGE" or output not in ("Alpha", "Color"):
             raise UnsupportedLink(f"input '{name}' of '{node.bl_label}' is linked to "
@@ -123,10 +125,10 @@ class ImageReader:
         image = node.image
         label = f"image '{image.name}'" if image is not None else "an image texture"
         if node.projection != "FLAT":
-            self._warn(f"material '{material}': {label}: projection "
+            self.warn(f"material '{material}': {label}: projection "
                        f"{node.projection.title()} not supported (rendered as Flat)")
         if image is None:
-            self._warn(f"material '{material}': an image texture has no image: shown in "
+            self.warn(f"material '{material}': an image texture has no image: shown in "
                        f"magenta (1, 0, 1) as Cycles does")
             return missing_texture("(none)")
         key = image.name_full
@@ -156,11 +158,11 @@ class ImageReader:
                 (pixels, srgb, bool((pixels[..., 3] < 1).any()))
         space = image.colorspace_settings.name
         if self._pixels[key] is None:
-            self._warn(f"material '{material}': image '{image.name}' is missing or cannot be "
+            self.warn(f"material '{material}': image '{image.name}' is missing or cannot be "
                        f"read ({image.filepath or 'no file'}): shown in magenta (1, 0, 1) as "
                        f"Cycles does")
         elif not image.is_float and space not in RAW_SPACES | {"sRGB"}:
-            self._warn(f"material '{material}': image '{image.name}': colour space '{space}' "
+            self.warn(f"material '{material}': image '{image.name}': colour space '{space}' "
                        f"is not supported (read as Non-Color)")
         return self._pixels[key]
 
@@ -170,7 +172,7 @@ class ImageReader:
         interpolation = INTERPOLATION.get(node.interpolation, "Linear")
         extension = node.extension if node.extension in EXTENSIONS else "REPEAT"
         if (interpolation, extension) != (INTERPOLATION.get(node.interpolation), node.extension):
-            self._warn(f"material '{material}': {label}: interpolation "
+            self.warn(f"material '{material}': {label}: interpolation "
                        f"{node.interpolation.title()}, extension {node.extension.title()} not "
                        f"supported (rendered as {interpolation}, {extension.title()})")
         return interpolation, extension

@@ -87,7 +87,7 @@ class Material:
     normal_texture: Texture | None = None  # a tangent-space normal map, or a bump map
     normal_strength: float = 1.0
     bump_distance: float | None = None  # a Bump node's Distance (negative: inverted)
-    bump_filter_width: float = 0.1  # its Filter Width, pixels (Cycles 4.2: a whole pixel)
+    bump_filter_width: float = 0.1  # its Filter Width in pixels (4.3's default)
     holdout: bool = False  # a Holdout shader: a hole for the camera, black to light
 
     @property
