@@ -10,19 +10,25 @@
 #include "common_lib.glsl"
 #include "textures_lib.glsl"
 
-const vec3 COVERAGE_LUMINANCE = vec3(0.2126, 0.7152, 0.0722);  // Rec. 709, Blender's default
-
 float surface_coverage(sampler2DArray textures, sampler2D sizes, vec4 cutout, vec2 uv) {
     float coverage = 1.0 - cutout.y;
     if (cutout.x > 0.5) {
         vec4 s = texture_sample(textures, sizes, int(cutout.x + 0.5) - 1, uv);
         int mode = int(cutout.z + 0.5);
-        float value = (mode & 1) != 0 ? dot(s.rgb, COVERAGE_LUMINANCE) : s.a;
+        float value = (mode & 1) != 0 ? dot(s.rgb, LUMINANCE) : s.a;
         if ((mode & 2) != 0) value = 1.0 - value;
         coverage *= value > 0.0 ? min(value, 1.0) : 0.0;  // NaN: 0, as the export reads it
     }
     return coverage;
 }
+
+// A cutout's coverage at uv with the g-buffer's image textures where TEXTURED binds them,
+// else its constant alpha alone (uv is then not read).
+#ifdef TEXTURED
+#define CUTOUT_COVERAGE(cutout, uv) surface_coverage(u_textures, u_texture_sizes, cutout, uv)
+#else
+#define CUTOUT_COVERAGE(cutout, uv) (1.0 - (cutout).y)
+#endif
 
 // Whether a sample keyed by three words keeps a surface of this coverage.
 bool surface_kept(float coverage, uvec3 key) {

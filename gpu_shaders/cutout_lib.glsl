@@ -17,13 +17,8 @@ in vec2 v_uv;
 
 bool cutout_kept() {
 #ifdef CUTOUTS
-    vec4 cutout = material_of(v_triangle).cutout;
-#ifdef TEXTURED
-    float coverage = surface_coverage(u_textures, u_texture_sizes, cutout, v_uv);
-#else
-    float coverage = 1.0 - cutout.y;  // no textures: constant alphas only
-#endif
-    return surface_kept(coverage, uvec3(gl_FragCoord.xy, v_triangle));
+    return surface_kept(CUTOUT_COVERAGE(material_of(v_triangle).cutout, v_uv),
+                        uvec3(gl_FragCoord.xy, v_triangle));
 #else
     return true;
 #endif

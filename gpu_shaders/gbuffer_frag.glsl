@@ -4,10 +4,11 @@
 // angle can face away from the camera on a front face (turning it then shaded the face from
 // behind: black under a light in front). With ONE_SIDED (visible light shapes) the back side
 // is not drawn. With TEXTURED the albedo (capped to 1, as base colours are) and the emission
-// come from image textures, and a normal or bump map bends the shading normal. With GLOSSY (some material has a specular layer) the albedo is the
-// diffuse layer's colour (Cycles' DiffCol) and three more layers hold the pixel's glossy lobe
-// (principled_lib.glsl); the glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w,
-// emission.w), as OpenGL guarantees only eight colour attachments. With CUTOUTS (some
+// come from image textures, and a normal or bump map bends the shading normal. With GLOSSY
+// (some material has a specular layer) the albedo is the diffuse layer's colour (Cycles'
+// DiffCol) and three more layers hold the pixel's glossy lobe (principled_lib.glsl); the
+// glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w, emission.w), as OpenGL
+// guarantees only eight colour attachments. With CUTOUTS (some
 // material is there only in part) each supersample keeps a cutout's surface with probability
 // its coverage (coverage_lib.glsl), in a pattern of each pass's own (u_cutout_seed), so
 // supersamples and passes average it as Cycles' camera rays do.
@@ -60,10 +61,8 @@ vec3 mapped_normal(vec3 n, vec4 map) {
     return map.y == 1.0 ? mapped : safe_unit(n + (mapped - n) * map.y, n);
 }
 
-const vec3 HEIGHT_LUMINANCE = vec3(0.2126, 0.7152, 0.0722);  // a colour as a float, Rec. 709
-
 float bump_height(int layer, vec2 uv) {
-    return dot(texture_color(layer, uv), HEIGHT_LUMINANCE);
+    return dot(texture_color(layer, uv), LUMINANCE);
 }
 
 // Cycles' Bump node (svm_node_set_bump): the height's differences over the filter width (in
@@ -101,13 +100,10 @@ void main() {
     Material material = material_of(v_triangle);
     if (material.albedo.w > 0.5) discard;  // an object the camera does not see (geometry.HIDDEN)
 #ifdef CUTOUTS
-#ifdef TEXTURED
-    float coverage = surface_coverage(u_textures, u_texture_sizes, material.cutout, v_uv);
-#else
-    float coverage = 1.0 - material.cutout.y;  // no textures: constant alphas only
-#endif
     uint key = uint(v_triangle) + 2654435769u * uint(u_cutout_seed);
-    if (!surface_kept(coverage, uvec3(gl_FragCoord.xy, key))) discard;
+    if (!surface_kept(CUTOUT_COVERAGE(material.cutout, v_uv), uvec3(gl_FragCoord.xy, key))) {
+        discard;
+    }
 #endif
     vec3 to_camera = u_orthographic ? -u_camera_forward : normalize(u_camera_position - v_world);
     vec3 geometric = normalize(cross(dFdx(v_world), dFdy(v_world)));

@@ -10,6 +10,8 @@
 uniform sampler2DArray u_textures;
 uniform sampler2D u_texture_sizes;
 
+const vec3 LUMINANCE = vec3(0.2126, 0.7152, 0.0722);  // a colour as a float (Rec. 709)
+
 const int EXTENSION_REPEAT = 0;
 const int EXTENSION_EXTEND = 1;
 const int EXTENSION_CLIP = 2;

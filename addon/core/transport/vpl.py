@@ -32,6 +32,7 @@ from ..scene import principled
 from ..scene.environment import EnvironmentSampler, lookup
 from ..scene.geometry import WorldGeometry
 from ..scene.model import Light, LightKind, Scene, World
+from ..scene.textures import LUMINANCE
 from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
 from .lights import (
@@ -49,7 +50,6 @@ from .lights import (
 from .ray_caster import RayCaster
 from .sequences import scrambled_halton
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 START_DIMENSIONS = 5  # emitter choice, position (2), direction (2)
 
 
