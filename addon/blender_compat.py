@@ -7,10 +7,10 @@ Measured with bpy 4.2.23, 4.5.15 and 5.3.0:
   Emit to "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Glossy Direct", "Glossy
   Indirect", "Glossy Color" and "Emission" (Cycles, EEVEE, the compositor's Render Layers node
   and multilayer EXR channels); Combined, Depth and Normal kept their names.
-- Shader nodes: 5.0 removed ``use_nodes`` from materials and worlds (still readable, always
-  True, deprecated for 6.0): every material and world has a node tree, and 4.x files whose
-  materials or worlds had nodes off are converted on load to node trees with a Cycles-only
-  output (a Diffuse BSDF in the viewport colour for materials).
+- Shader nodes: 5.0 removed ``use_nodes`` from materials, worlds and lights (still readable,
+  always True, deprecated for 6.0): every material, world and light has a node tree, and 4.x
+  files whose materials or worlds had nodes off are converted on load to node trees with a
+  Cycles-only output (a Diffuse BSDF in the viewport colour for materials).
 - Default surface: an object without a material renders in Cycles 4.x as a Diffuse BSDF of 0.8
   grey, in Cycles 5.x as a default Principled BSDF (base colour 0.8, roughness 0.5, specular
   IOR level 0.5), bit for bit the same as a new material's.
@@ -47,9 +47,9 @@ def pass_name(name: str) -> str:
     return _PASS_NAMES_5.get(name, name) if BLENDER_5 else name
 
 
-def uses_nodes(datablock: bpy.types.Material | bpy.types.World) -> bool:
-    """True if Blender renders the material or world from its node tree (always in 5.x, where
-    ``use_nodes`` is deprecated; reading it there only warns)."""
+def uses_nodes(datablock: bpy.types.Material | bpy.types.World | bpy.types.Light) -> bool:
+    """True if Blender renders the material, world or light from its node tree (always in
+    5.x, where ``use_nodes`` is deprecated; reading it there only warns)."""
     if datablock.node_tree is None:
         return False
     return True if BLENDER_5 else bool(datablock.use_nodes)

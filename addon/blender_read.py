@@ -9,6 +9,11 @@ import numpy as np
 from .blender_compat import cycles_output_node
 
 
+def rgb(value) -> tuple[float, float, float]:
+    """The first three components of a colour property or socket value, as floats."""
+    return (float(value[0]), float(value[1]), float(value[2]))
+
+
 def read_array(collection: bpy.types.bpy_prop_collection, attribute: str, count: int,
                dtype) -> np.ndarray:
     """``count`` values of ``attribute`` over ``collection`` (foreach_get), flat."""
@@ -66,3 +71,10 @@ def surface_node(tree: bpy.types.NodeTree | None, output_type: str = "OUTPUT_MAT
     if output is None or output.type != output_type or not output.inputs["Surface"].is_linked:
         return None
     return output.inputs["Surface"].links[0].from_node
+
+
+def volume_linked(tree: bpy.types.NodeTree | None, output_type: str = "OUTPUT_MATERIAL") -> bool:
+    """True if the output Cycles renders from (``surface_node``'s) has a Volume shader."""
+    output = cycles_output_node(tree)
+    return output is not None and output.type == output_type and \
+        "Volume" in output.inputs and output.inputs["Volume"].is_linked

@@ -21,8 +21,10 @@ from .blender_read import (
     int_attribute,
     positions,
     read_array,
+    rgb,
     surface_node,
     triangle_faces,
+    volume_linked,
 )
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
@@ -30,12 +32,10 @@ from .core.scene.model import (
     COVERAGE_INVERTED,
     DEFAULT_MATERIAL,
     RENDERED_OBJECT_TYPES,
-    AreaShape,
     Camera,
     EnvironmentMap,
     Instance,
     Light,
-    LightKind,
     Material,
     Mesh,
     Scene,
@@ -44,6 +44,7 @@ from .core.scene.model import (
 from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
+from .export_lights import export_light, is_portal
 
 RAY_FLAGS = ("visible_camera", "visible_diffuse", "visible_shadow")
 """An object's ray visibility that VPL GI honours (glossy, transmission and volume rays reach
@@ -85,10 +86,6 @@ def check_camera(camera_object: bpy.types.Object) -> None:
     problem, = transform_problems(_matrix(camera_object.matrix_world)[None], invertible=True)
     if problem:
         raise TransformError(f"camera '{camera_object.name}' {problem}")
-
-
-def _rgb(value) -> tuple[float, float, float]:
-    return (float(value[0]), float(value[1]), float(value[2]))
 
 
 # -- meshes ---------------------------------------------------------------------------------
@@ -369,7 +366,7 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
     transmitted = weight * (1.0 - metallic)
     base = node.inputs["Base Color"]
     if alpha == 0.0 or (transmitted == 1.0 and not base.is_linked):
-        tint = (1.0, 1.0, 1.0) if alpha == 0.0 else _rgb(base.default_value)
+        tint = (1.0, 1.0, 1.0) if alpha == 0.0 else rgb(base.default_value)
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0,
                         transmission=tuple(float(1.0 - alpha + alpha * c) for c in tint),
                         transmission_ior=0.0 if alpha < 1.0 else unlinked("IOR", 1.5))
@@ -454,7 +451,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          metallic=float(_constant(node, "Metallic", 0.0)),
                          ior=float(_constant(node, "IOR", 1.5)),
                          specular_ior_level=float(_constant(node, "Specular IOR Level", 0.5)),
-                         specular_tint=_rgb(_constant(node, "Specular Tint", (1, 1, 1))),
+                         specular_tint=rgb(_constant(node, "Specular Tint", (1, 1, 1))),
                          **_principled_alpha(node, name, images),
                          **_normal_map(node, name, images))
     if node.type == "HOLDOUT":
@@ -462,7 +459,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
     if node.type in CLEAR_SHADERS:
         ior = 0.0 if node.type == "BSDF_TRANSPARENT" else float(_constant(node, "IOR", 1.5))
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission_ior=ior,
-                        transmission=_rgb(_constant(node, "Color", (1, 1, 1))))
+                        transmission=rgb(_constant(node, "Color", (1, 1, 1))))
     if node.type == "BSDF_GLOSSY":  # no Fresnel: a metal whose Schlick edge brightens a bit
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
         return Material(name, base, roughness=float(_constant(node, "Roughness", 0.5)),
@@ -572,6 +569,11 @@ def _transparent_mix(node, a: Material, b: Material, name: str, images: ImageRea
 DEFAULT_PRINCIPLED = Material(DEFAULT_MATERIAL.name, specular_ior_level=0.5)
 
 
+CLEAR_VOLUME_ONLY = Material("", (0.0, 0.0, 0.0), roughness=1.0,
+                             transmission=(1.0, 1.0, 1.0), transmission_ior=0.0)
+"""A material with a Volume shader and no Surface: in Cycles rays pass its surface untouched."""
+
+
 def _default_surface() -> Material:
     """An empty slot or an object without slots: Cycles 4.x renders it diffuse 0.8 grey,
     Cycles 5.x as a default Principled BSDF."""
@@ -590,13 +592,19 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
     the tree can be baked: ``fallbacks`` gets the reason, and bake.apply says what it did)."""
     if material is None:
         return _default_surface()
-    viewport = Material(material.name, _rgb(material.diffuse_color),
+    viewport = Material(material.name, rgb(material.diffuse_color),
                         roughness=float(material.roughness), metallic=float(material.metallic))
     if not uses_nodes(material):
         warnings.append(f"material '{material.name}' has no shader nodes: rendered as a "
                         f"diffuse surface in its viewport colour (as Cycles does)")
         return viewport
     node = surface_node(material.node_tree)
+    if volume_linked(material.node_tree):
+        if node is None:
+            warnings.append(f"material '{material.name}': its Volume shader is not rendered; "
+                            f"without a Surface, light passes through it (as in Cycles)")
+            return replace(CLEAR_VOLUME_ONLY, name=material.name)
+        warnings.append(f"material '{material.name}': its Volume shader is not rendered")
     try:
         return _shader(node, material.name, images or ImageReader(warnings))
     except (_Unsupported, UnsupportedLink) as reason:
@@ -626,37 +634,6 @@ def fallback_reasons(obj: bpy.types.Object,
 
 
 # -- lights, world, camera ------------------------------------------------------------------
-
-def is_portal(obj: bpy.types.Object) -> bool:
-    """An area light marked Portal (Cycles' light portal): an opening that guides world
-    light, not a light."""
-    cycles = getattr(obj.data, "cycles", None)
-    return obj.data.type == "AREA" and bool(getattr(cycles, "is_portal", False))
-
-
-def export_light(obj: bpy.types.Object, matrix) -> Light:
-    """A light with its ray visibility: camera (area-light shapes) and diffuse are honoured;
-    glossy is not (its highlights stay), transmission and volume scatter reach only closures
-    VPL GI does not render, and
-    a light object's shadow visibility changes nothing in Cycles (measured, 4.5)."""
-    data = obj.data
-    kind = LightKind(data.type)
-    light = Light(obj.name, kind, _matrix(matrix), color=_rgb(data.color),
-                  power=float(data.energy), cast_shadow=bool(getattr(data, "use_shadow", True)),
-                  visible_to_camera=bool(getattr(obj, "visible_camera", True)),
-                  visible_to_diffuse=bool(getattr(obj, "visible_diffuse", True)))
-    if kind in (LightKind.POINT, LightKind.SPOT):
-        light.radius = float(data.shadow_soft_size)
-    if kind is LightKind.SPOT:
-        light.spot_size, light.spot_blend = float(data.spot_size), float(data.spot_blend)
-    if kind is LightKind.SUN:
-        light.sun_angle = float(data.angle)
-    if kind is LightKind.AREA:
-        light.area_shape = AreaShape(data.shape)
-        light.size_x, light.size_y = float(data.size), float(data.size_y)
-        light.spread = float(getattr(data, "spread", np.pi))
-    return light
-
 
 def _image_pixels(image: bpy.types.Image, warnings: list[str]) -> np.ndarray | None:
     """Linear RGB (h, w, 3) float32 of an image, rows bottom-up, or None if it cannot be read.
@@ -794,13 +771,13 @@ def _read_world(world: bpy.types.World | None, warnings: list[str],
         return World()
     node = surface_node(world.node_tree, "OUTPUT_WORLD") if uses_nodes(world) else None
     if node is None or node.type != "BACKGROUND":
-        return World(_rgb(world.color), 1.0)
+        return World(rgb(world.color), 1.0)
     strength = float(_input_value(node, "Strength", 1.0))
     color = node.inputs["Color"]
     source = color.links[0].from_node if color.is_linked else None
     if source is not None and source.type == "TEX_ENVIRONMENT":
         return _environment_world(source, strength, warnings, lights, world.original.name)
-    return World(_rgb(color.default_value), strength)
+    return World(rgb(color.default_value), strength)
 
 
 def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Object | None,
@@ -943,6 +920,28 @@ class _Export:
         return mesh, materials, obj.name
 
 
+UNRENDERED = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volume objects",
+              "HAIR": "hair particles of"}
+"""What Cycles renders and VPL GI does not: Blender's object types, and HAIR for a mesh's
+hair particle systems (keys of ``export_scene``'s skipped objects)."""
+
+
+def has_particle_hair(obj: bpy.types.Object) -> bool:
+    """True if Cycles renders hair particles on the object (a Hair system drawn as Path)."""
+    return any(system.settings.type == "HAIR" and system.settings.render_type == "PATH"
+               for system in getattr(obj, "particle_systems", ()))
+
+
+def unrendered_objects(skipped: dict[str, set[str]]) -> list[str]:
+    """One warning per kind of thing left out, naming up to three of its objects."""
+    warnings = []
+    for kind, names in sorted(skipped.items()):
+        shown = ", ".join(f"'{name}'" for name in sorted(names)[:3])
+        more = f" and {len(names) - 3} more" if len(names) > 3 else ""
+        warnings.append(f"not rendered ({UNRENDERED[kind]}): {shown}{more}")
+    return warnings
+
+
 def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = None) -> Scene:
     """Everything the renderer needs from the evaluated depsgraph.
 
@@ -956,6 +955,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     cache.unbaked.clear()
     state = _Export(depsgraph, cache, result)
     placed: list[tuple[Mesh, list[Material], str]] = []
+    skipped: dict[str, set[str]] = {}  # object type: names of objects VPL GI cannot render
     # Per (object, data): its mesh, materials and name, or None when no ray sees it. Keyed by
     # the structs themselves (hashed and compared by pointer: no as_pointer() call each).
     # Each entry also says whether the mesh has triangles (instances of one without are left
@@ -975,13 +975,17 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             elif is_portal(obj):
                 result.portals.append(export_light(obj, matrix))
             else:
-                result.lights.append(export_light(obj, matrix))
+                result.lights.append(export_light(obj, matrix, result.warnings))
             continue
         if kind not in RENDERED_OBJECT_TYPES or not inst.show_self:
+            if kind in UNRENDERED and inst.show_self:
+                skipped.setdefault(kind, set()).add(obj.name)
             continue
         memo = (obj.original, obj.data)
         entry = placements.get(memo)
         if entry is None:
+            if has_particle_hair(obj):
+                skipped.setdefault("HAIR", set()).add(obj.name)
             known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
                      state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
                      bool(getattr(obj, "visible_diffuse", True))) \
@@ -1008,6 +1012,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     cache._entries = state.used
     result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
                                 result.lights)
+    world = scene_eval.world
+    if world is not None and uses_nodes(world) and volume_linked(world.node_tree,
+                                                                 "OUTPUT_WORLD"):
+        result.warnings.append(f"world '{world.original.name}': its Volume shader (fog) is not "
+                               f"rendered")
+    result.warnings.extend(unrendered_objects(skipped))
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),
                                   result.warnings)
