@@ -40,6 +40,7 @@ def export_light(obj: bpy.types.Object, matrix: np.ndarray,
                   visible_to_diffuse=bool(getattr(obj, "visible_diffuse", True)))
     if kind in (LightKind.POINT, LightKind.SPOT):
         light.radius = float(data.shadow_soft_size)
+        light.soft_falloff = bool(getattr(data, "use_soft_falloff", False))
     if kind is LightKind.SPOT:
         light.spot_size, light.spot_blend = float(data.spot_size), float(data.spot_blend)
     if kind is LightKind.SUN:

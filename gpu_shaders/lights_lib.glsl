@@ -3,6 +3,8 @@
 // surface, whose texels 5-8 are its GGX lobe scaled by the incident flux (principled_lib's
 // lobe_a/b/c) and the direction its light came from (transport/vpl.py's VPLs.glossy).
 // A negative texel 4 w, -(k + 1), marks a sample of area light k of the AREA_SHAPES table.
+// Texel 4's z is the spread's normalisation where texel 4's y (its tan) is positive, else the
+// radius of the sample's light's Soft Falloff (transport/lights.py soft_falloff_radius).
 #ifndef LIGHTS_LIB_GLSL
 #define LIGHTS_LIB_GLSL
 #include "common_lib.glsl"
@@ -25,6 +27,7 @@ struct LightSample {
     float spread_tan;   // area-light spread: tan of the half angle, 0 for none
     float spread_norm;  // Cycles' normalisation of the spread (keeps the light's power)
     int shape;          // its area light in the AREA_SHAPES table, -1 for none
+    float soft_radius;  // Soft Falloff: a sphere light's radius, 0 for none
 #ifdef VPL_GLOSSY
     vec4 lobe_a;        // flux x A, alpha (0: no glossy emission)
     vec4 lobe_b;        // flux x B, eta
@@ -50,10 +53,12 @@ LightSample light_sample(int index) {
         d = texelFetch(u_light_table, ivec2(8, index), 0);
     }
     return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
-                       t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1, a, b, c, d.xyz);
+                       t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1,
+                       t4.y > 0.0 ? 0.0 : t4.z, a, b, c, d.xyz);
 #else
     return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
-                       t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1);
+                       t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1,
+                       t4.y > 0.0 ? 0.0 : t4.z);
 #endif
 }
 
@@ -422,6 +427,12 @@ vec3 unshadowed_irradiance(LightSample s, vec3 world, vec3 normal) {
     vec3 dir = to_light * inversesqrt(distance2);
     float cos_receiver = dot(normal, dir);
     if (cos_receiver <= 0.0) return vec3(0.0);
-    return emitted_intensity(s, -dir) * cos_receiver / max(distance2, u_min_distance2);
+    vec3 irradiance = emitted_intensity(s, -dir) * cos_receiver / max(distance2, u_min_distance2);
+    if (s.soft_radius > 0.0) {  // a sample on the sphere: its centre lies soft_radius inside
+        vec3 to_centre = s.position - s.soft_radius * s.axis - world;
+        float centre2 = dot(to_centre, to_centre);
+        irradiance *= centre2 / (centre2 + s.soft_radius * s.soft_radius);
+    }
+    return irradiance;
 }
 #endif

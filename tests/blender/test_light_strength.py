@@ -1,16 +1,20 @@
 """A light's strength as Cycles reads it, against Cycles (direct light, 64², 64 samples): its
-Exposure, Temperature, Normalize and Emission node (a constant or Blackbody colour, a
-constant strength). Each case also renders the light with those settings at Blender's
-defaults, which must miss Cycles by far more, so that the test fails without the feature.
-Blender 4.2 has no Exposure or Temperature: its cases that need them are skipped.
+Exposure, Temperature, Normalize, Emission node (a constant or Blackbody colour, a constant
+strength) and Soft Falloff (256 samples). Each case also renders the light without the
+feature (the settings at Blender's defaults; for Soft Falloff, the light as a sphere), which
+must miss Cycles by far more, so that the test fails without it. Blender 4.2 has no Exposure
+or Temperature: its cases that need them are skipped. The first-bounce VPLs' Soft Falloff is
+checked in tests/core/test_soft_falloff.py (this scene's indirect light is 0.1 % of it).
 
-Measured (bpy 4.5): energy within 0.8 %, relRMSE 1.6–5.2 % (the spot's is its cone's edge,
-as without these settings); at the defaults relRMSE 108–873 %."""
+Measured (bpy 4.5 and 5.3, llvmpipe): energy within 0.8 %, relRMSE 1.6–5.2 % (the spot's is
+its cone's edge, as without these settings); without the features relRMSE 25–873 %.
+"""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
@@ -35,7 +39,7 @@ HAS_EXPOSURE = hasattr(bpy.types.PointLight, "exposure") or \
 
 
 def _point(data: bpy.types.Light) -> None:
-    data.shadow_soft_size, data.use_soft_falloff = 0.3, False  # soft falloff: Known limits
+    data.shadow_soft_size = 0.3
     data.exposure, data.use_temperature, data.temperature = 1.5, True, 3000.0
     data.normalize = False
 
@@ -62,6 +66,15 @@ def _emission_nodes(data: bpy.types.Light) -> None:
     tree.links.new(blackbody.outputs[0], emission.inputs["Color"])
 
 
+def _soft_falloff(data: bpy.types.Light) -> None:
+    data.shadow_soft_size, data.use_soft_falloff = 0.5, True
+
+
+def _sphere(data: bpy.types.Light) -> None:
+    """The light as a sphere: Soft Falloff off."""
+    data.use_soft_falloff = False
+
+
 def _defaults(data: bpy.types.Light) -> None:
     """The settings the cases change, at Blender's defaults (the light without them)."""
     if HAS_EXPOSURE:
@@ -75,16 +88,36 @@ def _defaults(data: bpy.types.Light) -> None:
             tree.links.remove(link)
 
 
-# case: (light type, power, location, rotation in degrees, setup, needs Exposure)
-CASES: dict[str, tuple[str, float, tuple, tuple, Callable[[bpy.types.Light], None], bool]] = {
+Setup = Callable[[bpy.types.Light], None]
+
+
+@dataclass(frozen=True)
+class Case:
+    """A light with ``setup`` applied; ``without`` takes the feature away again."""
+
+    kind: str
+    power: float
+    location: tuple[float, float, float]
+    rotation: tuple[float, float, float]  # degrees
+    setup: Setup
+    without: Setup = _defaults
+    needs_exposure: bool = True
+    bounces: int = 0
+    samples: int = 64  # Cycles' samples and VPL GI's light samples
+
+
+CASES = {
     "point: Exposure 1.5, Temperature 3000 K, Normalize off (radius 0.3 m)":
-        ("POINT", 200.0, (0.6, 0.4, 2.0), (0, 0, 0), _point, True),
+        Case("POINT", 200.0, (0.6, 0.4, 2.0), (0, 0, 0), _point),
     "area 0.6 × 0.4 m: Normalize off, Exposure −1":
-        ("AREA", 400.0, (0.3, -0.2, 2.2), (20, 0, 0), _area, True),
+        Case("AREA", 400.0, (0.3, -0.2, 2.2), (20, 0, 0), _area),
     "sun of 20°: Normalize off, Exposure 1, Temperature 4500 K":
-        ("SUN", 30.0, (0, 0, 3), (25, 0, 30), _sun, True),
+        Case("SUN", 30.0, (0, 0, 3), (25, 0, 30), _sun),
     "spot: Emission node, Strength 2.5, Blackbody 2200 K":
-        ("SPOT", 150.0, (0.2, 0.1, 2.4), (10, 0, 0), _emission_nodes, False),
+        Case("SPOT", 150.0, (0.2, 0.1, 2.4), (10, 0, 0), _emission_nodes, needs_exposure=False),
+    "point of radius 0.5 m, 1 m over the box: Soft Falloff":
+        Case("POINT", 60.0, (-0.2, 0.1, 1.8), (0, 0, 0), _soft_falloff, _sphere,
+             needs_exposure=False, samples=256),
 }
 
 
@@ -107,22 +140,22 @@ def _scene(kind: str, power: float, location: tuple, rotation: tuple) -> bpy.typ
     return light
 
 
-@pytest.mark.parametrize("case", list(CASES))
-def test_light_strength_matches_cycles(blender, tmp_path, case):
-    kind, power, location, rotation, setup, needs_exposure = CASES[case]
-    if needs_exposure and not HAS_EXPOSURE:
+@pytest.mark.parametrize("name", list(CASES))
+def test_light_strength_matches_cycles(blender, tmp_path, name):
+    case = CASES[name]
+    if case.needs_exposure and not HAS_EXPOSURE:
         pytest.skip("this Blender's lights have no Exposure or Temperature")
-    light = _scene(kind, power, location, rotation)
-    setup(light.data)
+    light = _scene(case.kind, case.power, case.location, case.rotation)
+    case.setup(light.data)
     scene = bpy.context.scene
-    configure_cycles(scene, SAMPLES)
+    configure_cycles(scene, case.samples, bounces=case.bounces)
     reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")[..., :3]
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 0, 4
-    scene.vpl_gi.light_samples = 64
+    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = case.bounces, 4
+    scene.vpl_gi.light_samples = case.samples
     ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")[..., :3]
-    _defaults(light.data)
+    case.without(light.data)
     without = render_linear(scene, "VPL_GI", tmp_path / "without.exr")[..., :3]
-    assert_near_cycles(case, ours, reference, (0.02, 0.06), without, "at Blender's defaults")
+    assert_near_cycles(name, ours, reference, (0.02, 0.06), without, "without it")
 
 
 def test_blackbody_matches_blenders_temperature_colour(blender):

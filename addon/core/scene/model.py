@@ -202,6 +202,7 @@ class Light:
     color: tuple[float, float, float] = (1.0, 1.0, 1.0)
     power: float = 10.0
     radius: float = 0.0  # point/spot sphere radius
+    soft_falloff: bool = False  # point/spot: Cycles' Soft Falloff (transport/lights.py)
     spot_size: float = np.pi / 4  # full cone angle, radians
     spot_blend: float = 0.15
     sun_angle: float = 0.0  # angular diameter, radians

@@ -51,6 +51,7 @@ from .light_domains import (
     light_domain,
     shortest_edge,
 )
+from .lights import soft_falloff_radius
 from .ray_caster import RayCaster
 from .sequences import scrambled_halton
 from .vpl import (
@@ -248,7 +249,8 @@ class IncrementalVPLs:
         origin, direction = domain.rays(coords, offsets)
         # unit flux: what the hits get is their path's transmittance
         found = trace_hits(tracer, geometry, origin, direction, np.ones((n, 3)),
-                           np.arange(n), epsilon, from_light=True)
+                           np.arange(n), epsilon, from_light=True,
+                           soft_radius=soft_falloff_radius(domain.light))
         hit = np.zeros(n, bool)
         hit[found.rank] = True
         position, normal, albedo = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))

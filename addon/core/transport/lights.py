@@ -51,6 +51,8 @@ class LightSamples:
     shape: np.ndarray | None = None  # (n,) int the sample's area light in ``shapes``, -1 for
     # none; None: no sample has one
     shapes: AreaShapes | None = None  # the area lights' outlines (per light, not per sample)
+    soft_radius: np.ndarray | None = None  # (n,) the radius of its light's Soft Falloff
+    # (soft_falloff_radius), 0 for none; None: no sample has one
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -79,6 +81,8 @@ class LightSamples:
         t[:, 3, 1], t[:, 3, 2], t[:, 3, 3] = self.resolution, near, far
         t[:, 4, 0] = self.generation
         t[:, 4, 1:3] = self.spread
+        if self.soft_radius is not None:  # texel 4's z holds it where there is no spread
+            t[:, 4, 2] = np.where(self.spread[:, 0] > 0, t[:, 4, 2], self.soft_radius)
         if self.shape is not None:  # negative: -(shape + 1); the glossy flag is positive
             t[:, 4, 3] = np.where(self.shape >= 0, -(self.shape + 1), 0)
         if glossy:
@@ -169,7 +173,7 @@ class _Builder:
 
     def add(self, *, position, axis, kind, intensity, shadow, resolution,
             spot_cos=NO_SPOT, spot_smooth=0.0, soft=False, spread=(0.0, 0.0),
-            broad=False, shape=-1) -> None:
+            broad=False, shape=-1, soft_radius=0.0) -> None:
         position = np.atleast_2d(position)
         n = len(position)
         self.rows.append({
@@ -186,6 +190,7 @@ class _Builder:
             "spread": np.broadcast_to(spread, (n, 2)),
             "broad": np.full(n, broad),
             "shape": np.full(n, shape),
+            "soft_radius": np.full(n, soft_radius),
         })
 
     def build(self) -> LightSamples:
@@ -244,6 +249,24 @@ def spread_attenuation(cos_to_axis: np.ndarray, tan_half: float, norm: float) ->
     return np.maximum((tan_half - tan) * norm, 0.0)
 
 
+def soft_falloff_radius(light: Light) -> float:
+    """The radius of a point or spot light's Soft Falloff, 0 where it has none. Cycles then
+    takes the light for a disc of that radius facing the receiver (not a sphere): its light
+    at distance d from the centre is the sphere's × d² / (d² + r²) (``soft_falloff``), exact
+    on the disc's axis."""
+    if light.kind in (LightKind.POINT, LightKind.SPOT) and light.soft_falloff:
+        return max(light.radius, 0.0)
+    return 0.0
+
+
+def soft_falloff(distance2: np.ndarray, radius: float | np.ndarray) -> np.ndarray:
+    """What Soft Falloff of ``radius`` leaves of a light at squared distance ``distance2``
+    from its centre: d² / (d² + r²) (1 for a radius of 0)."""
+    r2 = np.square(radius)
+    return np.divide(distance2, distance2 + r2, out=np.ones_like(distance2 * r2),
+                     where=r2 > 0)
+
+
 def spot_parameters(light: Light) -> tuple[float, float]:
     if light.kind is not LightKind.SPOT:
         return NO_SPOT, 0.0
@@ -270,7 +293,7 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         b.add(position=position + light.radius * normals, axis=normals, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
               resolution=s.sample_shadow_resolution, soft=True, spot_cos=spot_cos,
-              spot_smooth=spot_smooth)
+              spot_smooth=spot_smooth, soft_radius=soft_falloff_radius(light))
     elif light.kind is LightKind.SUN:
         half = 0.5 * min(light.sun_angle, np.pi)
         if half <= 0:

@@ -42,6 +42,8 @@ from .lights import (
     area_light_points,
     concentric_disk,
     light_problem,
+    soft_falloff,
+    soft_falloff_radius,
     spot_mask,
     spot_parameters,
     spread_attenuation,
@@ -109,11 +111,13 @@ class VPLs:
 
 @dataclass
 class _Paths:
-    """A batch of rays leaving emitters: origins, unit directions and carried flux."""
+    """A batch of rays leaving emitters: origins, unit directions and carried flux, and the
+    Soft Falloff radius of a path's light (at its origin; 0 for none)."""
 
     origin: np.ndarray
     direction: np.ndarray
     flux: np.ndarray
+    soft_radius: float | np.ndarray = 0.0
 
 
 def _frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -170,7 +174,7 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
             def sample(u: np.ndarray) -> _Paths:
                 n = len(u)
                 return _Paths(np.repeat(position[None], n, 0), uniform_sphere(u[:, 3:5]),
-                              np.repeat(color[None], n, 0))
+                              np.repeat(color[None], n, 0), soft_falloff_radius(light))
             return _Emitter(color, sample)
         cos_half, smooth = spot_parameters(light)
         solid_angle = 2 * np.pi * (1 - cos_half)
@@ -185,7 +189,7 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
                 + cos_t[:, None] * travel
             mask = spot_mask(cos_t, cos_half, smooth) if smooth > 0 else np.ones(n)
             return _Paths(np.repeat(position[None], n, 0), unit(d),
-                          intensity * solid_angle * mask[:, None])
+                          intensity * solid_angle * mask[:, None], soft_falloff_radius(light))
         return _Emitter(intensity * solid_angle, sample_spot)
     if light.kind is LightKind.SUN:
         flux = color * np.pi * radius**2
@@ -325,13 +329,15 @@ def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
     u[:, 0] = np.clip((u[:, 0] - low) / probability[choice], 0, np.nextafter(1, 0))
     n = len(u)
     origin, direction, flux = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    soft_radius = np.zeros(n)
     for index, emitter in enumerate(emitters):
         rows = np.flatnonzero(choice == index)
         if len(rows):
             paths = emitter.sample(u[rows])
             origin[rows], direction[rows] = paths.origin, paths.direction
             flux[rows] = paths.flux / (n * probability[index])
-    return _Paths(origin, direction, flux)
+            soft_radius[rows] = paths.soft_radius
+    return _Paths(origin, direction, flux, soft_radius)
 
 
 @dataclass
@@ -351,13 +357,14 @@ class SurfaceHits:
 
 def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
            direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float,
-           from_light: bool = False) -> SurfaceHits:
+           from_light: bool = False, soft_radius: float | np.ndarray = 0.0) -> SurfaceHits:
     """The surfaces the rays hit (misses dropped), normals turned towards the ray, the flux
     dimmed by the clear surfaces crossed on the way; the base colour is looked up once per hit
     (the path albedo and the lobes derive from it). Rays ``from_light`` are its light's direct
     path (Cycles' shadow rays): objects whose Shadow visibility is off let them through, and
     those whose Diffuse visibility is off end them (no diffuse bounce sees their light); the
-    others are diffuse bounces, which the latter let through."""
+    others are diffuse bounces, which the latter let through. A light's Soft Falloff of
+    ``soft_radius`` (per ray, or one for all) dims its light at the hits (``soft_falloff``)."""
     hits = tracer.intersect(origin, direction, epsilon, np.inf, shadow=from_light,
                             diffuse=not from_light)
     hit = hits.triangle >= 0
@@ -369,8 +376,11 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
     normal = unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
     normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
     base = geometry.base_at(tri, position)
+    kept = hits.transmittance[hit] * soft_falloff(
+        np.square(hits.distance[hit].astype(np.float64)),
+        np.broadcast_to(soft_radius, hit.shape)[hit])[:, None]
     return SurfaceHits(position, normal, geometry.path_albedo(tri, base),
-                       flux[hit] * hits.transmittance[hit], rank[hit], tri, direction[hit], base)
+                       flux[hit] * kept, rank[hit], tri, direction[hit], base)
 
 
 def _lobes(hits: SurfaceHits, geometry: WorldGeometry
@@ -466,5 +476,6 @@ def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tra
     paths = start_paths(emitters, u[:, :START_DIMENSIONS])
     alive = np.flatnonzero(np.any(paths.flux != 0, axis=1))
     first = trace_hits(tracer, geometry, paths.origin[alive], paths.direction[alive],
-                       paths.flux[alive], alive, 1e-5 * radius, from_light=True)
+                       paths.flux[alive], alive, 1e-5 * radius, from_light=True,
+                       soft_radius=paths.soft_radius[alive])
     return propagate(first, n, u[:, START_DIMENSIONS:], settings, tracer, geometry, radius)
