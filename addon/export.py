@@ -793,6 +793,11 @@ def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Objec
     if cam.data.type == "PANO":
         warnings.append(f"camera '{cam.name}' is panoramic, which VPL GI does not render: "
                         f"rendered as a perspective camera of the same lens")
+    if cam.data.dof.use_dof:
+        warnings.append(f"camera '{cam.name}': depth of field is not rendered (everything is "
+                        f"in focus)")
+    if render.use_motion_blur:
+        warnings.append("motion blur is not rendered (it is on in the Render Properties)")
     projection = cam.calc_matrix_camera(depsgraph, x=width, y=height,
                                         scale_x=render.pixel_aspect_x,
                                         scale_y=render.pixel_aspect_y)
@@ -920,10 +925,18 @@ class _Export:
         return mesh, materials, obj.name
 
 
-UNRENDERED = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volume objects",
-              "HAIR": "hair particles of"}
-"""What Cycles renders and VPL GI does not: Blender's object types, and HAIR for a mesh's
-hair particle systems (keys of ``export_scene``'s skipped objects)."""
+UNRENDERED = {
+    "CURVES": "hair curves are not rendered: {}",
+    "POINTCLOUD": "point clouds are not rendered: {}",
+    "VOLUME": "volume objects are not rendered: {}",
+    "HAIR": "hair particles are not rendered, on {}",
+    "SHADOW_CATCHER": "shadow catchers are rendered as ordinary surfaces: {}",
+    "LIGHT_LINKING": "light linking is not rendered (each light lights and shadows every "
+                     "object): {}",
+}
+"""What Cycles renders and VPL GI does not, by kind: Blender's object types, HAIR for a
+mesh's hair particle systems, SHADOW_CATCHER and LIGHT_LINKING for objects with them (keys
+of ``export_scene``'s skipped objects); each a warning naming them."""
 
 
 def has_particle_hair(obj: bpy.types.Object) -> bool:
@@ -932,13 +945,21 @@ def has_particle_hair(obj: bpy.types.Object) -> bool:
                for system in getattr(obj, "particle_systems", ()))
 
 
+def has_light_linking(obj: bpy.types.Object) -> bool:
+    """True if the object's light or its emission is linked to some objects only, or its
+    shadows blocked by some only (Cycles' light and shadow linking)."""
+    linking = getattr(obj, "light_linking", None)
+    return linking is not None and (linking.receiver_collection is not None
+                                    or linking.blocker_collection is not None)
+
+
 def unrendered_objects(skipped: dict[str, set[str]]) -> list[str]:
     """One warning per kind of thing left out, naming up to three of its objects."""
     warnings = []
     for kind, names in sorted(skipped.items()):
         shown = ", ".join(f"'{name}'" for name in sorted(names)[:3])
         more = f" and {len(names) - 3} more" if len(names) > 3 else ""
-        warnings.append(f"not rendered ({UNRENDERED[kind]}): {shown}{more}")
+        warnings.append(UNRENDERED[kind].format(shown + more))
     return warnings
 
 
@@ -955,7 +976,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     cache.unbaked.clear()
     state = _Export(depsgraph, cache, result)
     placed: list[tuple[Mesh, list[Material], str]] = []
-    skipped: dict[str, set[str]] = {}  # object type: names of objects VPL GI cannot render
+    skipped: dict[str, set[str]] = {}  # what VPL GI does not render (UNRENDERED): objects
     # Per (object, data): its mesh, materials and name, or None when no ray sees it. Keyed by
     # the structs themselves (hashed and compared by pointer: no as_pointer() call each).
     # Each entry also says whether the mesh has triangles (instances of one without are left
@@ -968,6 +989,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         obj = inst.object
         kind = obj.type
         if kind == "LIGHT":
+            if has_light_linking(obj):
+                skipped.setdefault("LIGHT_LINKING", set()).add(obj.name)
             matrix = _matrix(inst.matrix_world)
             problem, = transform_problems(matrix[None])
             if problem:
@@ -986,6 +1009,10 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         if entry is None:
             if has_particle_hair(obj):
                 skipped.setdefault("HAIR", set()).add(obj.name)
+            if getattr(obj, "is_shadow_catcher", False):
+                skipped.setdefault("SHADOW_CATCHER", set()).add(obj.name)
+            if has_light_linking(obj):  # an emitter's light
+                skipped.setdefault("LIGHT_LINKING", set()).add(obj.name)
             known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
                      state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
                      bool(getattr(obj, "visible_diffuse", True))) \

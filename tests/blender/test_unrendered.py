@@ -1,6 +1,7 @@
-"""What Cycles renders and VPL GI does not (volumes, hair, point clouds) is named in one
-warning each, and an object with only a Volume shader lets light through as in Cycles
-instead of rendering as a black surface."""
+"""What Cycles renders and VPL GI does not (volumes, hair, point clouds, depth of field,
+motion blur, shadow catchers, light linking) is named in one warning each, and an object
+with only a Volume shader lets light through as in Cycles instead of rendering as a black
+surface."""
 
 from __future__ import annotations
 
@@ -87,8 +88,27 @@ def test_hair_point_clouds_volumes_and_a_world_volume_are_named(blender):
     tree.links.new(tree.nodes.new("ShaderNodeVolumeScatter").outputs[0],
                    tree.nodes["World Output"].inputs["Volume"])
     warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
-    assert "not rendered (hair curves): 'Hair0', 'Hair1', 'Hair2' and 1 more" in warnings
-    assert "not rendered (hair particles of): 'Plane'" in warnings
-    assert "not rendered (point clouds): 'Dust'" in warnings
-    assert "not rendered (volume objects): 'Smoke'" in warnings
+    assert "hair curves are not rendered: 'Hair0', 'Hair1', 'Hair2' and 1 more" in warnings
+    assert "hair particles are not rendered, on 'Plane'" in warnings
+    assert "point clouds are not rendered: 'Dust'" in warnings
+    assert "volume objects are not rendered: 'Smoke'" in warnings
     assert "world 'Misty': its Volume shader (fog) is not rendered" in warnings
+
+
+def test_depth_of_field_motion_blur_shadow_catchers_and_light_linking_are_named(blender):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    floor = add_primitive("plane", shader_material("Grey", "ShaderNodeBsdfDiffuse"), size=4)
+    floor.is_shadow_catcher = True
+    add_camera(scene, 16, location=(0, 0, 5)).data.dof.use_dof = True
+    scene.render.use_motion_blur = True
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    scene.collection.objects.link(lamp)
+    lamp.light_linking.receiver_collection = bpy.data.collections.new("Lit")
+    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+    assert "camera 'Camera': depth of field is not rendered (everything is in focus)" \
+        in warnings
+    assert "motion blur is not rendered (it is on in the Render Properties)" in warnings
+    assert "shadow catchers are rendered as ordinary surfaces: 'Plane'" in warnings
+    assert "light linking is not rendered (each light lights and shadows every object): " \
+        "'Lamp'" in warnings
