@@ -384,6 +384,26 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
     return None
 
 
+PRINCIPLED_LAYERS_LEFT_OUT = (
+    ("Coat Weight", "Coat is not rendered"),
+    ("Sheen Weight", "Sheen is not rendered"),
+    ("Subsurface Weight", "Subsurface is rendered as diffuse"),
+    ("Anisotropic", "Anisotropic is rendered isotropic"),
+    ("Thin Film Thickness", "Thin Film is not rendered"),
+)
+"""A Principled BSDF's inputs whose layer VPL GI leaves out where it is on (a weight above 0,
+or linked), and what the warning says."""
+
+
+def _warn_layers_left_out(node, name: str, warnings: list[str]) -> None:
+    """One warning naming the Principled BSDF's layers that are on and not rendered."""
+    left_out = [what for socket_name, what in PRINCIPLED_LAYERS_LEFT_OUT
+                if (socket := node.inputs.get(socket_name)) is not None
+                and (socket.is_linked or float(socket.default_value) > 0.0)]
+    if left_out:
+        warnings.append(f"material '{name}': {'; '.join(left_out)}")
+
+
 def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
     """A shader's Normal input as Material fields: a tangent-space Normal Map node's image
     and strength, or a Bump node's image (its colour's luminance the height), strength and
@@ -444,6 +464,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         clear = _principled_clear(node, name, images.warnings)
         if clear is not None:
             return clear
+        _warn_layers_left_out(node, name, images.warnings)
         return _emissive(name, *images.color(node, "Base Color", (0.8,) * 3, name),
                          *images.color(node, "Emission Color", (0, 0, 0), name),
                          float(_constant(node, "Emission Strength", 0.0)),

@@ -1,5 +1,6 @@
 """What Cycles renders and VPL GI does not (volumes, hair, point clouds, depth of field,
-motion blur, shadow catchers, light linking) is named in one warning each, and an object
+motion blur, shadow catchers, light linking, a Principled BSDF's coat, sheen, subsurface,
+anisotropy and thin film) is named in one warning each, and an object
 with only a Volume shader lets light through as in Cycles instead of rendering as a black
 surface."""
 
@@ -112,3 +113,18 @@ def test_depth_of_field_motion_blur_shadow_catchers_and_light_linking_are_named(
     assert "shadow catchers are rendered as ordinary surfaces: 'Plane'" in warnings
     assert "light linking is not rendered (each light lights and shadows every object): " \
         "'Lamp'" in warnings
+
+
+def test_principled_layers_left_out_are_named_once_per_material(blender):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    warnings: list[str] = []
+    export_material(shader_material("Plain", "ShaderNodeBsdfPrincipled"), warnings)
+    assert warnings == []
+    varnish = shader_material("Varnish", "ShaderNodeBsdfPrincipled", Coat_Weight=1.0,
+                              Sheen_Weight=0.3)
+    tree = varnish.node_tree
+    tree.links.new(tree.nodes.new("ShaderNodeTexNoise").outputs["Fac"],
+                   tree.nodes["Principled BSDF"].inputs["Subsurface Weight"])
+    export_material(varnish, warnings)
+    assert warnings == ["material 'Varnish': Coat is not rendered; Sheen is not rendered; "
+                        "Subsurface is rendered as diffuse"]
