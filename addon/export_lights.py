@@ -77,7 +77,8 @@ def node_emission(data: bpy.types.Light, name: str, warnings: list[str]
                   ) -> tuple[tuple[float, float, float], float]:
     """The colour and strength of a light's Emission node, which Cycles multiplies the light
     by: its Color a constant or a Blackbody node of constant Temperature, its Strength a
-    constant. No node tree, nodes off or no output for Cycles: white, 1. Anything else
+    constant or a Light Falloff's Quadratic output of constant strength without smoothing.
+    No node tree, nodes off or no output for Cycles: white, 1. Anything else
     (other nodes, a Light Output with nothing linked): white, 1 and one warning."""
     if not uses_nodes(data):
         return (1.0, 1.0, 1.0), 1.0
@@ -89,7 +90,7 @@ def node_emission(data: bpy.types.Light, name: str, warnings: list[str]
             raise ValueError("its Light Output has no Surface linked")
         if node.type != "EMISSION":
             raise ValueError(f"its Light Output is linked to '{node.bl_label}'")
-        return _emission_color(node), float(_unlinked(node.inputs["Strength"]))
+        return _emission_color(node), _emission_strength(node)
     except ValueError as reason:
         warnings.append(f"light '{name}': {reason}; rendered without its nodes (only an "
                         f"Emission node of constant or Blackbody colour and constant "
@@ -102,6 +103,19 @@ def _unlinked(socket):
         raise ValueError(f"input '{socket.name}' of '{socket.node.bl_label}' is linked to "
                          f"'{socket.links[0].from_node.bl_label}'")
     return socket.default_value
+
+
+def _emission_strength(node) -> float:
+    """The Emission's Strength: a constant, or a Light Falloff node's Quadratic output without
+    smoothing (Cycles passes its Strength through unchanged: the inverse square is the
+    light's own)."""
+    socket = node.inputs["Strength"]
+    link = socket.links[0] if socket.is_linked else None
+    if link is not None and link.from_node.type == "LIGHT_FALLOFF" \
+            and link.from_socket.name == "Quadratic" \
+            and float(_unlinked(link.from_node.inputs["Smooth"])) == 0.0:
+        return float(_unlinked(link.from_node.inputs["Strength"]))
+    return float(_unlinked(socket))
 
 
 def _emission_color(node) -> tuple[float, float, float]:

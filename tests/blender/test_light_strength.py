@@ -1,12 +1,13 @@
 """A light's strength as Cycles reads it, against Cycles (direct light, 64², 64 samples): its
 Exposure, Temperature, Normalize, Emission node (a constant or Blackbody colour, a constant
-strength) and Soft Falloff (256 samples). Each case also renders the light without the
-feature (the settings at Blender's defaults; for Soft Falloff, the light as a sphere), which
-must miss Cycles by far more, so that the test fails without it. Blender 4.2 has no Exposure
-or Temperature: its cases that need them are skipped. The first-bounce VPLs' Soft Falloff is
-checked in tests/core/test_soft_falloff.py (this scene's indirect light is 0.1 % of it).
+strength or a Light Falloff's Quadratic output) and Soft Falloff (256 samples). Each case
+also renders the light without the feature (the settings at Blender's defaults; for Soft
+Falloff, the light as a sphere), which must miss Cycles by far more, so that the test fails
+without it. Blender 4.2 has no Exposure or Temperature: its cases that need them are
+skipped. The first-bounce VPLs' Soft Falloff is checked in tests/core/test_soft_falloff.py
+(this scene's indirect light is 0.1 % of it).
 
-Measured (bpy 4.5 and 5.3, llvmpipe): energy within 0.8 %, relRMSE 1.6–5.2 % (the spot's is
+Measured (bpy 4.5 and 5.3, llvmpipe): energy within 0.8 %, relRMSE 1.0–5.2 % (the spot's is
 its cone's edge, as without these settings); without the features relRMSE 25–873 %.
 """
 
@@ -66,6 +67,21 @@ def _emission_nodes(data: bpy.types.Light) -> None:
     tree.links.new(blackbody.outputs[0], emission.inputs["Color"])
 
 
+def _quadratic_falloff(data: bpy.types.Light) -> None:
+    if not BLENDER_5:
+        data.use_nodes = True
+    tree = data.node_tree
+    falloff = tree.nodes.new("ShaderNodeLightFalloff")
+    falloff.inputs["Strength"].default_value = 3.0
+    tree.links.new(falloff.outputs["Quadratic"], tree.nodes["Emission"].inputs["Strength"])
+
+
+def _falloff_unlinked(data: bpy.types.Light) -> None:
+    tree = data.node_tree
+    for link in list(tree.nodes["Emission"].inputs["Strength"].links):
+        tree.links.remove(link)
+
+
 def _soft_falloff(data: bpy.types.Light) -> None:
     data.shadow_soft_size, data.use_soft_falloff = 0.5, True
 
@@ -115,6 +131,9 @@ CASES = {
         Case("SUN", 30.0, (0, 0, 3), (25, 0, 30), _sun),
     "spot: Emission node, Strength 2.5, Blackbody 2200 K":
         Case("SPOT", 150.0, (0.2, 0.1, 2.4), (10, 0, 0), _emission_nodes, needs_exposure=False),
+    "point: Light Falloff node's Quadratic, Strength 3":
+        Case("POINT", 80.0, (0.4, -0.3, 2.0), (0, 0, 0), _quadratic_falloff, _falloff_unlinked,
+             needs_exposure=False),
     "point of radius 0.5 m, 1 m over the box: Soft Falloff":
         Case("POINT", 60.0, (-0.2, 0.1, 1.8), (0, 0, 0), _soft_falloff, _sphere,
              needs_exposure=False, samples=256),
