@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import bpy
 
 from .blender_compat import cycles_output_node
-from .blender_read import surface_node
+from .blender_read import rgb, surface_node
 
 CHANNELS = ("albedo", "emission")
 """What a bake holds: the diffuse colour, or the emitted radiance (colour × strength)."""
@@ -108,8 +108,7 @@ class NotBakeable(Exception):
 def _source(socket) -> Term:
     if socket.is_linked:
         return Term(socket=socket.links[0].from_socket)
-    value = socket.default_value
-    return Term((float(value[0]), float(value[1]), float(value[2])))
+    return Term(rgb(socket.default_value))
 
 
 def _node_of(socket):

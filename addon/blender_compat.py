@@ -55,9 +55,9 @@ def uses_nodes(datablock: bpy.types.Material | bpy.types.World | bpy.types.Light
     return True if BLENDER_5 else bool(datablock.use_nodes)
 
 
-def ensure_nodes(datablock: bpy.types.Material | bpy.types.World) -> None:
-    """Give a material or world its node tree: ``use_nodes = True`` on 4.x; nothing on 5.x,
-    where every one has a tree and setting ``use_nodes`` only warns."""
+def ensure_nodes(datablock: bpy.types.Material | bpy.types.World | bpy.types.Light) -> None:
+    """Give a material, world or light its node tree: ``use_nodes = True`` on 4.x; nothing on
+    5.x, where every one has a tree and setting ``use_nodes`` only warns."""
     if not BLENDER_5:
         datablock.use_nodes = True
 

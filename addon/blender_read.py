@@ -14,6 +14,22 @@ def rgb(value) -> tuple[float, float, float]:
     return (float(value[0]), float(value[1]), float(value[2]))
 
 
+class UnsupportedNodes(Exception):
+    """A node tree the export cannot turn into constant values (the reason is the text)."""
+
+
+def constant(node, name: str, default):
+    """An input's value (``default`` where the node has no such input); a linked input
+    (texture, math …) raises UnsupportedNodes."""
+    socket = node.inputs.get(name)
+    if socket is None:
+        return default
+    if socket.is_linked:
+        raise UnsupportedNodes(f"input '{name}' of '{node.bl_label}' is linked to "
+                               f"'{socket.links[0].from_node.bl_label}'")
+    return socket.default_value
+
+
 def read_array(collection: bpy.types.bpy_prop_collection, attribute: str, count: int,
                dtype) -> np.ndarray:
     """``count`` values of ``attribute`` over ``collection`` (foreach_get), flat."""

@@ -16,7 +16,9 @@ import numpy as np
 from . import bake, world_bake
 from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, uses_nodes
 from .blender_read import (
+    UnsupportedNodes,
     active_uvs,
+    constant,
     corner_verts,
     int_attribute,
     positions,
@@ -305,21 +307,6 @@ def _input_value(node, name: str, default):
     return default if socket is None else socket.default_value
 
 
-class _Unsupported(Exception):
-    """A shader tree the export cannot turn into constant values (the reason is the text)."""
-
-
-def _constant(node, name: str, default):
-    """An input's value; a linked input (texture, math …) is unsupported."""
-    socket = node.inputs.get(name)
-    if socket is None:
-        return default
-    if socket.is_linked:
-        raise _Unsupported(f"input '{name}' of '{node.bl_label}' is linked to "
-                           f"'{socket.links[0].from_node.bl_label}'")
-    return socket.default_value
-
-
 def _linked_shader(socket):
     return socket.links[0].from_node if socket.is_linked else None
 
@@ -417,22 +404,22 @@ def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
     try:
         if source.type == "BUMP":
             if source.inputs["Normal"].is_linked:
-                raise _Unsupported("a Normal input chained into 'Bump'")
-            distance = float(_constant(source, "Distance", 1.0))
+                raise UnsupportedNodes("a Normal input chained into 'Bump'")
+            distance = float(constant(source, "Distance", 1.0))
             fields["bump_distance"] = -distance if source.invert else distance
             # Blender 4.2's Bump node has no Filter Width: Cycles 4.3's default
-            fields["bump_filter_width"] = float(_constant(source, "Filter Width", 0.1))
+            fields["bump_filter_width"] = float(constant(source, "Filter Width", 0.1))
             image_input = "Height"
         elif source.type == "NORMAL_MAP" and source.space == "TANGENT":
             image_input = "Color"
         else:
-            raise _Unsupported(f"linked to '{source.bl_label}'"
+            raise UnsupportedNodes(f"linked to '{source.bl_label}'"
                                + (f" in {source.space.title()} space"
                                   if source.type == "NORMAL_MAP" else ""))
-        fields["normal_strength"] = float(_constant(source, "Strength", 1.0))
+        fields["normal_strength"] = float(constant(source, "Strength", 1.0))
         texture = images.color(source, image_input, (0.5, 0.5, 1.0), name)[1] \
             if source.inputs[image_input].is_linked else None
-    except (_Unsupported, UnsupportedLink) as reason:
+    except (UnsupportedNodes, UnsupportedLink) as reason:
         images.warn(f"material '{name}': the Normal input of '{node.bl_label}' is not "
                     f"rendered ({reason}): smooth shading normals")
         return {}
@@ -467,23 +454,23 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         _warn_layers_left_out(node, name, images.warnings)
         return _emissive(name, *images.color(node, "Base Color", (0.8,) * 3, name),
                          *images.color(node, "Emission Color", (0, 0, 0), name),
-                         float(_constant(node, "Emission Strength", 0.0)),
-                         roughness=float(_constant(node, "Roughness", 0.5)),
-                         metallic=float(_constant(node, "Metallic", 0.0)),
-                         ior=float(_constant(node, "IOR", 1.5)),
-                         specular_ior_level=float(_constant(node, "Specular IOR Level", 0.5)),
-                         specular_tint=rgb(_constant(node, "Specular Tint", (1, 1, 1))),
+                         float(constant(node, "Emission Strength", 0.0)),
+                         roughness=float(constant(node, "Roughness", 0.5)),
+                         metallic=float(constant(node, "Metallic", 0.0)),
+                         ior=float(constant(node, "IOR", 1.5)),
+                         specular_ior_level=float(constant(node, "Specular IOR Level", 0.5)),
+                         specular_tint=rgb(constant(node, "Specular Tint", (1, 1, 1))),
                          **_principled_alpha(node, name, images),
                          **_normal_map(node, name, images))
     if node.type == "HOLDOUT":
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, holdout=True)
     if node.type in CLEAR_SHADERS:
-        ior = 0.0 if node.type == "BSDF_TRANSPARENT" else float(_constant(node, "IOR", 1.5))
+        ior = 0.0 if node.type == "BSDF_TRANSPARENT" else float(constant(node, "IOR", 1.5))
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission_ior=ior,
-                        transmission=rgb(_constant(node, "Color", (1, 1, 1))))
+                        transmission=rgb(constant(node, "Color", (1, 1, 1))))
     if node.type == "BSDF_GLOSSY":  # no Fresnel: a metal whose Schlick edge brightens a bit
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
-        return Material(name, base, roughness=float(_constant(node, "Roughness", 0.5)),
+        return Material(name, base, roughness=float(constant(node, "Roughness", 0.5)),
                         metallic=1.0, base_color_texture=texture,
                         **_normal_map(node, name, images))
     if node.type in ("BSDF_DIFFUSE", *AS_DIFFUSE):
@@ -496,14 +483,14 @@ def _shader(node, name: str, images: ImageReader) -> Material:
     if node.type == "EMISSION":
         return _emissive(name, (0.0, 0.0, 0.0), None,
                          *images.color(node, "Color", (1, 1, 1), name),
-                         float(_constant(node, "Strength", 1.0)), roughness=1.0)
+                         float(constant(node, "Strength", 1.0)), roughness=1.0)
     if node.type in ("MIX_SHADER", "ADD_SHADER"):
         first_socket, second_socket = (node.inputs[1], node.inputs[2]) \
             if node.type == "MIX_SHADER" else (node.inputs[0], node.inputs[1])
         a = _shader(_linked_shader(first_socket), name, images)
         b = _shader(_linked_shader(second_socket), name, images)
         if a.holdout or b.holdout:
-            raise _Unsupported(f"a Holdout shader inside '{node.bl_label}' is not supported")
+            raise UnsupportedNodes(f"a Holdout shader inside '{node.bl_label}' is not supported")
         if node.type == "MIX_SHADER" and node.inputs["Fac"].is_linked and a.is_clear \
                 and b.is_clear:  # e.g. glass for camera rays, transparent for shadow rays
             return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission=tuple(
@@ -516,7 +503,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         if node.type == "ADD_SHADER":
             wa = wb = 1.0
         else:
-            wb = float(np.clip(_constant(node, "Fac", 0.5), 0.0, 1.0))
+            wb = float(np.clip(constant(node, "Fac", 0.5), 0.0, 1.0))
             wa = 1.0 - wb
         mix = [tuple(wa * np.array(x) + wb * np.array(y)) for x, y in
                ((a.base_color, b.base_color), (a.emission, b.emission),
@@ -531,7 +518,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                         specular_ior_level=(wa * a.specular_ior_level
                                             + wb * b.specular_ior_level) / weight,
                         **_mixed_maps(node, a, b, wa, wb))
-    raise _Unsupported(f"shader '{node.bl_label}' is not supported")
+    raise UnsupportedNodes(f"shader '{node.bl_label}' is not supported")
 
 
 def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[str, object]:
@@ -543,7 +530,7 @@ def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[st
     label = node.bl_label
     if a.emission_texture is not None or b.emission_texture is not None or \
             a.base_color_texture is not b.base_color_texture:
-        raise _Unsupported(f"image textures inside '{label}' other than one base colour "
+        raise UnsupportedNodes(f"image textures inside '{label}' other than one base colour "
                            f"texture both shaders use are not supported")
     normal = a if a.normal_texture is not None else b  # mixed normals: one side's map
     maps: dict[str, object] = {"base_color_texture": a.base_color_texture,
@@ -554,11 +541,11 @@ def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[st
     if not (a.is_cutout or b.is_cutout):
         return maps
     if node.type == "ADD_SHADER":
-        raise _Unsupported(f"an Alpha inside '{label}' is not supported")
+        raise UnsupportedNodes(f"an Alpha inside '{label}' is not supported")
     if (a.coverage_texture, a.coverage_mode) == (b.coverage_texture, b.coverage_mode):
         return {**maps, "alpha": wa * a.alpha + wb * b.alpha,
                 "coverage_texture": a.coverage_texture, "coverage_mode": a.coverage_mode}
-    raise _Unsupported(f"an Alpha texture on one side of '{label}' is not supported")
+    raise UnsupportedNodes(f"an Alpha texture on one side of '{label}' is not supported")
 
 
 def _is_transparent(material: Material) -> bool:
@@ -581,7 +568,7 @@ def _transparent_mix(node, a: Material, b: Material, name: str, images: ImageRea
     if surface is a:
         fac, mode = 1.0 - fac, mode | COVERAGE_INVERTED
     if texture is not None and surface.coverage_texture is not None:
-        raise _Unsupported(f"two coverage textures in '{node.bl_label}' are not supported")
+        raise UnsupportedNodes(f"two coverage textures in '{node.bl_label}' are not supported")
     if texture is None:
         return replace(surface, alpha=surface.alpha * fac)
     return replace(surface, coverage_texture=texture, coverage_mode=mode)
@@ -628,7 +615,7 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
         warnings.append(f"material '{material.name}': its Volume shader is not rendered")
     try:
         return _shader(node, material.name, images or ImageReader(warnings))
-    except (_Unsupported, UnsupportedLink) as reason:
+    except (UnsupportedNodes, UnsupportedLink) as reason:
         if fallbacks is not None:
             fallbacks[material.name] = str(reason)
         if fallbacks is None or bake.bake_reason(material, str(reason)) is None:
@@ -672,7 +659,7 @@ def _image_pixels(image: bpy.types.Image, warnings: list[str]) -> np.ndarray | N
 
 def _map_rotation(texture) -> float:
     """Z rotation of the Environment Texture's vector (default, or Texture Coordinate
-    Generated through a Mapping node that only turns about Z); _Unsupported otherwise."""
+    Generated through a Mapping node that only turns about Z); UnsupportedNodes otherwise."""
     socket = texture.inputs["Vector"]
     if not socket.is_linked:
         return 0.0
@@ -680,16 +667,16 @@ def _map_rotation(texture) -> float:
     if node.type == "TEX_COORD" and socket.links[0].from_socket.name == "Generated":
         return 0.0
     if node.type != "MAPPING" or node.vector_type not in ("POINT", "VECTOR", "TEXTURE"):
-        raise _Unsupported(f"its vector comes from '{node.bl_label}'")
-    rotation = np.array(_constant(node, "Rotation", (0.0, 0.0, 0.0)))
-    scale = np.array(_constant(node, "Scale", (1.0, 1.0, 1.0)))
+        raise UnsupportedNodes(f"its vector comes from '{node.bl_label}'")
+    rotation = np.array(constant(node, "Rotation", (0.0, 0.0, 0.0)))
+    scale = np.array(constant(node, "Scale", (1.0, 1.0, 1.0)))
     moved = node.vector_type != "VECTOR" and np.any(np.array(
-        _constant(node, "Location", (0.0, 0.0, 0.0))) != 0)
+        constant(node, "Location", (0.0, 0.0, 0.0))) != 0)
     source = node.inputs["Vector"]
     generated = not source.is_linked or (source.links[0].from_node.type == "TEX_COORD" and
                                          source.links[0].from_socket.name == "Generated")
     if moved or np.any(rotation[:2] != 0) or np.any(scale != 1) or not generated:
-        raise _Unsupported("its Mapping node does more than a Z rotation of the default vector")
+        raise UnsupportedNodes("its Mapping node does more than a Z rotation of the default vector")
     return float(-rotation[2] if node.vector_type == "TEXTURE" else rotation[2])
 
 
@@ -712,7 +699,7 @@ def _environment_world(texture, strength: float, warnings: list[str],
         if texture.projection != "EQUIRECTANGULAR":
             return World(mean, strength)
         env.rotation = _map_rotation(texture)
-    except _Unsupported:
+    except UnsupportedNodes:
         return World(mean, strength)
     sun = take_out_map_sun(env, f"{name} sun disc") if lights is not None else None
     if sun is not None:
@@ -744,7 +731,7 @@ def world_bake_reason(world: bpy.types.World | None) -> str | None:
         return f"its Environment Texture's projection is {source.projection.lower()}"
     try:
         _map_rotation(source)
-    except _Unsupported as reason:
+    except UnsupportedNodes as reason:
         return f"its Environment Texture: {reason}"
     return None
 
@@ -755,7 +742,12 @@ def export_world(world: bpy.types.World | None, warnings: list[str],
     """The world's Background colour × strength, its Environment Texture, or its bake where
     the nodes are more than that (with a note, and ``lights`` gets the sun disc the bake
     took out; without a bake, one colour and a warning naming why, and ``unbaked`` gets the
-    world where a bake pass would make it)."""
+    world where a bake pass would make it). Its Volume shader (fog) is left out, with a
+    warning."""
+    if world is not None and uses_nodes(world) and volume_linked(world.node_tree,
+                                                                 "OUTPUT_WORLD"):
+        warnings.append(f"world '{world.original.name}': its Volume shader (fog) is not "
+                        f"rendered")
     reason = world_bake_reason(world)
     if reason is None:
         read = _read_world(world, warnings, lights)
@@ -1060,11 +1052,6 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     cache._entries = state.used
     result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
                                 result.lights)
-    world = scene_eval.world
-    if world is not None and uses_nodes(world) and volume_linked(world.node_tree,
-                                                                 "OUTPUT_WORLD"):
-        result.warnings.append(f"world '{world.original.name}': its Volume shader (fog) is not "
-                               f"rendered")
     result.warnings.extend(unrendered_objects(skipped))
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),

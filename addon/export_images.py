@@ -15,6 +15,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
+from .blender_read import rgb
 from .core.scene.model import COVERAGE_ALPHA, COVERAGE_LUMINANCE, EXTENSIONS, Texture
 from .core.scene.textures import associate_bytes, missing_texture
 
@@ -95,7 +96,7 @@ class ImageReader:
         socket = node.inputs.get(name)
         if socket is None or not socket.is_linked:
             value = default if socket is None else socket.default_value
-            return (float(value[0]), float(value[1]), float(value[2])), None
+            return rgb(value), None
         source = linked_node(socket)
         if source.type != "TEX_IMAGE" or socket.links[0].from_socket.name != "Color":
             raise UnsupportedLink(f"input '{name}' of '{node.bl_label}' is linked to "
@@ -126,10 +127,10 @@ class ImageReader:
         label = f"image '{image.name}'" if image is not None else "an image texture"
         if node.projection != "FLAT":
             self.warn(f"material '{material}': {label}: projection "
-                       f"{node.projection.title()} not supported (rendered as Flat)")
+                      f"{node.projection.title()} not supported (rendered as Flat)")
         if image is None:
             self.warn(f"material '{material}': an image texture has no image: shown in "
-                       f"magenta (1, 0, 1) as Cycles does")
+                      f"magenta (1, 0, 1) as Cycles does")
             return missing_texture("(none)")
         key = image.name_full
         read = self._read(image, material)
@@ -159,11 +160,11 @@ class ImageReader:
         space = image.colorspace_settings.name
         if self._pixels[key] is None:
             self.warn(f"material '{material}': image '{image.name}' is missing or cannot be "
-                       f"read ({image.filepath or 'no file'}): shown in magenta (1, 0, 1) as "
-                       f"Cycles does")
+                      f"read ({image.filepath or 'no file'}): shown in magenta (1, 0, 1) as "
+                      f"Cycles does")
         elif not image.is_float and space not in RAW_SPACES | {"sRGB"}:
             self.warn(f"material '{material}': image '{image.name}': colour space '{space}' "
-                       f"is not supported (read as Non-Color)")
+                      f"is not supported (read as Non-Color)")
         return self._pixels[key]
 
     def _sampling(self, node, material: str, label: str) -> tuple[str, str]:
@@ -173,6 +174,6 @@ class ImageReader:
         extension = node.extension if node.extension in EXTENSIONS else "REPEAT"
         if (interpolation, extension) != (INTERPOLATION.get(node.interpolation), node.extension):
             self.warn(f"material '{material}': {label}: interpolation "
-                       f"{node.interpolation.title()}, extension {node.extension.title()} not "
-                       f"supported (rendered as {interpolation}, {extension.title()})")
+                      f"{node.interpolation.title()}, extension {node.extension.title()} not "
+                      f"supported (rendered as {interpolation}, {extension.title()})")
         return interpolation, extension

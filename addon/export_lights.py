@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 
 from .blender_compat import uses_nodes
-from .blender_read import rgb, surface_node
+from .blender_read import UnsupportedNodes, constant, rgb, surface_node
 from .core.scene.blackbody import blackbody_rgb
 from .core.scene.model import AreaShape, Light, LightKind
 from .export_images import linked_node
@@ -80,29 +80,20 @@ def node_emission(data: bpy.types.Light, name: str, warnings: list[str]
     constant or a Light Falloff's Quadratic output of constant strength without smoothing.
     No node tree, nodes off or no output for Cycles: white, 1. Anything else
     (other nodes, a Light Output with nothing linked): white, 1 and one warning."""
-    if not uses_nodes(data):
-        return (1.0, 1.0, 1.0), 1.0
-    if data.node_tree.get_output_node("CYCLES") is None:
+    if not uses_nodes(data) or data.node_tree.get_output_node("CYCLES") is None:
         return (1.0, 1.0, 1.0), 1.0
     node = surface_node(data.node_tree, "OUTPUT_LIGHT")
     try:
         if node is None:
-            raise ValueError("its Light Output has no Surface linked")
+            raise UnsupportedNodes("its Light Output has no Surface linked")
         if node.type != "EMISSION":
-            raise ValueError(f"its Light Output is linked to '{node.bl_label}'")
+            raise UnsupportedNodes(f"its Light Output is linked to '{node.bl_label}'")
         return _emission_color(node), _emission_strength(node)
-    except ValueError as reason:
+    except UnsupportedNodes as reason:
         warnings.append(f"light '{name}': {reason}; rendered without its nodes (only an "
                         f"Emission node of constant or Blackbody colour and constant "
                         f"strength is read)")
         return (1.0, 1.0, 1.0), 1.0
-
-
-def _unlinked(socket):
-    if socket.is_linked:
-        raise ValueError(f"input '{socket.name}' of '{socket.node.bl_label}' is linked to "
-                         f"'{socket.links[0].from_node.bl_label}'")
-    return socket.default_value
 
 
 def _emission_strength(node) -> float:
@@ -113,14 +104,14 @@ def _emission_strength(node) -> float:
     link = socket.links[0] if socket.is_linked else None
     if link is not None and link.from_node.type == "LIGHT_FALLOFF" \
             and link.from_socket.name == "Quadratic" \
-            and float(_unlinked(link.from_node.inputs["Smooth"])) == 0.0:
-        return float(_unlinked(link.from_node.inputs["Strength"]))
-    return float(_unlinked(socket))
+            and float(constant(link.from_node, "Smooth", 0.0)) == 0.0:
+        return float(constant(link.from_node, "Strength", 1.0))
+    return float(constant(node, "Strength", 1.0))
 
 
 def _emission_color(node) -> tuple[float, float, float]:
     socket = node.inputs["Color"]
     source = linked_node(socket) if socket.is_linked else None
     if source is not None and source.type == "BLACKBODY":
-        return blackbody_rgb(_unlinked(source.inputs["Temperature"]))
-    return rgb(_unlinked(socket))
+        return blackbody_rgb(constant(source, "Temperature", 6500.0))
+    return rgb(constant(node, "Color", (1.0, 1.0, 1.0)))

@@ -21,7 +21,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.blender_compat import BLENDER_5
+from addon.blender_compat import ensure_nodes
 from addon.core.scene.blackbody import blackbody_rgb
 from addon.export_lights import export_light
 from tests.blender.rendering import (
@@ -57,8 +57,7 @@ def _sun(data: bpy.types.Light) -> None:
 
 
 def _emission_nodes(data: bpy.types.Light) -> None:
-    if not BLENDER_5:
-        data.use_nodes = True
+    ensure_nodes(data)
     tree = data.node_tree
     emission = tree.nodes["Emission"]
     emission.inputs["Strength"].default_value = 2.5
@@ -68,8 +67,7 @@ def _emission_nodes(data: bpy.types.Light) -> None:
 
 
 def _quadratic_falloff(data: bpy.types.Light) -> None:
-    if not BLENDER_5:
-        data.use_nodes = True
+    ensure_nodes(data)
     tree = data.node_tree
     falloff = tree.nodes.new("ShaderNodeLightFalloff")
     falloff.inputs["Strength"].default_value = 3.0
@@ -202,8 +200,7 @@ def test_light_nodes_other_than_emission_warn_once(blender):
     with one warning that names it and the node."""
     light = _scene("POINT", 100.0, (0, 0, 2), (0, 0, 0))
     data = light.data
-    if not BLENDER_5:
-        data.use_nodes = True
+    ensure_nodes(data)
     tree = data.node_tree
     noise = tree.nodes.new("ShaderNodeTexNoise")
     tree.links.new(noise.outputs["Fac"], tree.nodes["Emission"].inputs["Strength"])

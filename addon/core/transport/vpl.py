@@ -376,9 +376,10 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
     normal = unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
     normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
     base = geometry.base_at(tri, position)
-    kept = hits.transmittance[hit] * soft_falloff(
-        np.square(hits.distance[hit].astype(np.float64)),
-        np.broadcast_to(soft_radius, hit.shape)[hit])[:, None]
+    kept = hits.transmittance[hit]
+    if np.any(soft_radius):
+        kept = kept * soft_falloff(np.square(hits.distance[hit].astype(np.float64)),
+                                   np.broadcast_to(soft_radius, hit.shape)[hit])[:, None]
     return SurfaceHits(position, normal, geometry.path_albedo(tri, base),
                        flux[hit] * kept, rank[hit], tri, direction[hit], base)
 
