@@ -14,6 +14,9 @@ Measured with bpy 4.2.23, 4.5.15 and 5.3.0:
 - Default surface: an object without a material renders in Cycles 4.x as a Diffuse BSDF of 0.8
   grey, in Cycles 5.x as a default Principled BSDF (base colour 0.8, roughness 0.5, specular
   IOR level 0.5), bit for bit the same as a new material's.
+- IES profiles: where a spline's outer point lies past the profile's table (at 0° and 360°
+  of horizontal angle, and past the last vertical angle short of 180°), Cycles 4.x reads 0
+  and 5.x repeats the nearest value (measured against 4.2, 4.5 and 5.3, ``scene/ies.py``).
 """
 
 from __future__ import annotations
@@ -38,6 +41,9 @@ _PASS_NAMES_5 = {
 DEFAULT_SURFACE_IS_PRINCIPLED = BLENDER_5
 """True where Cycles renders an object without a material as a default Principled BSDF
 (glossy part included), False where as a diffuse surface (4.x)."""
+
+IES_SPLINE_EDGE = "repeat" if BLENDER_5 else "zero"
+"""What Cycles' IES Texture reads past its profile's table (``IesProfile.edge``)."""
 
 
 def pass_name(name: str) -> str:

@@ -1,17 +1,20 @@
 """Blender lights as VPL GI's lights: their kind and shape, their ray visibility, and their
 strength as Cycles reads it (colour, Temperature, Exposure, Normalize and the light's
-Emission node)."""
+Emission node, with an IES profile)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import NamedTuple
 
 import bpy
 import numpy as np
 
-from .blender_compat import uses_nodes
+from .blender_compat import IES_SPLINE_EDGE, uses_nodes
 from .blender_read import UnsupportedNodes, constant, rgb, surface_node
 from .core.scene.blackbody import blackbody_rgb
+from .core.scene.ies import IesError, IesProfile, parse_ies
 from .core.scene.model import AreaShape, Light, LightKind
 from .export_images import linked_node
 
@@ -31,7 +34,8 @@ def export_light(obj: bpy.types.Object, matrix: np.ndarray,
     a light object's shadow visibility changes nothing in Cycles (measured, 4.5).
 
     Its strength is Cycles': power × 2^Exposure × the shape's area where Normalize is off,
-    colour × the Temperature's colour where it is used × the light's Emission node."""
+    colour × the Temperature's colour where it is used × the light's Emission node, whose
+    Strength may come from an IES profile (a sun's: the profile straight down)."""
     data = obj.data
     kind = LightKind(data.type)
     light = Light(obj.name, kind, matrix, color=rgb(data.color),
@@ -49,7 +53,14 @@ def export_light(obj: bpy.types.Object, matrix: np.ndarray,
         light.area_shape = AreaShape(data.shape)
         light.size_x, light.size_y = float(data.size), float(data.size_y)
         light.spread = float(getattr(data, "spread", np.pi))
-    tint, strength = node_emission(data, obj.name, [] if warnings is None else warnings)
+    tint, strength, profile = node_emission(data, obj.name,
+                                            [] if warnings is None else warnings)
+    if profile is not None and profile.mean <= 0:  # no light in any direction, as in Cycles
+        strength = 0.0
+    elif profile is not None and kind is LightKind.SUN:  # a sun's light: the profile's nadir
+        strength *= float(profile.towards(np.array([0.0, 0.0, -1.0])))
+    elif profile is not None:
+        light.profile = profile
     if getattr(data, "use_temperature", False):
         tint = tuple(t * c for t, c in zip(tint, data.temperature_color, strict=True))
     light.color = tuple(c * t for c, t in zip(light.color, tint, strict=True))
@@ -73,40 +84,77 @@ def unnormalized_area(light: Light) -> float:
     return area if area > 0 else 1.0
 
 
-def node_emission(data: bpy.types.Light, name: str, warnings: list[str]
-                  ) -> tuple[tuple[float, float, float], float]:
+class NodeEmission(NamedTuple):
+    """What a light's nodes multiply it by: a colour, a strength and an IES profile."""
+
+    color: tuple[float, float, float]
+    strength: float
+    profile: IesProfile | None
+
+
+def node_emission(data: bpy.types.Light, name: str, warnings: list[str]) -> NodeEmission:
     """The colour and strength of a light's Emission node, which Cycles multiplies the light
     by: its Color a constant or a Blackbody node of constant Temperature, its Strength a
-    constant or a Light Falloff's Quadratic output of constant strength without smoothing.
-    No node tree, nodes off or no output for Cycles: white, 1. Anything else
-    (other nodes, a Light Output with nothing linked): white, 1 and one warning."""
+    constant, a Light Falloff's Quadratic output of constant strength without smoothing, or
+    an IES Texture's Fac (of constant strength and its own vector). No node tree, nodes off
+    or no output for Cycles: white, 1. Anything else (other nodes, a Light Output with
+    nothing linked, an IES file that cannot be read): white, 1 and one warning."""
+    plain = NodeEmission((1.0, 1.0, 1.0), 1.0, None)
     if not uses_nodes(data) or data.node_tree.get_output_node("CYCLES") is None:
-        return (1.0, 1.0, 1.0), 1.0
+        return plain
     node = surface_node(data.node_tree, "OUTPUT_LIGHT")
     try:
         if node is None:
             raise UnsupportedNodes("its Light Output has no Surface linked")
         if node.type != "EMISSION":
             raise UnsupportedNodes(f"its Light Output is linked to '{node.bl_label}'")
-        return _emission_color(node), _emission_strength(node)
+        return NodeEmission(_emission_color(node), *_emission_strength(node))
     except UnsupportedNodes as reason:
         warnings.append(f"light '{name}': {reason}; rendered without its nodes (only an "
-                        f"Emission node of constant or Blackbody colour and constant "
-                        f"strength is read)")
-        return (1.0, 1.0, 1.0), 1.0
+                        f"Emission node of constant or Blackbody colour and constant, IES "
+                        f"or Light Falloff strength is read)")
+        return plain
 
 
-def _emission_strength(node) -> float:
-    """The Emission's Strength: a constant, or a Light Falloff node's Quadratic output without
-    smoothing (Cycles passes its Strength through unchanged: the inverse square is the
-    light's own)."""
+def _emission_strength(node) -> tuple[float, IesProfile | None]:
+    """The Emission's Strength and IES profile: a constant; a Light Falloff node's Quadratic
+    output without smoothing (Cycles passes its Strength through unchanged: the inverse
+    square is the light's own); or an IES Texture's Fac, its Strength times its profile."""
     socket = node.inputs["Strength"]
     link = socket.links[0] if socket.is_linked else None
     if link is not None and link.from_node.type == "LIGHT_FALLOFF" \
             and link.from_socket.name == "Quadratic" \
             and float(constant(link.from_node, "Smooth", 0.0)) == 0.0:
-        return float(constant(link.from_node, "Strength", 1.0))
-    return float(constant(node, "Strength", 1.0))
+        return float(constant(link.from_node, "Strength", 1.0)), None
+    if link is not None and link.from_node.type == "TEX_IES":
+        ies = link.from_node
+        if ies.inputs["Vector"].is_linked:
+            raise UnsupportedNodes(f"the Vector of its IES Texture '{ies.name}' is linked")
+        return float(constant(ies, "Strength", 1.0)), ies_profile(ies)
+    return float(constant(node, "Strength", 1.0)), None
+
+
+def ies_profile(node: bpy.types.ShaderNodeTexIES) -> IesProfile:
+    """The profile of an IES Texture node: its internal text or its file (relative to the
+    blend file or its library), as this Blender's Cycles interpolates it."""
+    if node.mode == "INTERNAL":
+        if node.ies is None:
+            raise UnsupportedNodes(f"its IES Texture '{node.name}' has no text")
+        text, source = node.ies.as_string(), f"text '{node.ies.name}'"
+    else:
+        path = bpy.path.abspath(node.filepath, library=node.id_data.library)
+        source = f"file '{node.filepath}'"
+        try:
+            with open(path, encoding="latin-1") as file:
+                text = file.read()
+        except OSError as error:
+            raise UnsupportedNodes(f"its IES {source} cannot be read "
+                                   f"({error.strerror or error})") from error
+    try:
+        return dataclasses.replace(parse_ies(text), edge=IES_SPLINE_EDGE)
+    except IesError as error:
+        raise UnsupportedNodes(f"its IES {source} is not a profile Cycles reads ({error})") \
+            from error
 
 
 def _emission_color(node) -> tuple[float, float, float]:

@@ -5,6 +5,7 @@
 // A negative texel 4 w, -(k + 1), marks a sample of area light k of the AREA_SHAPES table.
 // Texel 4's z is the spread's normalisation where texel 4's y (its tan) is positive, else the
 // radius of the sample's light's Soft Falloff (transport/lights.py soft_falloff_radius).
+// Texel 0's w is the kind + 4 × (the sample's light in the IES profile tables + 1).
 #ifndef LIGHTS_LIB_GLSL
 #define LIGHTS_LIB_GLSL
 #include "common_lib.glsl"
@@ -28,6 +29,7 @@ struct LightSample {
     float spread_norm;  // Cycles' normalisation of the spread (keeps the light's power)
     int shape;          // its area light in the AREA_SHAPES table, -1 for none
     float soft_radius;  // Soft Falloff: a sphere light's radius, 0 for none
+    int profile;        // its light in the IES profile tables (LIGHT_PROFILES), -1 for none
 #ifdef VPL_GLOSSY
     vec4 lobe_a;        // flux x A, alpha (0: no glossy emission)
     vec4 lobe_b;        // flux x B, eta
@@ -52,13 +54,13 @@ LightSample light_sample(int index) {
         c = texelFetch(u_light_table, ivec2(7, index), 0);
         d = texelFetch(u_light_table, ivec2(8, index), 0);
     }
-    return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
+    return LightSample(t0.xyz, int(t0.w) & 3, t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
                        t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1,
-                       t4.y > 0.0 ? 0.0 : t4.z, a, b, c, d.xyz);
+                       t4.y > 0.0 ? 0.0 : t4.z, (int(t0.w) >> 2) - 1, a, b, c, d.xyz);
 #else
-    return LightSample(t0.xyz, int(t0.w), t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
+    return LightSample(t0.xyz, int(t0.w) & 3, t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
                        t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1,
-                       t4.y > 0.0 ? 0.0 : t4.z);
+                       t4.y > 0.0 ? 0.0 : t4.z, (int(t0.w) >> 2) - 1);
 #endif
 }
 
@@ -155,12 +157,38 @@ float spread(LightSample s, vec3 from_light) {
     return max((s.spread_tan - tan_theta) * s.spread_norm, 0.0);
 }
 
+#ifdef LIGHT_PROFILES
+// IES profiles (transport/light_profiles.py): three texels per profiled light, the rows of its
+// world-to-light rotation (texel 0's w: its profile's first row in the grid), and the
+// profiles sampled every 1° of vertical angle (columns) and PROFILE_ROWS rows of horizontal
+// angle from 0° to 360°, read bilinearly. The angles are Cycles' IES Texture node's.
+uniform sampler2D u_profile_frames;
+uniform sampler2D u_profile_grid;
+
+float light_profile(int light, vec3 from_light) {
+    if (light < 0) return 1.0;
+    vec4 row0 = texelFetch(u_profile_frames, ivec2(0, light), 0);
+    vec3 local = vec3(dot(row0.xyz, from_light),
+                      dot(texelFetch(u_profile_frames, ivec2(1, light), 0).xyz, from_light),
+                      dot(texelFetch(u_profile_frames, ivec2(2, light), 0).xyz, from_light));
+    float v = acos(clamp(-local.z, -1.0, 1.0));
+    float h = (local.x == 0.0 && local.y == 0.0) ? PI : atan(local.x, local.y) + PI;
+    vec2 size = vec2(textureSize(u_profile_grid, 0));
+    vec2 texel = vec2(v / PI * (size.x - 1.0),
+                      row0.w + h / (2.0 * PI) * float(PROFILE_ROWS - 1)) + 0.5;
+    return texture(u_profile_grid, texel / size).r;
+}
+#endif
+
 // Radiant intensity (W/sr) of a non-directional sample towards a unit direction; a glossy
 // VPL adds its light reflected by its lobe, flux x f_glossy(towards_light, from_light) x cos.
 vec3 emitted_intensity(LightSample s, vec3 from_light) {
     float falloff = 1.0;
     if (s.kind == KIND_COSINE) falloff = max(dot(from_light, s.axis), 0.0) * spread(s, from_light);
     else if (s.kind == KIND_COSINE2) falloff = abs(dot(from_light, s.axis));
+#ifdef LIGHT_PROFILES
+    falloff *= light_profile(s.profile, from_light);
+#endif
 #ifdef VPL_GLOSSY
     vec3 glossy = vec3(0.0);
     if (s.lobe_a.w > 0.0) {

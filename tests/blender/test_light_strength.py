@@ -209,4 +209,5 @@ def test_light_nodes_other_than_emission_warn_once(blender):
     assert exported.power == pytest.approx(100.0)
     assert warnings == [f"light 'Lamp': input 'Strength' of 'Emission' is linked to "
                         f"'{noise.bl_label}'; rendered without its nodes (only an Emission "
-                        f"node of constant or Blackbody colour and constant strength is read)"]
+                        f"node of constant or Blackbody colour and constant, IES or Light "
+                        f"Falloff strength is read)"]

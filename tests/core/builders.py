@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from addon.core.scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene, World
@@ -104,3 +106,23 @@ def inside_sphere_camera(size: int = 32) -> Camera:
                            [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
                            [0, 0, -1, 0]])
     return Camera(np.eye(4), projection, size, size)
+
+
+def profile_text(upward: bool = False) -> str:
+    """A type C profile over the whole sphere, 10° apart vertically and 45° horizontally:
+    a lobe straight down (straight up with ``upward``) that leans towards 0° of horizontal
+    angle, and a weaker sideways light that differs between all four quadrants."""
+    v_angles = list(range(0, 181, 10))
+    h_angles = list(range(0, 361, 45))
+    rows = []
+    for h in h_angles:
+        lean = 0.6 * math.cos(math.radians(h)) + 0.25 * math.sin(math.radians(h))
+        row = []
+        for v in v_angles:
+            down = max(math.cos(math.radians(180 - v if upward else v)), 0.0)
+            row.append(1000.0 * down**2 * (1 + lean * math.sin(math.radians(v)))
+                       + 150.0 * math.sin(math.radians(v))**2 * (1 + 0.5 * lean))
+        rows.append(" ".join(f"{c:.2f}" for c in row))
+    return "\n".join(["IESNA:LM-63-2002", "[TEST] VPL GI test profile", "TILT=NONE",
+                      f"1 -1 1 {len(v_angles)} {len(h_angles)} 1 2 0 0 0", "1 1 120",
+                      " ".join(map(str, v_angles)), " ".join(map(str, h_angles)), *rows, ""])

@@ -13,6 +13,7 @@ from ..gpu.gl import ProgramCache, read_textures, set_uniforms
 from ..gpu.ism import ISM_BIAS_TEXELS
 from ..gpu.scene_buffers import SceneBuffers
 from ..gpu.shadow_atlas import near_far
+from ..transport.light_profiles import H_SAMPLES, LightProfiles
 from ..transport.lights import AreaShapes
 from .batches import Batch
 from .gbuffer import GLOSSY_LAYERS, GBuffer
@@ -26,6 +27,7 @@ LOBE_UNITS = 9, 10, 11  # the g-buffer's glossy lobe layers (units 6-8: the scen
 HINTS_UNIT = 12  # the shadow hints
 AREA_SHAPES_UNIT = 13  # the area lights' outlines (transport/lights.py AreaShapes)
 CLEAR_ATLAS_UNIT = 14  # a shadow atlas's clear layer (frame/shadow_maps.py)
+PROFILE_UNITS = 5, 15  # IES-profiled lights' frames and profiles (transport/light_profiles.py)
 AREA_SHAPES_WIDTH = 1024  # texels per row of their texture (a power of two)
 RAY_OFFSET = 1e-4  # rays from a pixel start this fraction of the scene's radius off its surface
 
@@ -65,6 +67,21 @@ def light_table_texture(ctx: moderngl.Context, batch: Batch, centre: np.ndarray,
     near, far = near_far(s, centre, radius)
     table = s.table(batch.first_tile, near, far)
     return ctx.texture((table.shape[1], len(s)), 4, table.tobytes(), dtype="f4")
+
+
+def bind_light_profiles(ctx: moderngl.Context, profiles: LightProfiles,
+                        scope: GpuScope) -> tuple[dict[str, object], dict[str, object]]:
+    """Bind the IES profiles' textures (PROFILE_UNITS, released with ``scope``); the
+    shaders' defines and uniforms for them."""
+    frames = profiles.frames
+    scope.own(ctx.texture((3, len(frames)), 4, frames.tobytes(), dtype="f4")).use(
+        PROFILE_UNITS[0])
+    grid = scope.own(ctx.texture(profiles.grid.shape[::-1], 1, profiles.grid.tobytes(),
+                                 dtype="f4"))
+    grid.repeat_x = grid.repeat_y = False
+    grid.use(PROFILE_UNITS[1])
+    return ({"LIGHT_PROFILES": 1, "PROFILE_ROWS": H_SAMPLES},
+            {"u_profile_frames": PROFILE_UNITS[0], "u_profile_grid": PROFILE_UNITS[1]})
 
 
 def area_shapes_texture(ctx: moderngl.Context, shapes: AreaShapes) -> moderngl.Texture:
@@ -134,6 +151,10 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
             defines.update(AREA_SHAPES=1, AREA_SHAPES_WIDTH=AREA_SHAPES_WIDTH)
             scope.own(area_shapes_texture(ctx, s.shapes)).use(AREA_SHAPES_UNIT)
             uniforms.update(u_area_shapes=AREA_SHAPES_UNIT)
+        if s.has_profiles:
+            profile_defines, profile_uniforms = bind_light_profiles(ctx, s.profiles, scope)
+            defines.update(profile_defines)
+            uniforms.update(profile_uniforms)
         if clear_atlas is not None:
             defines.update(CLEAR_SHADOWS=1)
             clear_atlas.use(CLEAR_ATLAS_UNIT)

@@ -14,6 +14,7 @@ import numpy as np
 from ..scene.geometry import empty_geometry
 from ..scene.model import Scene, World
 from ..settings import Settings
+from ..transport.light_profiles import profile_towards
 from ..transport.lights import (
     KIND_COSINE,
     LightSamples,
@@ -106,6 +107,10 @@ def rsm_hits(table: TileTable, position: np.ndarray, normal: np.ndarray, albedo:
         else:
             emitted = spot_mask(direction @ samples.axis[i], samples.spot_cos[i],
                                 samples.spot_smooth[i])
+        if samples.has_profiles and samples.profile[i] >= 0:
+            light = samples.profiles.lights[samples.profile[i]]
+            emitted = emitted * profile_towards(light, direction.reshape(-1, 3)).reshape(
+                emitted.shape)
         intensity = samples.intensity[i] * (emitted * solid_angle)[..., None]
         flux[t][seen] = intensity[seen]
     weight = (_texels(flux * albedo[..., :3]) @ LUMINANCE)

@@ -12,6 +12,8 @@ from enum import StrEnum
 
 import numpy as np
 
+from .ies import IesProfile
+
 Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
 
 
@@ -213,6 +215,8 @@ class Light:
     cast_shadow: bool = True
     visible_to_camera: bool = True  # area lights: the shape shows in the image (Cycles' default)
     visible_to_diffuse: bool = True  # off: lights no diffuse surface, directly or not (Cycles)
+    profile: IesProfile | None = None  # an IES profile its light is multiplied by (ies.py),
+    # towards directions in ``frame`` (point, spot and area lights)
 
     @property
     def area_size(self) -> tuple[float, float]:
@@ -229,6 +233,16 @@ class Light:
         """Area of the shape in the light's own (unscaled) plane."""
         width, height = self.area_size
         return (np.pi / 4 if self.is_round else 1.0) * width * height
+
+    @property
+    def frame(self) -> np.ndarray:
+        """(3, 3) orthonormal columns: the light's own x, y and z axes in the world (its
+        matrix's rotation without its scale); a direction d is ``d @ frame`` in its frame."""
+        m = np.asarray(self.matrix, dtype=np.float64)[:3, :3]
+        x = m[:, 0] / max(np.linalg.norm(m[:, 0]), 1e-300)
+        z = m[:, 2] / max(np.linalg.norm(m[:, 2]), 1e-300)
+        y = np.cross(z, x)
+        return np.stack([x, y / max(np.linalg.norm(y), 1e-300), z], axis=1)
 
     @property
     def world_area(self) -> float:

@@ -61,6 +61,12 @@ class LightDomain:
         if self.kind == "sphere" and self.cos_half > -1:
             weight = spot_mask(-coords[:, 2], self.cos_half, self.smooth) \
                 if self.smooth > 0 else weight
+        profile = self.light.profile
+        if profile is not None and self.kind == "sphere":
+            weight = weight * profile.towards(coords)
+        elif profile is not None and self.kind == "disc":
+            z = -np.sqrt(np.maximum(0.0, 1 - (coords**2).sum(axis=1)))
+            weight = weight * profile.towards(np.hstack([coords, z[:, None]]))
         return weight[:, None] * self.flux[None]
 
     def uniform_points(self, count: int, rotation: float = 0.0) -> np.ndarray:
@@ -116,11 +122,7 @@ def light_domain(light: Light, centre: np.ndarray, radius: float) -> LightDomain
     """The domain of a light with power, or None (no power, or left out: ``light_problem``)."""
     if light.power == 0 or light_problem(light) is not None:
         return None
-    m = light.matrix[:3, :3]
-    x = unit(m[:, 0][None])[0]
-    z = unit(m[:, 2][None])[0]
-    y = unit(np.cross(z, x)[None])[0]
-    frame = np.stack([x, y, z], axis=1)
+    frame = light.frame
     color = np.asarray(light.color, np.float64) * light.power
     position = light.matrix[:3, 3].astype(np.float64)
     if light.kind in (LightKind.POINT, LightKind.SPOT):

@@ -22,6 +22,7 @@ from ..scene.geometry import WorldGeometry, area_light_outline, transform_points
 from ..scene.model import Light, LightKind, Scene
 from ..scene.vectors import unit
 from ..settings import Settings
+from .light_profiles import LightProfiles
 
 KIND_OMNI, KIND_COSINE, KIND_COSINE2, KIND_DIRECTIONAL = 0, 1, 2, 3
 NO_SPOT = -2.0
@@ -53,6 +54,9 @@ class LightSamples:
     shapes: AreaShapes | None = None  # the area lights' outlines (per light, not per sample)
     soft_radius: np.ndarray | None = None  # (n,) the radius of its light's Soft Falloff
     # (soft_falloff_radius), 0 for none; None: no sample has one
+    profile: np.ndarray | None = None  # (n,) int the sample's light in ``profiles``, -1 for
+    # none; None: no sample has one
+    profiles: LightProfiles | None = None  # the IES-profiled lights (per light, not sample)
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -75,6 +79,8 @@ class LightSamples:
         glossy = self.glossy is not None and bool(np.any(self.glossy[:, 0, 3] > 0))
         t = np.zeros((n, 9 if glossy else 5, 4), dtype=np.float32)
         t[:, 0, :3], t[:, 0, 3] = self.position, self.kind
+        if self.profile is not None:  # kind + 4 (profiled light + 1): lights_lib.glsl
+            t[:, 0, 3] += 4 * (np.maximum(self.profile, -1) + 1)
         t[:, 1, :3], t[:, 1, 3] = self.axis, self.spot_cos
         t[:, 2, :3], t[:, 2, 3] = self.intensity, self.spot_smooth
         t[:, 3, 0] = np.where(self.casts_shadow, first_tile, -1)
@@ -91,9 +97,16 @@ class LightSamples:
         return t
 
     def subset(self, index: np.ndarray) -> LightSamples:
-        return LightSamples(**{f: self.shapes if f == "shapes" else
+        per_light = ("shapes", "profiles")
+        return LightSamples(**{f: getattr(self, f) if f in per_light else
                                None if getattr(self, f) is None else getattr(self, f)[index]
                                for f in self.__dataclass_fields__})
+
+    @property
+    def has_profiles(self) -> bool:
+        """Whether some sample's light has an IES profile (the shaders then look it up)."""
+        return self.profiles is not None and self.profile is not None \
+            and bool(np.any(self.profile >= 0))
 
 
 @dataclass(frozen=True)
@@ -165,15 +178,24 @@ class _Builder:
     def __init__(self) -> None:
         self.rows: list[dict] = []
         self.outlines: list[np.ndarray] = []  # of the area lights whose samples have a shape
+        self.profiled: list[Light] = []  # the lights with an IES profile, in index order
 
     def new_shape(self, outline: np.ndarray) -> int:
         """The index of a new area-light shape (its samples are added with it)."""
         self.outlines.append(outline)
         return len(self.outlines) - 1
 
+    def new_profile(self, light: Light) -> int:
+        """The index of a light with an IES profile (its samples are added with it), -1 for a
+        light without one."""
+        if light.profile is None:
+            return -1
+        self.profiled.append(light)
+        return len(self.profiled) - 1
+
     def add(self, *, position, axis, kind, intensity, shadow, resolution,
             spot_cos=NO_SPOT, spot_smooth=0.0, soft=False, spread=(0.0, 0.0),
-            broad=False, shape=-1, soft_radius=0.0) -> None:
+            broad=False, shape=-1, soft_radius=0.0, profile=-1) -> None:
         position = np.atleast_2d(position)
         n = len(position)
         self.rows.append({
@@ -191,6 +213,7 @@ class _Builder:
             "broad": np.full(n, broad),
             "shape": np.full(n, shape),
             "soft_radius": np.full(n, soft_radius),
+            "profile": np.full(n, profile),
         })
 
     def build(self) -> LightSamples:
@@ -201,6 +224,8 @@ class _Builder:
                                 np.zeros((0, 2)))
         keys = self.rows[0].keys()
         samples = LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
+        if self.profiled:
+            samples.profiles = LightProfiles.build(self.profiled)
         if self.outlines:
             samples.shapes = AreaShapes.build(self.outlines, list(np.bincount(
                 samples.shape[samples.shape >= 0], minlength=len(self.outlines))))
@@ -280,12 +305,13 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
     color = np.asarray(light.color, dtype=np.float64) * light.power
     m = light.matrix
     position, travel = m[:3, 3], unit(-m[:3, 2])
+    profile = b.new_profile(light) if light.kind is not LightKind.SUN else -1
     if light.kind in (LightKind.POINT, LightKind.SPOT):
         spot_cos, spot_smooth = spot_parameters(light)
         if light.radius <= 0:
             b.add(position=position, axis=travel, kind=KIND_OMNI, intensity=color / (4 * np.pi),
                   shadow=light.cast_shadow, resolution=s.shadow_resolution,
-                  spot_cos=spot_cos, spot_smooth=spot_smooth)
+                  spot_cos=spot_cos, spot_smooth=spot_smooth, profile=profile)
             return
         # A sphere of uniform radiance: one-sided cosine emitters on its surface.
         n = s.light_samples
@@ -293,7 +319,7 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         b.add(position=position + light.radius * normals, axis=normals, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
               resolution=s.sample_shadow_resolution, soft=True, spot_cos=spot_cos,
-              spot_smooth=spot_smooth, soft_radius=soft_falloff_radius(light))
+              spot_smooth=spot_smooth, soft_radius=soft_falloff_radius(light), profile=profile)
     elif light.kind is LightKind.SUN:
         half = 0.5 * min(light.sun_angle, np.pi)
         if half <= 0:
@@ -313,12 +339,13 @@ def _add_light(b: _Builder, light: Light, s: Settings, rng: np.random.Generator)
         u = stratified_square(n, rng)
         spread = spread_parameters(light)
         shape = -1
-        if spread == (0.0, 0.0) and min(light.area_size) > 0:  # Lambertian: exact outline
+        if spread == (0.0, 0.0) and min(light.area_size) > 0 and profile < 0:  # Lambertian
             ring = area_light_outline(light)
             shape = b.new_shape(transform_points(m, np.hstack([ring, np.zeros((len(ring), 1))])))
         b.add(position=area_light_points(light, u), axis=travel, kind=KIND_COSINE,
               intensity=color / (np.pi * n), shadow=light.cast_shadow,
-              resolution=s.sample_shadow_resolution, soft=True, spread=spread, shape=shape)
+              resolution=s.sample_shadow_resolution, soft=True, spread=spread, shape=shape,
+              profile=profile)
 
 
 def _add_world(b: _Builder, scene: Scene, s: Settings, rng: np.random.Generator) -> None:

@@ -35,6 +35,7 @@ from ..scene.model import Light, LightKind, Scene, World
 from ..scene.textures import LUMINANCE
 from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
+from .light_profiles import ProfileSampler, profile_towards
 from .lights import (
     KIND_COSINE,
     NO_SPOT,
@@ -170,6 +171,14 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
     position, travel = m[:3, 3], unit(-m[:3, 2][None])[0]
     if light.kind in (LightKind.POINT, LightKind.SPOT):
         intensity = color / (4 * np.pi)
+        if light.kind is LightKind.POINT and light.profile is not None:
+            sampler = ProfileSampler(light.profile)
+
+            def sample_profile(u: np.ndarray) -> _Paths:
+                local, weight = sampler.sample(u[:, [0, 3, 4]])
+                return _Paths(np.repeat(position[None], len(u), 0), local @ light.frame.T,
+                              color * weight[:, None], soft_falloff_radius(light))
+            return _Emitter(color * light.profile.mean, sample_profile)
         if light.kind is LightKind.POINT:
             def sample(u: np.ndarray) -> _Paths:
                 n = len(u)
@@ -190,7 +199,7 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
             mask = spot_mask(cos_t, cos_half, smooth) if smooth > 0 else np.ones(n)
             return _Paths(np.repeat(position[None], n, 0), unit(d),
                           intensity * solid_angle * mask[:, None], soft_falloff_radius(light))
-        return _Emitter(intensity * solid_angle, sample_spot)
+        return _profiled(light, _Emitter(intensity * solid_angle, sample_spot))
     if light.kind is LightKind.SUN:
         flux = color * np.pi * radius**2
         return _Emitter(flux, _parallel_sampler(
@@ -207,7 +216,24 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
         direction = cosine_directions(np.repeat(travel[None], n, 0), u[:, 3:5], sin_max)
         weight = sin_max**2 * spread_attenuation(direction @ travel, tan_half, norm)
         return _Paths(origin, direction, color * weight[:, None])
-    return _Emitter(color, sample_area)
+    return _profiled(light, _Emitter(color, sample_area))
+
+
+def _profiled(light: Light, emitter: _Emitter) -> _Emitter:
+    """A spot or area light's emitter with its IES profile (itself without one): each path's
+    flux × the profile towards its direction, the emitter's flux × the profile's mean over
+    its paths (a fixed set of 4096)."""
+    if light.profile is None:
+        return emitter
+
+    def sample(u: np.ndarray) -> _Paths:
+        paths = emitter.sample(u)
+        paths.flux = paths.flux * profile_towards(light, paths.direction)[:, None]
+        return paths
+    plain = emitter.sample(np.random.default_rng(0).random((4096, 5)))
+    weight = plain.flux @ LUMINANCE
+    mean = (weight * profile_towards(light, plain.direction)).sum() / max(weight.sum(), 1e-300)
+    return _Emitter(emitter.flux * float(mean), sample)
 
 
 def _parallel_sampler(travel_and_flux, centre: np.ndarray, radius: float):
