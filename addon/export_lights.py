@@ -98,7 +98,8 @@ def node_emission(data: bpy.types.Light, name: str, warnings: list[str]) -> Node
     constant, a Light Falloff's Quadratic output of constant strength without smoothing, or
     an IES Texture's Fac (of constant strength and its own vector). No node tree, nodes off
     or no output for Cycles: white, 1. Anything else (other nodes, a Light Output with
-    nothing linked, an IES file that cannot be read): white, 1 and one warning."""
+    nothing linked, an IES file that cannot be read, which Cycles renders at 100 times its
+    strength, measured 4.5 and 5.3): white, 1 and one warning."""
     plain = NodeEmission((1.0, 1.0, 1.0), 1.0, None)
     if not uses_nodes(data) or data.node_tree.get_output_node("CYCLES") is None:
         return plain
@@ -149,12 +150,13 @@ def ies_profile(node: bpy.types.ShaderNodeTexIES) -> IesProfile:
                 text = file.read()
         except OSError as error:
             raise UnsupportedNodes(f"its IES {source} cannot be read "
-                                   f"({error.strerror or error})") from error
+                                   f"({error.strerror or error}: Cycles lights it 100 times as "
+                                   f"bright)") from error
     try:
         return dataclasses.replace(parse_ies(text), edge=IES_SPLINE_EDGE)
     except IesError as error:
-        raise UnsupportedNodes(f"its IES {source} is not a profile Cycles reads ({error})") \
-            from error
+        raise UnsupportedNodes(f"its IES {source} is not a profile Cycles reads ({error}: "
+                               f"Cycles lights it 100 times as bright)") from error
 
 
 def _emission_color(node) -> tuple[float, float, float]:
