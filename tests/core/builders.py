@@ -126,3 +126,13 @@ def profile_text(upward: bool = False) -> str:
     return "\n".join(["IESNA:LM-63-2002", "[TEST] VPL GI test profile", "TILT=NONE",
                       f"1 -1 1 {len(v_angles)} {len(h_angles)} 1 2 0 0 0", "1 1 120",
                       " ".join(map(str, v_angles)), " ".join(map(str, h_angles)), *rows, ""])
+
+
+def downlight_text() -> str:
+    """A rotationally symmetric downlight (one horizontal angle, the commonest kind of file):
+    a lobe straight down over a floor of 50 cd, 5° apart, nothing above the horizon."""
+    v_angles = list(range(0, 91, 5))
+    values = " ".join(f"{1000 * math.cos(math.radians(v))**1.5 + 50:.2f}" for v in v_angles)
+    return "\n".join(["IESNA:LM-63-2002", "[TEST] VPL GI test downlight", "TILT=NONE",
+                      f"1 -1 1 {len(v_angles)} 1 1 2 0 0 0", "1 1 100",
+                      " ".join(map(str, v_angles)), "0", values, ""])
