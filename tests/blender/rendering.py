@@ -160,3 +160,26 @@ def sunlit_box(roof: Callable[[], bpy.types.Material]) -> bpy.types.Scene:
     add_sun(scene, (25, 0, 30))
     scene.world = bpy.data.worlds.new("Black")
     return scene
+
+
+def lamp_over_floor(kind: str, power: float, location: tuple, rotation: tuple,
+                    size: int) -> bpy.types.Object:
+    """A new scene: a grey floor (8 m) and box (0.8 m) under one light of ``kind`` and
+    ``power`` at ``location``, turned by Euler ``rotation`` (degrees; an area light is a
+    0.6 × 0.4 m rectangle), a black world and a camera 5 m above the floor looking down
+    (size × size pixels). Returns the light."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
+    add_primitive("plane", grey, size=8)
+    add_primitive("cube", grey, size=0.8, location=(-0.4, 0.2, 0.4))
+    plain_world(scene, (0.0, 0.0, 0.0))
+    add_camera(scene, size, location=(0, 0, 5))
+    data = bpy.data.lights.new("Lamp", kind)
+    data.energy = power
+    if kind == "AREA":
+        data.shape, data.size, data.size_y = "RECTANGLE", 0.6, 0.4
+    light = bpy.data.objects.new("Lamp", data)
+    light.location, light.rotation_euler = location, tuple(math.radians(a) for a in rotation)
+    scene.collection.objects.link(light)
+    return light

@@ -28,13 +28,11 @@ import pytest
 from addon.blender_compat import ensure_nodes
 from addon.export_lights import export_light
 from tests.blender.rendering import (
-    add_camera,
     add_primitive,
     assert_near_cycles,
     configure_cycles,
-    plain_world,
+    lamp_over_floor,
     render_linear,
-    shader_material,
 )
 from tests.core.builders import downlight_text, profile_text
 
@@ -71,24 +69,14 @@ CASES = {
 
 
 def _scene(case: Case) -> bpy.types.Object:
-    """A grey floor and box (and a ceiling for the uplight) under one light with an IES
-    profile, a black world, a camera above looking down."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
-    add_primitive("plane", grey, size=8)
-    add_primitive("cube", grey, size=0.8, location=(-0.4, 0.2, 0.4))
-    camera_height = 5.0
+    """``lamp_over_floor`` with the light's IES profile (and a ceiling for the uplight)."""
+    light = lamp_over_floor(case.kind, case.power, case.location, case.rotation, SIZE)
     if case.upward:  # a ceiling the camera sees through: its back faces it
+        grey = bpy.data.materials["Grey"]
         ceiling = add_primitive("plane", grey, size=8, location=(0, 0, 2.5))
         ceiling.rotation_euler = (math.pi, 0.0, 0.0)
         ceiling.visible_camera = False
-    plain_world(scene, (0.0, 0.0, 0.0))
-    add_camera(scene, SIZE, location=(0, 0, camera_height))
-    data = bpy.data.lights.new("Lamp", case.kind)
-    data.energy = case.power
-    if case.kind == "AREA":
-        data.shape, data.size, data.size_y = "RECTANGLE", 0.6, 0.4
+    data = light.data
     if case.kind in ("POINT", "SPOT"):
         data.shadow_soft_size = case.radius
     if case.kind == "SPOT":
@@ -101,10 +89,6 @@ def _scene(case: Case) -> bpy.types.Object:
     ies.mode, ies.ies = "INTERNAL", text
     ies.inputs["Strength"].default_value = case.strength
     tree.links.new(ies.outputs["Fac"], tree.nodes["Emission"].inputs["Strength"])
-    light = bpy.data.objects.new("Lamp", data)
-    light.location, light.rotation_euler = case.location, tuple(math.radians(a)
-                                                                for a in case.rotation)
-    scene.collection.objects.link(light)
     return light
 
 

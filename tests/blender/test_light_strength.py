@@ -25,13 +25,10 @@ from addon.blender_compat import ensure_nodes
 from addon.core.scene.blackbody import blackbody_rgb
 from addon.export_lights import export_light
 from tests.blender.rendering import (
-    add_camera,
-    add_primitive,
     assert_near_cycles,
     configure_cycles,
-    plain_world,
+    lamp_over_floor,
     render_linear,
-    shader_material,
 )
 
 SIZE, SAMPLES = 64, 64
@@ -138,31 +135,12 @@ CASES = {
 }
 
 
-def _scene(kind: str, power: float, location: tuple, rotation: tuple) -> bpy.types.Object:
-    """A grey floor and box under one light of ``kind``, a black world, a camera above."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
-    add_primitive("plane", grey, size=8)
-    add_primitive("cube", grey, size=0.8, location=(-0.4, 0.2, 0.4))
-    plain_world(scene, (0.0, 0.0, 0.0))
-    add_camera(scene, SIZE, location=(0, 0, 5))
-    data = bpy.data.lights.new("Lamp", kind)
-    data.energy = power
-    if kind == "AREA":
-        data.shape, data.size, data.size_y = "RECTANGLE", 0.6, 0.4
-    light = bpy.data.objects.new("Lamp", data)
-    light.location, light.rotation_euler = location, tuple(math.radians(a) for a in rotation)
-    scene.collection.objects.link(light)
-    return light
-
-
 @pytest.mark.parametrize("name", list(CASES))
 def test_light_strength_matches_cycles(blender, tmp_path, name):
     case = CASES[name]
     if case.needs_exposure and not HAS_EXPOSURE:
         pytest.skip("this Blender's lights have no Exposure or Temperature")
-    light = _scene(case.kind, case.power, case.location, case.rotation)
+    light = lamp_over_floor(case.kind, case.power, case.location, case.rotation, SIZE)
     case.setup(light.data)
     scene = bpy.context.scene
     configure_cycles(scene, case.samples, bounces=case.bounces)
@@ -198,7 +176,7 @@ def test_blackbody_matches_blenders_temperature_colour(blender):
 def test_light_nodes_other_than_emission_warn_once(blender):
     """A light whose Emission takes its strength from a texture is rendered at its own power,
     with one warning that names it and the node."""
-    light = _scene("POINT", 100.0, (0, 0, 2), (0, 0, 0))
+    light = lamp_over_floor("POINT", 100.0, (0, 0, 2), (0, 0, 0), SIZE)
     data = light.data
     ensure_nodes(data)
     tree = data.node_tree
