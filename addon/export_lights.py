@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from functools import lru_cache
 from typing import NamedTuple
 
 import bpy
@@ -153,10 +154,17 @@ def ies_profile(node: bpy.types.ShaderNodeTexIES) -> IesProfile:
                                    f"({error.strerror or error}: Cycles lights it 100 times as "
                                    f"bright)") from error
     try:
-        return dataclasses.replace(parse_ies(text), edge=IES_SPLINE_EDGE)
+        return _read_profile(text)
     except IesError as error:
         raise UnsupportedNodes(f"its IES {source} is not a profile Cycles reads ({error}: "
                                f"Cycles lights it 100 times as bright)") from error
+
+
+@lru_cache(maxsize=64)
+def _read_profile(text: str) -> IesProfile:
+    """A profile read once per text: lamps that share a file share one profile, and so do
+    the exports of every frame (what ``light_profiles`` derives from it is cached by it)."""
+    return dataclasses.replace(parse_ies(text), edge=IES_SPLINE_EDGE)
 
 
 def _emission_color(node) -> tuple[float, float, float]:

@@ -19,11 +19,13 @@ class IesError(ValueError):
     """The text is not an IES profile Cycles can read; the message says why."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class IesProfile:
     """A light's intensity over directions: ``intensity[h, v]`` at horizontal angles
     ``h_angles`` (radians, 0 to 2π, the last equal to the first) and vertical angles
-    ``v_angles`` (radians from straight down, starting at 0 or π/2)."""
+    ``v_angles`` (radians from straight down, starting at 0 or π/2). Compared and hashed by
+    identity, so that what is derived from one (its mean, the shaders' grid, the path
+    sampler's table) is cached once for every light and frame that shares it."""
 
     h_angles: np.ndarray
     v_angles: np.ndarray

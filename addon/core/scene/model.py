@@ -13,6 +13,7 @@ from enum import StrEnum
 import numpy as np
 
 from .ies import IesProfile
+from .vectors import unit
 
 Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
 
@@ -239,10 +240,8 @@ class Light:
         """(3, 3) orthonormal columns: the light's own x, y and z axes in the world (its
         matrix's rotation without its scale); a direction d is ``d @ frame`` in its frame."""
         m = np.asarray(self.matrix, dtype=np.float64)[:3, :3]
-        x = m[:, 0] / max(np.linalg.norm(m[:, 0]), 1e-300)
-        z = m[:, 2] / max(np.linalg.norm(m[:, 2]), 1e-300)
-        y = np.cross(z, x)
-        return np.stack([x, y / max(np.linalg.norm(y), 1e-300), z], axis=1)
+        x, z = unit(m[:, 0]), unit(m[:, 2])
+        return np.stack([x, unit(np.cross(z, x)), z], axis=1)
 
     @property
     def world_area(self) -> float:

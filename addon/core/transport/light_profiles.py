@@ -5,6 +5,7 @@ turns a world direction into the profile's angles."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -36,10 +37,22 @@ class LightProfiles:
             profile: IesProfile = light.profile
             if profile.key not in first_row:
                 first_row[profile.key] = H_SAMPLES * len(blocks)
-                blocks.append(profile.grid(V_SAMPLES, H_SAMPLES))
+                blocks.append(_grid(profile))
             frames[k, :, :3] = light.frame.T
             frames[k, 0, 3] = first_row[profile.key]
         return LightProfiles(frames, np.concatenate(blocks).astype(np.float32), tuple(lights))
+
+
+@lru_cache(maxsize=64)
+def _grid(profile: IesProfile) -> np.ndarray:
+    """The shaders' grid of a profile (made once per profile, not per frame)."""
+    return profile.grid(V_SAMPLES, H_SAMPLES)
+
+
+@lru_cache(maxsize=64)
+def profile_sampler(profile: IesProfile) -> ProfileSampler:
+    """The path sampler of a profile (its table made once per profile, not per frame)."""
+    return ProfileSampler(profile)
 
 
 def profile_towards(light: Light, directions: np.ndarray) -> np.ndarray:

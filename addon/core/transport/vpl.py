@@ -35,7 +35,7 @@ from ..scene.model import Light, LightKind, Scene, World
 from ..scene.textures import LUMINANCE
 from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
-from .light_profiles import ProfileSampler, profile_towards
+from .light_profiles import profile_sampler, profile_towards
 from .lights import (
     KIND_COSINE,
     NO_SPOT,
@@ -172,7 +172,7 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
     if light.kind in (LightKind.POINT, LightKind.SPOT):
         intensity = color / (4 * np.pi)
         if light.kind is LightKind.POINT and light.profile is not None:
-            sampler = ProfileSampler(light.profile)
+            sampler = profile_sampler(light.profile)
 
             def sample_profile(u: np.ndarray) -> _Paths:
                 local, weight = sampler.sample(u[:, [0, 3, 4]])
