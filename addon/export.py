@@ -34,6 +34,7 @@ from .core.scene.model import (
     COVERAGE_INVERTED,
     DEFAULT_MATERIAL,
     RENDERED_OBJECT_TYPES,
+    Aperture,
     Camera,
     EnvironmentMap,
     Instance,
@@ -806,9 +807,6 @@ def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Objec
     if cam.data.type == "PANO":
         warnings.append(f"camera '{cam.name}' is panoramic, which VPL GI does not render: "
                         f"rendered as a perspective camera of the same lens")
-    if cam.data.dof.use_dof:
-        warnings.append(f"camera '{cam.name}': depth of field is not rendered (everything is "
-                        f"in focus)")
     if render.use_motion_blur:
         warnings.append("motion blur is not rendered (it is on in the Render Properties)")
     projection = cam.calc_matrix_camera(depsgraph, x=width, y=height,
@@ -816,7 +814,31 @@ def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Objec
                                         scale_y=render.pixel_aspect_y)
     view = _matrix(cam.matrix_world.inverted())
     return Camera(view, _matrix(projection), width, height,
-                  is_orthographic=cam.data.type == "ORTHO")
+                  is_orthographic=cam.data.type == "ORTHO", aperture=camera_aperture(cam))
+
+
+def camera_aperture(cam: bpy.types.Object) -> Aperture | None:
+    """The camera's lens for depth of field as Cycles sets it up (blender/camera.cpp): a
+    radius of lens / (2 f-stop) (orthographic: 1 / (2 f-stop)), focused at the focus
+    object's (or bone's) distance along the view, else the focus distance; None where depth
+    of field is off."""
+    dof = cam.data.dof
+    if not dof.use_dof:
+        return None
+    fstop = max(float(dof.aperture_fstop), 1e-5)
+    radius = 1.0 / (2.0 * fstop) if cam.data.type == "ORTHO" \
+        else float(cam.data.lens) * 1e-3 / (2.0 * fstop)
+    focus = float(dof.focus_distance)
+    target = dof.focus_object
+    if target is not None:
+        matrix = target.matrix_world
+        bone = getattr(dof, "focus_subtarget", "")
+        if target.pose is not None and bone and bone in target.pose.bones:
+            matrix = matrix @ target.pose.bones[bone].matrix
+        view_axis = cam.matrix_world.to_3x3().normalized().col[2]
+        focus = abs(view_axis.dot(cam.matrix_world.translation - matrix.translation))
+    return Aperture(radius, focus, int(dof.aperture_blades), float(dof.aperture_rotation),
+                    float(dof.aperture_ratio))
 
 
 def render_size(scene: bpy.types.Scene) -> tuple[int, int]:

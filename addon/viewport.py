@@ -18,7 +18,7 @@ from .core.gpu.gl import create_context
 from .core.scene.model import Camera
 from .core.settings import SettingsError
 from .core.viewport_session import Changes, Update, ViewportSession, classify, view_camera
-from .export import ExportCache, export_scene
+from .export import ExportCache, camera_aperture, export_scene
 from .preferences import chosen_device
 
 _sessions: weakref.WeakSet[ViewportSession] = weakref.WeakSet()
@@ -39,16 +39,22 @@ def depsgraph_updates(depsgraph: bpy.types.Depsgraph) -> list[Update]:
 
 def region_camera(context: bpy.types.Context) -> Camera:
     """The camera of the 3D viewport being drawn (its own view, or the scene camera's when
-    looking through it: Blender's region matrices cover both)."""
+    looking through it: Blender's region matrices cover both, and then, as in Cycles' viewport,
+    the camera's depth of field)."""
     region, view = context.region, context.region_data
-    return view_camera(np.array(view.view_matrix), np.array(view.window_matrix), region.width,
-                       region.height, view.is_perspective)
+    camera = view_camera(np.array(view.view_matrix), np.array(view.window_matrix),
+                         region.width, region.height, view.is_perspective)
+    scene_camera = context.scene.camera
+    if view.view_perspective == "CAMERA" and scene_camera is not None \
+            and scene_camera.type == "CAMERA":
+        camera.aperture = camera_aperture(scene_camera)
+    return camera
 
 
 def _same_camera(a: Camera | None, b: Camera) -> bool:
     return a is not None and (a.width, a.height) == (b.width, b.height) and \
         np.array_equal(a.view_matrix, b.view_matrix) and \
-        np.array_equal(a.projection_matrix, b.projection_matrix)
+        np.array_equal(a.projection_matrix, b.projection_matrix) and a.aperture == b.aperture
 
 
 class ViewportState:

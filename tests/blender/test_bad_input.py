@@ -82,6 +82,21 @@ def test_panoramic_camera_renders_as_perspective_with_a_warning(blender, tmp_pat
                         "as a perspective camera of the same lens"]
 
 
+@pytest.mark.parametrize("focus, fstop, expected", [
+    (0.0, 2.8, ["depth of field is not rendered: its focus distance is 0"]),
+    (4.0, 0.001, []),  # a lens wider than the scene: capped, with a note, not a warning
+])
+def test_depth_of_field_of_absurd_lenses_renders_a_finite_frame(blender, tmp_path, focus, fstop,
+                                                                expected):
+    bpy = blender
+    scene, _ = lit_plane_scene(bpy)
+    dof = scene.camera.data.dof
+    dof.use_dof, dof.focus_distance, dof.aperture_fstop = True, focus, fstop
+    frame, warnings = render(scene, tmp_path)
+    assert warnings == expected
+    assert frame[..., :3].mean() > 0.01
+
+
 @pytest.mark.parametrize("energy, warning", [
     (-5.0, "light 'PointLight' has negative power (-5 W): rendered as 0 W"),
     (float("inf"), "light 'PointLight' has NaN/Inf settings or transform and was left out"),

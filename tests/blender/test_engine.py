@@ -29,6 +29,7 @@ def test_engine_is_listed_and_its_panels_show(blender):
     assert "VPL_GI" in bpy.types.RENDER_PT_color_management.COMPAT_ENGINES
     assert "VPL_GI" in bpy.types.EEVEE_MATERIAL_PT_surface.COMPAT_ENGINES
     assert "VPL_GI" in bpy.types.DATA_PT_EEVEE_light.COMPAT_ENGINES
+    assert "VPL_GI" in bpy.types.DATA_PT_camera_dof_aperture.COMPAT_ENGINES
     assert bpy.types.RENDER_PT_vpl_gi.poll(bpy.context)
 
 

@@ -52,13 +52,13 @@ def viewport_context(scene, depsgraph, width: int, height: int,
     region_data = SimpleNamespace(
         view_matrix=np.array(camera.matrix_world.inverted()),
         window_matrix=np.array(camera.calc_matrix_camera(depsgraph, x=width, y=height)),
-        is_perspective=perspective)
+        is_perspective=perspective, view_perspective="CAMERA")
     return SimpleNamespace(region=SimpleNamespace(width=width, height=height),
                            region_data=region_data, scene=scene)
 
 
 def test_view_update_and_view_draw(blender, monkeypatch):
-    from addon.viewport import ViewportState
+    from addon.viewport import ViewportState, region_camera
 
     calls: list = []
     gpu, presets = fake_gpu(calls)
@@ -90,6 +90,16 @@ def test_view_update_and_view_draw(blender, monkeypatch):
         assert state.session.records[-1].kind == "camera"
         assert state.session.wait_idle(300)
         assert "vpl generation" in state.session.records[-1].skipped
+
+        scene.camera.data.dof.use_dof = True  # seen through the camera: Cycles' viewport blurs
+        assert region_camera(context).aperture.focus_distance == \
+            scene.camera.data.dof.focus_distance
+        state.draw(engine, context)
+        assert state.session.records[-1].kind == "camera"
+        assert state.session.wait_idle(300) and state.session.error is None
+        assert "depth of field" in state.session.records[-1].ran
+        region_data.view_perspective = "PERSP"  # the user's own view: in focus
+        assert region_camera(context).aperture is None
     finally:
         state.close()
     assert not state.session.alive

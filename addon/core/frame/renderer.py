@@ -19,6 +19,7 @@ from ..transport.vpl import VPLs
 from .automatic import ChooseParameters
 from .budget import render_budget
 from .denoise import Denoise, PlanDenoise
+from .depth_of_field import DepthOfField, PlanDepthOfField
 from .gpu_session import GpuSession
 from .image import RenderImage
 from .progressive import PassReport, render_passes
@@ -61,8 +62,8 @@ class Renderer:
         self.stages: list[Stage] = [
             CheckInput(self.gpu), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
-            PlanLightPasses(self.gpu, self.kept), PlanDenoise(), RenderImage(self.gpu, self.kept),
-            Denoise(), Sanitize(),
+            PlanLightPasses(self.gpu, self.kept), PlanDenoise(), PlanDepthOfField(),
+            RenderImage(self.gpu, self.kept), Denoise(), DepthOfField(), Sanitize(),
         ]
 
     def render(self, scene: Scene, settings: Settings, progress: ProgressCallback | None = None,

@@ -283,16 +283,30 @@ class World:
         return np.asarray(self.color, dtype=np.float64) * self.strength
 
 
+@dataclass(frozen=True)
+class Aperture:
+    """A camera's thin lens for depth of field, as Cycles samples it: a disc (or a regular
+    polygon of ``blades`` corners turned by ``rotation``) of ``radius`` in scene units, its
+    width divided by ``ratio`` (anamorphic), focused at ``focus_distance`` along the view."""
+
+    radius: float
+    focus_distance: float
+    blades: int = 0  # under 3: a disc
+    rotation: float = 0.0  # radians
+    ratio: float = 1.0
+
+
 @dataclass
 class Camera:
     """A camera as OpenGL matrices (Blender computes the projection, including sensor fit and
-    shift), plus the output resolution in pixels."""
+    shift), plus the output resolution in pixels and, for depth of field, its aperture."""
 
     view_matrix: Matrix4  # world -> camera (camera looks along -Z)
     projection_matrix: Matrix4  # camera -> clip, OpenGL convention
     width: int
     height: int
     is_orthographic: bool = False
+    aperture: Aperture | None = None  # None: everything in focus (a pinhole)
 
     @property
     def position(self) -> np.ndarray:
