@@ -121,3 +121,18 @@ def test_a_frame_is_defocused_in_place_with_the_border_extended_and_data_passes_
 def test_an_aperture_that_cannot_be_rendered_says_why(aperture, why):
     assert aperture_problem(aperture) == why
     assert aperture_problem(DISC) is None
+
+
+def test_the_blur_stops_between_slices_when_asked():
+    coc = np.linspace(-20, 20, 64, dtype=np.float32)[None, :].repeat(32, axis=0)
+    lens = Defocus(coc, DISC, 1.0)
+    calls = []
+
+    def stop() -> None:
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        lens.apply(np.ones((32, 64, 3), np.float32), stop)
+    assert len(calls) == 3 < len(lens.slices)

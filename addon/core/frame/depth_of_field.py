@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -159,15 +160,18 @@ class Defocus:
             self.slices.append((np.stack([members[region], nearer], axis=-1).astype(np.float32),
                                 region, radius))
 
-    def apply(self, image: np.ndarray) -> np.ndarray:
+    def apply(self, image: np.ndarray, between: Callable[[], None] = lambda: None
+              ) -> np.ndarray:
         """``image`` (h, w, c), premultiplied where it has alpha, seen through the lens (the
-        image's border repeated outwards, to stand for what lies beyond it)."""
+        image's border repeated outwards, to stand for what lies beyond it); ``between`` is
+        called before each slice (it may raise to stop)."""
         m = self.margin
         image = np.pad(image, ((m, m), (m, m), (0, 0)), mode="edge")
         h, w, c = image.shape
         light = np.zeros((h, w, c), np.float32)
         coverage = np.zeros((h, w), np.float32)
         for masks, region, radius in self.slices:
+            between()
             layer = np.concatenate([image[region] * masks[..., :1], masks], axis=2)
             if radius != 0.0:
                 layer = _blur(layer, radius, self.aperture, self.aspect)
@@ -184,8 +188,10 @@ class Defocus:
         return result[m:h - m, m:w - m]
 
 
-def defocus_frame(output: dict[str, np.ndarray], camera: Camera, notes: list[str]) -> None:
-    """Blur BLURRED_PASSES of ``output`` in place by the camera's aperture, from its Depth."""
+def defocus_frame(output: dict[str, np.ndarray], camera: Camera, notes: list[str],
+                  between: Callable[[], None] = lambda: None) -> None:
+    """Blur BLURRED_PASSES of ``output`` in place by the camera's aperture, from its Depth;
+    ``between`` is called before each slice of each pass (it may raise to stop)."""
     coc = circle_of_confusion(output["Depth"][..., 0], camera)
     limit = MAX_RADIUS_SHARE * max(camera.width, camera.height)
     widest = float(np.abs(coc).max()) if coc.size else 0.0
@@ -199,7 +205,7 @@ def defocus_frame(output: dict[str, np.ndarray], camera: Camera, notes: list[str
     with scipy.fft.set_workers(os.cpu_count() or 1):  # the GPU is idle by now
         for name in BLURRED_PASSES:
             if name in output:
-                output[name] = lens.apply(output[name])
+                output[name] = lens.apply(output[name], between)
 
 
 def aperture_problem(aperture: Aperture) -> str | None:
@@ -241,7 +247,8 @@ class DepthOfField(Stage):
         aperture = frame.camera.aperture
         if aperture is None or aperture.radius <= 0 or "Depth" not in frame.output:
             return
+        frame.report(1.0, "Depth of field")
         with frame.stats.timed(self.name):
-            defocus_frame(frame.output, frame.camera, frame.stats.notes)
+            defocus_frame(frame.output, frame.camera, frame.stats.notes, frame.check_cancelled)
         if frame.passes is not None and "Depth" not in frame.passes:
             del frame.output["Depth"]
