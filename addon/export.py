@@ -28,6 +28,7 @@ from .blender_read import (
     triangle_faces,
     volume_linked,
 )
+from .core.frame.panorama import KINDS as PANORAMA_KINDS
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
 from .core.scene.model import (
@@ -41,6 +42,7 @@ from .core.scene.model import (
     Light,
     Material,
     Mesh,
+    Panorama,
     Scene,
     World,
 )
@@ -804,9 +806,17 @@ def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Objec
     render = depsgraph.scene_eval.render
     cam = camera_object.evaluated_get(depsgraph)
     check_camera(cam)
-    if cam.data.type == "PANO":
-        warnings.append(f"camera '{cam.name}' is panoramic, which VPL GI does not render: "
+    panorama = camera_panorama(cam, width * render.pixel_aspect_x,
+                               height * render.pixel_aspect_y)
+    if cam.data.type == "PANO" and panorama is None:
+        warnings.append(f"camera '{cam.name}': its panorama type "
+                        f"{cam.data.panorama_type.replace('_', ' ').title()} is not rendered: "
                         f"rendered as a perspective camera of the same lens")
+    aperture = camera_aperture(cam)
+    if panorama is not None and aperture is not None:
+        warnings.append(f"camera '{cam.name}': depth of field is not rendered for a "
+                        f"panoramic camera")
+        aperture = None
     if render.use_motion_blur:
         warnings.append("motion blur is not rendered (it is on in the Render Properties)")
     projection = cam.calc_matrix_camera(depsgraph, x=width, y=height,
@@ -814,7 +824,22 @@ def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Objec
                                         scale_y=render.pixel_aspect_y)
     view = _matrix(cam.matrix_world.inverted())
     return Camera(view, _matrix(projection), width, height,
-                  is_orthographic=cam.data.type == "ORTHO", aperture=camera_aperture(cam))
+                  is_orthographic=cam.data.type == "ORTHO", aperture=aperture,
+                  panorama=panorama)
+
+
+def camera_panorama(cam: bpy.types.Object, fit_x: float, fit_y: float) -> Panorama | None:
+    """A panoramic camera's lens (the types frame/panorama.py renders; else None), its
+    fisheye sensor fitted to the image (``fit_x`` × ``fit_y``) as Cycles fits it."""
+    data = cam.data
+    if data.type != "PANO" or data.panorama_type not in PANORAMA_KINDS:
+        return None
+    horizontal = fit_x > fit_y if data.sensor_fit == "AUTO" else data.sensor_fit == "HORIZONTAL"
+    size = data.sensor_height if data.sensor_fit == "VERTICAL" else data.sensor_width
+    sensor = (size, size * fit_y / fit_x) if horizontal else (size * fit_x / fit_y, size)
+    return Panorama(data.panorama_type, data.latitude_min, data.latitude_max,
+                    data.longitude_min, data.longitude_max, data.fisheye_fov, data.fisheye_lens,
+                    *sensor)
 
 
 def camera_aperture(cam: bpy.types.Object) -> Aperture | None:

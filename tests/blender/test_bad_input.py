@@ -73,13 +73,15 @@ def test_camera_that_cannot_be_rendered_from_is_one_clear_error(blender, tmp_pat
     assert render_error(scene, tmp_path).startswith(message)
 
 
-def test_panoramic_camera_renders_as_perspective_with_a_warning(blender, tmp_path):
+def test_a_panorama_type_not_rendered_renders_as_perspective_with_a_warning(blender,
+                                                                           tmp_path):
     bpy = blender
     scene, _ = lit_plane_scene(bpy)
     scene.camera.data.type = "PANO"
+    scene.camera.data.panorama_type = "FISHEYE_LENS_POLYNOMIAL"
     _, warnings = render(scene, tmp_path)
-    assert warnings == ["camera 'Camera' is panoramic, which VPL GI does not render: rendered "
-                        "as a perspective camera of the same lens"]
+    assert warnings == ["camera 'Camera': its panorama type Fisheye Lens Polynomial is not "
+                        "rendered: rendered as a perspective camera of the same lens"]
 
 
 @pytest.mark.parametrize("focus, fstop, expected", [

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import moderngl
@@ -16,13 +17,14 @@ from ..scene.model import Scene
 from ..settings import Settings
 from ..transport.incremental import IncrementalVPLs
 from ..transport.vpl import VPLs
+from . import panorama
 from .automatic import ChooseParameters
 from .budget import render_budget
 from .denoise import Denoise, PlanDenoise
 from .depth_of_field import DepthOfField, PlanDepthOfField
 from .gpu_session import GpuSession
 from .image import RenderImage
-from .progressive import PassReport, render_passes
+from .progressive import PassReport, merge_stats, render_passes
 from .result import Frame, Stats
 from .reuse import KeptProducts
 from .stages import (
@@ -45,6 +47,9 @@ from .state import (
 from .vpl_stage import MakeVPLs
 
 __all__ = ["RenderCancelled", "RenderError", "Renderer"]
+
+PANORAMA_NOT_AUTOMATIC = ("automatic parameters are not applied to a panoramic camera: "
+                          "rendered with the settings as set")
 
 
 class Renderer:
@@ -75,15 +80,61 @@ class Renderer:
         last_index, paths_end = self._last_pass
         first_path = paths_end if pass_index and last_index == pass_index - 1 else \
             pass_index * settings.vpl_count  # passes of N paths before it elsewhere (viewport)
+        report = progress or (lambda _f, _m: None)
+        check = cancelled or (lambda: False)
+        if scene.camera is not None and scene.camera.panorama is not None:
+            image, stats, paths = self._render_panorama(scene, settings, report, check, passes,
+                                                        pass_index, first_path)
+        else:
+            image, stats, paths = self._render_view(scene, settings, report, check, passes,
+                                                    pass_index, first_path)
+        self._last_pass = (pass_index, first_path + paths)
+        return image, stats
+
+    def _render_view(self, scene: Scene, settings: Settings, progress: ProgressCallback,
+                     cancelled: CancelCallback, passes: frozenset[str] | None, pass_index: int,
+                     first_path: int) -> tuple[Frame, Stats, int]:
+        """One view through the stages: its frame, stats and light paths traced."""
         frame = FrameState(scene, settings, passes, Stats(warnings=list(scene.warnings)),
-                           progress or (lambda _f, _m: None), cancelled or (lambda: False),
-                           pass_index=pass_index, first_path=first_path)
+                           progress, cancelled, pass_index=pass_index, first_path=first_path)
         with single_threaded_blas():  # no spinning BLAS thread takes a core from the driver
             for stage in self.stages:
                 frame.check_cancelled()  # Esc in Blender: also between the long stages
                 stage.run(frame)
-        self._last_pass = (pass_index, first_path + frame.settings.vpl_count)
-        return Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats
+        return (Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats,
+                frame.settings.vpl_count)
+
+    def _render_panorama(self, scene: Scene, settings: Settings, progress: ProgressCallback,
+                         cancelled: CancelCallback, passes: frozenset[str] | None,
+                         pass_index: int, first_path: int) -> tuple[Frame, Stats, int]:
+        """A panoramic camera's frame from the cube faces its image looks through
+        (panorama.py), each with the same light paths; camera guidance is off, since it would
+        keep other VPLs for each face (seams)."""
+        camera = scene.camera
+        if settings.auto_parameters != "off":  # it would choose for each face alike
+            settings = replace(settings, auto_parameters="off")
+            scene = replace(scene, warnings=[*scene.warnings, PANORAMA_NOT_AUTOMATIC])
+        rays = panorama.pixel_directions(camera.panorama, camera.width, camera.height)
+        needed = panorama.needed_faces(rays)
+        if not needed:
+            raise RenderError("the panoramic camera sees nothing: its lens covers no angle")
+        size = panorama.face_size(camera.panorama, camera.width, camera.height)
+        views = panorama.face_cameras(camera, size, needed)
+        face_settings = replace(settings, vpl_guidance="off")
+        faces, total, paths = {}, Stats(), 0
+        for n, (k, view) in enumerate(zip(needed, views, strict=True)):
+            def face_progress(fraction: float, message: str, n: int = n) -> None:
+                progress((n + fraction) / len(needed), f"View {n + 1}/{len(needed)} | {message}")
+
+            frame, stats, paths = self._render_view(replace(scene, camera=view), face_settings,
+                                                    face_progress, cancelled, passes,
+                                                    pass_index, first_path)
+            faces[k] = frame.passes
+            merge_stats(total, stats)
+        total.counts["views"] = len(needed)
+        total.notes.append(f"panorama from {len(needed)} views of {views[0].width} px")
+        image = panorama.resample(faces, size, rays)
+        return Frame(camera.width, camera.height, image), total, paths
 
     def render_progressive(self, scene: Scene, settings: Settings,
                            progress: ProgressCallback | None = None,
@@ -95,6 +146,10 @@ class Renderer:
         automatic mode 'time' passes until the budget is spent (budget.py), with ``on_pass``
         called after each."""
         settings.validate()
+        panoramic = scene.camera is not None and scene.camera.panorama is not None
+        if panoramic and settings.auto_parameters != "off":
+            settings = replace(settings, auto_parameters="off")
+            scene = replace(scene, warnings=[*scene.warnings, PANORAMA_NOT_AUTOMATIC])
 
         def one_pass(scene: Scene, settings: Settings, index: int,
                      progress: ProgressCallback, cancelled: CancelCallback

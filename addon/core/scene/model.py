@@ -7,6 +7,7 @@ sun, radiance for emission and the world.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -296,6 +297,22 @@ class Aperture:
     ratio: float = 1.0
 
 
+@dataclass(frozen=True)
+class Panorama:
+    """A panoramic camera's lens as Cycles reads it (``kind``: Blender's panorama_type; angles
+    in radians, lens and sensor in mm)."""
+
+    kind: str
+    latitude_min: float = -math.pi / 2
+    latitude_max: float = math.pi / 2
+    longitude_min: float = -math.pi
+    longitude_max: float = math.pi
+    fisheye_fov: float = math.pi
+    fisheye_lens: float = 10.5
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+
+
 @dataclass
 class Camera:
     """A camera as OpenGL matrices (Blender computes the projection, including sensor fit and
@@ -307,6 +324,7 @@ class Camera:
     height: int
     is_orthographic: bool = False
     aperture: Aperture | None = None  # None: everything in focus (a pinhole)
+    panorama: Panorama | None = None  # rendered from six views (frame/panorama.py)
 
     @property
     def position(self) -> np.ndarray:
