@@ -18,7 +18,7 @@ from tests.blender.rendering import (
     add_primitive,
     add_sun,
     assert_near_cycles,
-    configure_cycles,
+    cycles_and_ours,
     plain_world,
     render_linear,
     shader_material,
@@ -81,10 +81,7 @@ def depth_scene(focus: float, fstop: float, blades: int) -> bpy.types.Object:
 def test_depth_of_field_as_in_cycles(blender, tmp_path, focus, blades, bounds):
     camera = depth_scene(focus, 0.125, blades)
     scene = bpy.context.scene
-    configure_cycles(scene, 256)
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = 0, 4
-    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    reference, ours = cycles_and_ours(scene, tmp_path, 256, 0)
     camera.data.dof.use_dof = False
     sharp = render_linear(scene, "VPL_GI", tmp_path / "sharp.exr")
     assert_near_cycles(f"depth of field, focus {focus} m, {blades} blades", ours, reference,

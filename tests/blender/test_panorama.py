@@ -16,7 +16,7 @@ from tests.blender.rendering import (
     add_primitive,
     add_sun,
     assert_near_cycles,
-    configure_cycles,
+    cycles_and_ours,
     plain_world,
     render_linear,
     shader_material,
@@ -56,10 +56,7 @@ def test_panoramic_cameras_as_in_cycles(blender, tmp_path, kind, width, height, 
                                         bounds):
     camera = panorama_scene(kind, width, height)
     scene = bpy.context.scene
-    configure_cycles(scene, 128, bounces=bounces)
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    scene.vpl_gi.bounces, scene.vpl_gi.antialiasing = bounces, 4
-    ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")
+    reference, ours = cycles_and_ours(scene, tmp_path, 128, bounces)
     camera.data.type = "PERSP"
     perspective = render_linear(scene, "VPL_GI", tmp_path / "perspective.exr")
     assert_near_cycles(f"{kind.lower()} panorama, {bounces} bounces", ours, reference, bounds,
