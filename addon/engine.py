@@ -36,6 +36,8 @@ OPTIONAL_PASSES = {
     "GlossInd": (3, "RGB", "COLOR", "use_pass_glossy_indirect"),
     "GlossCol": (3, "RGB", "COLOR", "use_pass_glossy_color"),
     "Emit": (3, "RGB", "COLOR", "use_pass_emit"),
+    "Mist": (1, "Z", "VALUE", "use_pass_mist"),
+    "Position": (3, "XYZ", "VECTOR", "use_pass_position"),
     "Denoising Normal": (3, "XYZ", "VECTOR", DENOISING_DATA),
     "Denoising Albedo": (3, "RGB", "COLOR", DENOISING_DATA),
     "Denoising Depth": (1, "Z", "VALUE", DENOISING_DATA),

@@ -42,6 +42,7 @@ from .core.scene.model import (
     Light,
     Material,
     Mesh,
+    Mist,
     Panorama,
     Scene,
     World,
@@ -1103,4 +1104,15 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),
                                   result.warnings)
+    if scene_eval.world is not None:
+        result.mist = export_mist(scene_eval.world.mist_settings)
     return result
+
+
+MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}
+
+
+def export_mist(settings: bpy.types.WorldMistSettings) -> Mist:
+    """The world's mist settings (the Mist pass) as Cycles reads them."""
+    return Mist(float(settings.start), float(settings.depth),
+                MIST_FALLOFF.get(settings.falloff, 2.0))

@@ -11,12 +11,12 @@ from . import ENGINE_ID
 from .core.settings import SCHEMA, SECTIONS, Section, applies
 
 # Panels written for EEVEE that show what this engine reads (material surface, world colour,
-# light settings, the camera's depth of field); generic panels (format, output, colour
-# management, ...) are found by their "BLENDER_RENDER" compatibility, Blender's marker for
-# panels any engine can use.
+# light settings, the camera's depth of field, the Mist pass's settings); generic panels
+# (format, output, colour management, ...) are found by their "BLENDER_RENDER" compatibility,
+# Blender's marker for panels any engine can use.
 _EXTRA_PANELS = ("EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface",
                  "EEVEE_WORLD_PT_surface", "DATA_PT_EEVEE_light", "DATA_PT_camera_dof",
-                 "DATA_PT_camera_dof_aperture")
+                 "DATA_PT_camera_dof_aperture", "EEVEE_WORLD_PT_mist")
 _EXCLUDED_PREFIXES = ("RENDER_PT_eevee", "DATA_PT_lightprobe", "EEVEE_MATERIAL_PT_viewport",
                       "RENDER_PT_simplify", "RENDER_PT_post_processing")
 

@@ -17,7 +17,8 @@ from tests.blender.rendering import open_scene, render_linear
 from tests.blender.versions import compositor_output
 
 PASS_TOGGLES = ("use_pass_z", "use_pass_normal", "use_pass_diffuse_direct",
-                "use_pass_diffuse_indirect", "use_pass_diffuse_color", "use_pass_emit")
+                "use_pass_diffuse_indirect", "use_pass_diffuse_color", "use_pass_emit",
+                "use_pass_mist", "use_pass_position")
 
 
 def test_engine_is_listed_and_its_panels_show(blender):
@@ -30,6 +31,7 @@ def test_engine_is_listed_and_its_panels_show(blender):
     assert "VPL_GI" in bpy.types.EEVEE_MATERIAL_PT_surface.COMPAT_ENGINES
     assert "VPL_GI" in bpy.types.DATA_PT_EEVEE_light.COMPAT_ENGINES
     assert "VPL_GI" in bpy.types.DATA_PT_camera_dof_aperture.COMPAT_ENGINES
+    assert "VPL_GI" in bpy.types.EEVEE_WORLD_PT_mist.COMPAT_ENGINES
     assert bpy.types.RENDER_PT_vpl_gi.poll(bpy.context)
 
 
@@ -47,7 +49,7 @@ def test_passes_are_registered_under_blender_names(blender):
         node = tree.nodes.new("CompositorNodeRLayers")
         outputs[engine] = {socket.name for socket in node.outputs if socket.enabled}
     assert outputs["VPL_GI"] == outputs["CYCLES"]
-    assert len(outputs["VPL_GI"]) == 2 + len(PASS_TOGGLES)  # Image, Alpha and the six
+    assert len(outputs["VPL_GI"]) == 2 + len(PASS_TOGGLES)  # Image, Alpha and the eight
 
 
 def test_compositor_receives_the_diffuse_colour_pass(blender, tmp_path):

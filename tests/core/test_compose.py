@@ -6,6 +6,7 @@ import numpy as np
 
 from addon.core.frame.compose import BACKGROUND_DEPTH, SEEN_THROUGH, compose
 from addon.core.frame.result import PASS_CHANNELS
+from addon.core.scene.model import Camera, Mist
 
 AA, H, W = 2, 4, 6  # a 4×6 supersampled tile: 2×3 pixels
 
@@ -78,3 +79,23 @@ def test_through_clear_surfaces_colour_passes_are_dimmed_and_holdouts_get_nothin
     for name in passes - {"Depth"}:
         np.testing.assert_allclose(output[name][0, 2], 0.0, err_msg=name)
     np.testing.assert_allclose(output["Depth"][0, :, 0], [2.0, 4.0, BACKGROUND_DEPTH])
+
+
+def test_mist_is_cycles_distance_falloff_and_position_the_surface_s():
+    """Mist (the camera at the origin, start 1 m, depth 4 m, quadratic): per supersample
+    ((|p| - 1) / 4)² clamped, 1 where no surface is, averaged over each pixel's supersamples;
+    Position the world position at each pixel's centre, 0 on the background."""
+    gbuffer = tile_gbuffer()
+    gbuffer["position"][..., :3] = 0.0
+    gbuffer["position"][..., 2] = np.linspace(0.5, 6.0, W, dtype=np.float32)[None, :]
+    camera = Camera(np.eye(4), np.eye(4), W // AA, H // AA)
+    output = empty_output()
+    compose(output, gbuffer, lambda: None, AA, 0, 0, frozenset({"Mist", "Position"}),
+            view=(camera, Mist(1.0, 4.0, 2.0)))
+    per_sample = np.clip((np.linspace(0.5, 6.0, W) - 1.0) / 4.0, 0.0, 1.0) ** 2
+    np.testing.assert_allclose(output["Mist"][0, :, 0], per_sample.reshape(3, 2).mean(axis=1),
+                               rtol=1e-6)
+    np.testing.assert_allclose(output["Mist"][1], 1.0)  # no surface
+    np.testing.assert_allclose(output["Position"][0, :, 2],  # AA 2: the 2 × 2's mean
+                               np.linspace(0.5, 6.0, W).reshape(3, 2).mean(axis=1), rtol=1e-6)
+    np.testing.assert_allclose(output["Position"][1], 0.0)

@@ -7,11 +7,12 @@ from functools import cache
 
 import numpy as np
 
+from ..scene.model import Camera, Mist
 from .result import Stats
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
 COMPOSED_PASSES = frozenset({"DiffDir", "DiffInd", "DiffCol", "Emit", "Normal", "GlossDir",
-                             "GlossInd", "GlossCol", "Depth"})
+                             "GlossInd", "GlossCol", "Depth", "Mist", "Position"})
 """The passes ``compose`` writes from the supersamples read back."""
 SEEN_THROUGH = frozenset({"DiffCol", "GlossCol", "Emit"})
 """The passes clear surfaces in front dim, as Cycles writes them (measured, 4.5: through a
@@ -54,10 +55,32 @@ def _per_colour(radiance: np.ndarray, color: np.ndarray) -> np.ndarray:
     return np.where(color > 0, radiance / safe, 0.0)
 
 
+def central(image: np.ndarray, factor: int) -> np.ndarray:
+    """Each factor × factor block's centre of an (h, w, c) image: its middle element, or the
+    mean of the middle 2 × 2 for an even factor."""
+    h, w, c = image.shape
+    blocks = image.reshape(h // factor, factor, w // factor, factor, c)
+    middle = slice((factor - 1) // 2, factor // 2 + 1)
+    return blocks[:, middle, :, middle].mean(axis=(1, 3))
+
+
+def mist(position: np.ndarray, covered: np.ndarray, camera: Camera, settings: Mist
+         ) -> np.ndarray:
+    """Cycles' Mist pass per supersample (h, w, 1): the distance from the camera (along the
+    view, orthographic) from ``settings.start`` over ``settings.depth``, clamped to [0, 1]
+    and raised to the falloff; 1 where no surface is (``covered`` 0)."""
+    offset = position[..., :3] - camera.position
+    distance = offset @ camera.forward if camera.is_orthographic \
+        else np.linalg.norm(offset, axis=-1)
+    value = np.clip((distance - settings.start) / max(settings.depth, 1e-12), 0.0, 1.0)
+    value = value ** settings.falloff
+    return np.where(covered > 0, value[..., None], 1.0).astype(np.float32)
+
+
 def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
             read_light: Callable[[], tuple[np.ndarray, np.ndarray]], aa: int, x0: int, y0: int,
             passes: frozenset[str], read_transmittance: Callable[[], np.ndarray] | None = None,
-            holdouts: bool = False) -> None:
+            holdouts: bool = False, view: tuple[Camera, Mist] | None = None) -> None:
     """Write one supersampled tile's ``passes`` (of COMPOSED_PASSES; Combined is composed on
     the GPU, gpu/combined.py) into ``output`` at output resolution. ``read_light`` returns
     the direct and indirect light, (h, w, 4) diffuse or (h, w, 8) with glossy radiance in
@@ -65,7 +88,10 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
     others come from the g-buffer alone). ``read_transmittance``: what clear surfaces in
     front let through to each supersample (h, w, 4), which dims SEEN_THROUGH; with
     ``holdouts``, the supersamples of holdouts (the g-buffer's geometric.w) get nothing, as
-    the background does (Cycles writes no pass there)."""
+    the background does (Cycles writes no pass there). Depth is the nearest
+    supersample's and Position its pixel centre's (Cycles writes both from a pixel's first
+    sample, measured at its centre: ``central``). ``view``: the pass's camera and the
+    mist settings, for the Mist pass."""
     covered = gbuffer["normal"][..., 3:4]
     seen_surface = None  # with holdouts: the supersamples whose passes are written
     if holdouts:
@@ -93,6 +119,10 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
             if seen_surface is not None:
                 values = values * seen_surface
             output[name][region] = downsample(values, aa)
+    if "Mist" in passes and view is not None:  # the background's (and holdouts') is 1
+        output["Mist"][region] = downsample(mist(gbuffer["position"], covered, *view), aa)
+    if "Position" in passes:
+        output["Position"][region] = central(gbuffer["position"][..., :3] * covered, aa)
     if "Depth" in passes:
         depth = np.where(covered > 0, gbuffer["position"][..., 3:4], BACKGROUND_DEPTH)
         output["Depth"][region] = depth.reshape(h, aa, w, aa, 1).min(axis=(1, 3))

@@ -353,7 +353,8 @@ class ComposeStage(TileStage):
                 through = None if work.transmittance is None else \
                     partial(read_textures, [work.transmittance])
                 compose(frame.output, work.gbuffer.images, partial(read_light, work), aa,
-                        tile.x0, tile.y0, others, through, holdouts)
+                        tile.x0, tile.y0, others, through, holdouts,
+                        (frame.camera, frame.scene.mist))
 
 
 def read_light(work: TileWork) -> tuple[np.ndarray, np.ndarray]:

@@ -82,12 +82,12 @@ class Renderer:
             pass_index * settings.vpl_count  # passes of N paths before it elsewhere (viewport)
         report = progress or (lambda _f, _m: None)
         check = cancelled or (lambda: False)
-        if scene.camera is not None and scene.camera.panorama is not None:
-            image, stats, paths = self._render_panorama(scene, settings, report, check, passes,
-                                                        pass_index, first_path)
-        else:
-            image, stats, paths = self._render_view(scene, settings, report, check, passes,
-                                                    pass_index, first_path)
+        render = self._render_panorama if scene.camera is not None \
+            and scene.camera.panorama is not None else self._render_view
+        with self.gpu.ctx:  # current for the frame (Blender 5's compositor makes its own
+            # current in this thread), the caller's again after it
+            image, stats, paths = render(scene, settings, report, check, passes, pass_index,
+                                         first_path)
         self._last_pass = (pass_index, first_path + paths)
         return image, stats
 
@@ -163,8 +163,9 @@ class Renderer:
 
     def release(self) -> None:
         """Release every GPU object (the context stays the caller's)."""
-        self.gpu.release()
-        self.forget_frames()
+        with self.gpu.ctx:
+            self.gpu.release()
+            self.forget_frames()
 
     def forget_frames(self) -> None:
         """Drop everything reused between frames; the next frame starts afresh."""

@@ -11,7 +11,7 @@ import numpy as np
 
 PASS_CHANNELS = {
     "Combined": 4, "Depth": 1, "Normal": 3, "DiffDir": 3, "DiffInd": 3, "DiffCol": 3,
-    "GlossDir": 3, "GlossInd": 3, "GlossCol": 3, "Emit": 3,
+    "GlossDir": 3, "GlossInd": 3, "GlossCol": 3, "Emit": 3, "Mist": 1, "Position": 3,
     "Denoising Normal": 3, "Denoising Albedo": 3, "Denoising Depth": 1,
 }
 """Blender's pass names and channel counts, in the order the engine registers them."""

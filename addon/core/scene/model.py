@@ -345,6 +345,16 @@ class Camera:
                 "u_orthographic": self.is_orthographic}
 
 
+@dataclass(frozen=True)
+class Mist:
+    """The world's mist settings for the Mist pass: 0 at ``start`` from the camera, 1 at
+    ``start + depth``, raised to ``falloff`` (2 quadratic, 1 linear, 0.5 inverse quadratic)."""
+
+    start: float = 5.0
+    depth: float = 25.0
+    falloff: float = 2.0
+
+
 @dataclass
 class Scene:
     """Everything one frame needs."""
@@ -358,6 +368,7 @@ class Scene:
     notes: list[str] = field(default_factory=list)  # informational, not problems
     portals: list[Light] = field(default_factory=list)  # area lights marked Portal (Cycles):
     # openings that world light enters through; they emit nothing themselves
+    mist: Mist = field(default_factory=Mist)
 
     @property
     def surface_lights(self) -> list[Light]:
