@@ -33,7 +33,7 @@ def test_passes_of_the_gbuffer_alone_read_no_light_back():
 
     output, gbuffer = empty_output(), tile_gbuffer()
     compose(output, gbuffer, read_light, AA, 0, 0, frozenset({"Depth", "Normal", "DiffCol"}))
-    np.testing.assert_allclose(output["Depth"][0, :, 0], [2.0, 4.0, 6.0])
+    np.testing.assert_allclose(output["Depth"][0, :, 0], [3.0, 5.0, 7.0])  # the centre's
     np.testing.assert_allclose(output["Depth"][1, :, 0], BACKGROUND_DEPTH)
     albedo = gbuffer["albedo"][..., :3].reshape(H // AA, AA, W // AA, AA, 3).mean(axis=(1, 3))
     np.testing.assert_allclose(output["DiffCol"], albedo, rtol=1e-6)
@@ -78,7 +78,7 @@ def test_through_clear_surfaces_colour_passes_are_dimmed_and_holdouts_get_nothin
     np.testing.assert_allclose(output["DiffDir"][0, :2], 0.5)
     for name in passes - {"Depth"}:
         np.testing.assert_allclose(output[name][0, 2], 0.0, err_msg=name)
-    np.testing.assert_allclose(output["Depth"][0, :, 0], [2.0, 4.0, BACKGROUND_DEPTH])
+    np.testing.assert_allclose(output["Depth"][0, :, 0], [3.0, 5.0, BACKGROUND_DEPTH])
 
 
 def test_mist_is_cycles_distance_falloff_and_position_the_surface_s():
@@ -96,6 +96,6 @@ def test_mist_is_cycles_distance_falloff_and_position_the_surface_s():
     np.testing.assert_allclose(output["Mist"][0, :, 0], per_sample.reshape(3, 2).mean(axis=1),
                                rtol=1e-6)
     np.testing.assert_allclose(output["Mist"][1], 1.0)  # no surface
-    np.testing.assert_allclose(output["Position"][0, :, 2],  # AA 2: the 2 × 2's mean
-                               np.linspace(0.5, 6.0, W).reshape(3, 2).mean(axis=1), rtol=1e-6)
+    np.testing.assert_allclose(output["Position"][0, :, 2],  # AA 2: the upper right's
+                               np.linspace(0.5, 6.0, W)[1::2], rtol=1e-6)
     np.testing.assert_allclose(output["Position"][1], 0.0)

@@ -56,12 +56,10 @@ def _per_colour(radiance: np.ndarray, color: np.ndarray) -> np.ndarray:
 
 
 def central(image: np.ndarray, factor: int) -> np.ndarray:
-    """Each factor × factor block's centre of an (h, w, c) image: its middle element, or the
-    mean of the middle 2 × 2 for an even factor."""
-    h, w, c = image.shape
-    blocks = image.reshape(h // factor, factor, w // factor, factor, c)
-    middle = slice((factor - 1) // 2, factor // 2 + 1)
-    return blocks[:, middle, :, middle].mean(axis=(1, 3))
+    """The supersample at each factor × factor block's centre of an (h, w, c) image (for an
+    even factor, the one above and right of it): one sample, as Cycles writes its data
+    passes, not a mean of two surfaces at an edge."""
+    return image[factor // 2::factor, factor // 2::factor]
 
 
 def mist(position: np.ndarray, covered: np.ndarray, camera: Camera, settings: Mist
@@ -88,9 +86,9 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
     others come from the g-buffer alone). ``read_transmittance``: what clear surfaces in
     front let through to each supersample (h, w, 4), which dims SEEN_THROUGH; with
     ``holdouts``, the supersamples of holdouts (the g-buffer's geometric.w) get nothing, as
-    the background does (Cycles writes no pass there). Depth is the nearest
-    supersample's and Position its pixel centre's (Cycles writes both from a pixel's first
-    sample, measured at its centre: ``central``). ``view``: the pass's camera and the
+    the background does (Cycles writes no pass there). Depth and Position are the pixel
+    centre's (Cycles writes both from a pixel's first sample, measured at its centre:
+    ``central``). ``view``: the pass's camera and the
     mist settings, for the Mist pass."""
     covered = gbuffer["normal"][..., 3:4]
     seen_surface = None  # with holdouts: the supersamples whose passes are written
@@ -125,7 +123,7 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
         output["Position"][region] = central(gbuffer["position"][..., :3] * covered, aa)
     if "Depth" in passes:
         depth = np.where(covered > 0, gbuffer["position"][..., 3:4], BACKGROUND_DEPTH)
-        output["Depth"][region] = depth.reshape(h, aa, w, aa, 1).min(axis=(1, 3))
+        output["Depth"][region] = central(depth, aa)
 
 
 def sanitize(output: dict[str, np.ndarray], stats: Stats) -> None:
