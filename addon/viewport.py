@@ -46,8 +46,8 @@ def region_camera(context: bpy.types.Context) -> Camera:
                          region.width, region.height, view.is_perspective)
     scene_camera = context.scene.camera
     if view.view_perspective == "CAMERA" and scene_camera is not None \
-            and scene_camera.type == "CAMERA":
-        camera.aperture = camera_aperture(scene_camera)
+            and scene_camera.type == "CAMERA" and scene_camera.data.type != "PANO":
+        camera.aperture = camera_aperture(scene_camera)  # (a panorama: drawn in perspective)
     return camera
 
 
