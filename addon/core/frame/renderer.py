@@ -10,7 +10,7 @@ import moderngl
 
 from ..blas_threads import single_threaded_blas
 from ..gpu.blur import GeometryAwareBlur
-from ..gpu.gl import shared_context
+from ..gpu.gl import make_current, shared_context
 from ..gpu.ism import ImperfectShadowMaps
 from ..gpu.raytrace import RayTracer
 from ..scene.model import Scene
@@ -84,10 +84,9 @@ class Renderer:
         check = cancelled or (lambda: False)
         render = self._render_panorama if scene.camera is not None \
             and scene.camera.panorama is not None else self._render_view
-        with self.gpu.ctx:  # current for the frame (Blender 5's compositor makes its own
-            # current in this thread), the caller's again after it
-            image, stats, paths = render(scene, settings, report, check, passes, pass_index,
-                                         first_path)
+        make_current(self.gpu.ctx)  # Blender 5's compositor makes its own current here
+        image, stats, paths = render(scene, settings, report, check, passes, pass_index,
+                                     first_path)
         self._last_pass = (pass_index, first_path + paths)
         return image, stats
 
@@ -163,9 +162,9 @@ class Renderer:
 
     def release(self) -> None:
         """Release every GPU object (the context stays the caller's)."""
-        with self.gpu.ctx:
-            self.gpu.release()
-            self.forget_frames()
+        make_current(self.gpu.ctx)
+        self.gpu.release()
+        self.forget_frames()
 
     def forget_frames(self) -> None:
         """Drop everything reused between frames; the next frame starts afresh."""

@@ -124,6 +124,13 @@ def _probe_devices() -> list[str]:
     return lines
 
 
+def make_current(ctx: moderngl.Context) -> None:
+    """Make ``ctx`` current in this thread, where other code (Blender 5's GPU compositor) may
+    have made its own current since. Entered only: on EGL, leaving ``with ctx`` makes no
+    context current, not the one before."""
+    ctx.__enter__()
+
+
 def shared_context(device: int | None = None) -> moderngl.Context:
     """One standalone context per process and device for final renders, made on first use."""
     return _context_of(device)
