@@ -124,7 +124,7 @@ def test_passes_not_asked_for_are_left_out(renderer):
     assert np.array_equal(some.passes["DiffDir"], every.passes["DiffDir"])
     assert set(some.passes) == {"Combined", "DiffDir"} and every.passes["DiffInd"].any()
     assert skipped_with(stats, "Depth, DiffCol, DiffInd, Emit, GlossCol, GlossDir, GlossInd, "
-                               "Normal")
+                               "Mist, Normal, Position")
 
 
 def test_a_camera_that_sees_no_surface_runs_no_light_work(renderer):
