@@ -28,7 +28,7 @@ import scipy.fft
 from scipy import signal
 
 from ..scene.model import Aperture, Camera
-from .compose import BACKGROUND_DEPTH
+from .compose import BACKGROUND_DEPTH, downsample
 from .state import FrameState, Stage
 
 FOCUS_RADIUS = 0.5  # pixels: a circle of confusion smaller than this is left sharp
@@ -106,12 +106,9 @@ def _blur(layer: np.ndarray, radius: float, aperture: Aperture, aspect: float) -
     """``layer`` (h, w, c) convolved with the aperture's shape of ``radius`` pixels, on an
     image shrunk by a whole factor where the shape is wider than DOWNSAMPLED_RADIUS."""
     factor = max(1, int(abs(radius) / DOWNSAMPLED_RADIUS))
-    h, w, c = layer.shape
+    h, w = layer.shape[:2]
     if factor > 1:
-        ph, pw = -h % factor, -w % factor
-        padded = np.pad(layer, ((0, ph), (0, pw), (0, 0)))
-        small = padded.reshape((h + ph) // factor, factor, (w + pw) // factor, factor, c)
-        layer = small.mean(axis=(1, 3))
+        layer = downsample(np.pad(layer, ((0, -h % factor), (0, -w % factor), (0, 0))), factor)
     kernel = aperture_kernel(radius / factor, aperture, aspect)
     blurred = signal.fftconvolve(layer, kernel[:, :, None], mode="same", axes=(0, 1))
     if factor > 1:
@@ -138,7 +135,7 @@ class Defocus:
     def __init__(self, coc: np.ndarray, aperture: Aperture, aspect: float) -> None:
         self.aperture, self.aspect = aperture, aspect
         largest = float(np.abs(coc).max()) if coc.size else 0.0
-        self.margin = math.ceil(largest * max(1.0 / aperture.ratio, aspect)) + 1
+        self.margin = self._reach(largest) + 1
         coc = np.pad(coc, self.margin, mode="edge")
         edges = slice_edges(largest)
         index = np.digitize(coc, edges)  # 0 .. len(edges); the focus slice is len(edges) // 2
@@ -152,13 +149,16 @@ class Defocus:
                 radius = 0.0
             rows, cols = np.nonzero(members)
             pad = 0 if radius == 0.0 else \
-                math.ceil(abs(radius) * max(1.0 / aperture.ratio, aspect)) + \
-                2 * max(1, int(abs(radius) / DOWNSAMPLED_RADIUS)) + 2
+                self._reach(radius) + 2 * max(1, int(abs(radius) / DOWNSAMPLED_RADIUS)) + 2
             region = (slice(max(rows.min() - pad, 0), min(rows.max() + pad + 1, h)),
                       slice(max(cols.min() - pad, 0), min(cols.max() + pad + 1, w)))
             nearer = index[region] < k
             self.slices.append((np.stack([members[region], nearer], axis=-1).astype(np.float32),
                                 region, radius))
+
+    def _reach(self, radius: float) -> int:
+        """Pixels the aperture's shape of ``radius`` reaches from its centre, either way."""
+        return math.ceil(abs(radius) * max(1.0 / self.aperture.ratio, self.aspect))
 
     def apply(self, image: np.ndarray, between: Callable[[], None] = lambda: None
               ) -> np.ndarray:
@@ -228,10 +228,9 @@ class PlanDepthOfField(Stage):
     needs = ("camera",)
 
     def run(self, frame: FrameState) -> None:
-        aperture = frame.camera.aperture
-        if aperture is None or aperture.radius <= 0:
+        if not frame.camera.defocused:
             return
-        problem = aperture_problem(aperture)
+        problem = aperture_problem(frame.camera.aperture)
         if problem is not None:
             frame.stats.warnings.append(f"depth of field is not rendered: {problem}")
             frame.camera = replace(frame.camera, aperture=None)
@@ -244,8 +243,7 @@ class DepthOfField(Stage):
     needs = ("output",)
 
     def run(self, frame: FrameState) -> None:
-        aperture = frame.camera.aperture
-        if aperture is None or aperture.radius <= 0 or "Depth" not in frame.output:
+        if not frame.camera.defocused or "Depth" not in frame.output:
             return
         frame.report(1.0, "Depth of field")
         with frame.stats.timed(self.name):

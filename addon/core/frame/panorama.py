@@ -32,6 +32,12 @@ KINDS = ("EQUIRECTANGULAR", "FISHEYE_EQUIDISTANT", "FISHEYE_EQUISOLID", "MIRRORB
 """The panorama types rendered (the others: as a perspective camera, with a warning)."""
 
 
+def _face_axes(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Face ``k``'s right, up and forward in the camera's axes."""
+    forward, up = FACES[k]
+    return np.cross(forward, up), up, forward
+
+
 def _from_cycles(d: np.ndarray) -> np.ndarray:
     """Cycles' panorama-space directions (..., 3) in Blender's camera axes."""
     return np.stack([-d[..., 1], d[..., 2], -d[..., 0]], axis=-1)
@@ -114,8 +120,7 @@ def face_cameras(camera: Camera, size: int, needed: list[int]) -> list[Camera]:
     projection[3, 2] = -1.0
     cameras = []
     for k in needed:
-        forward, up = FACES[k]
-        right = np.cross(forward, up)
+        right, up, forward = _face_axes(k)
         rotation = np.eye(4)
         rotation[:3, :3] = np.stack([right, up, -forward])  # face axes from the camera's
         cameras.append(replace(camera, view_matrix=rotation @ camera.view_matrix,
@@ -166,9 +171,8 @@ def _resample_at(faces: dict[int, dict[str, np.ndarray]], size: int, d: np.ndarr
     """The faces' passes read bilinearly in the directions ``d`` (h, w, 3); 0 (Depth
     BACKGROUND_DEPTH) where a direction is zero."""
     h, w = d.shape[:2]
-    names = next(iter(faces.values())).keys()
-    out = {n: np.zeros((h, w, next(iter(faces.values()))[n].shape[2]), np.float32)
-           for n in names}
+    first = next(iter(faces.values()))
+    out = {n: np.zeros((h, w, image.shape[2]), np.float32) for n, image in first.items()}
     if "Depth" in out:
         out["Depth"][:] = BACKGROUND_DEPTH
     face = _face_of(d)
@@ -178,8 +182,7 @@ def _resample_at(faces: dict[int, dict[str, np.ndarray]], size: int, d: np.ndarr
         rows, cols = np.nonzero(seen & (face == k))
         if rows.size == 0:
             continue
-        forward, up = FACES[k]
-        right = np.cross(forward, up)
+        right, up, forward = _face_axes(k)
         ray = d[rows, cols]
         along = ray @ forward
         x = (ray @ right) / along * half + half + GUARD_PIXELS - 0.5

@@ -89,8 +89,7 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
     """The stages this frame needs, from the scene, the settings and the requested passes."""
     wanted = frozenset(PASS_CHANNELS) if passes is None or not settings.planner \
         else frozenset(passes) | {"Combined"}
-    aperture = scene.camera.aperture if scene.camera is not None else None
-    if aperture is not None and aperture.radius > 0:
+    if scene.camera is not None and scene.camera.defocused:
         wanted |= {"Depth"}  # depth of field blurs by it (depth_of_field.py)
     plan = FramePlan(passes=wanted)
     reason = no_indirect_reason(scene, geometry, settings)  # off: bounces = 0, no surfaces

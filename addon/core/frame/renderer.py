@@ -52,6 +52,15 @@ PANORAMA_NOT_AUTOMATIC = ("automatic parameters are not applied to a panoramic c
                           "rendered with the settings as set")
 
 
+def _without_automatic(scene: Scene, settings: Settings) -> tuple[Scene, Settings]:
+    """A panorama's scene and settings with the automatic mode off (it would choose for each
+    face alike), and a warning where it was on."""
+    if settings.auto_parameters == "off":
+        return scene, settings
+    return (replace(scene, warnings=[*scene.warnings, PANORAMA_NOT_AUTOMATIC]),
+            replace(settings, auto_parameters="off"))
+
+
 class Renderer:
     """Renders Scenes with one OpenGL context. Create once, call render() per frame; what
     frames reuse from each other is kept in ``kept``. ``share_programs_of``: a renderer on
@@ -109,10 +118,8 @@ class Renderer:
         """A panoramic camera's frame from the cube faces its image looks through
         (panorama.py), each with the same light paths; camera guidance is off, since it would
         keep other VPLs for each face (seams)."""
+        scene, settings = _without_automatic(scene, settings)
         camera = scene.camera
-        if settings.auto_parameters != "off":  # it would choose for each face alike
-            settings = replace(settings, auto_parameters="off")
-            scene = replace(scene, warnings=[*scene.warnings, PANORAMA_NOT_AUTOMATIC])
         rays = panorama.pixel_directions(camera.panorama, camera.width, camera.height)
         needed = panorama.needed_faces(rays)
         if not needed:
@@ -145,10 +152,8 @@ class Renderer:
         automatic mode 'time' passes until the budget is spent (budget.py), with ``on_pass``
         called after each."""
         settings.validate()
-        panoramic = scene.camera is not None and scene.camera.panorama is not None
-        if panoramic and settings.auto_parameters != "off":
-            settings = replace(settings, auto_parameters="off")
-            scene = replace(scene, warnings=[*scene.warnings, PANORAMA_NOT_AUTOMATIC])
+        if scene.camera is not None and scene.camera.panorama is not None:
+            scene, settings = _without_automatic(scene, settings)
 
         def one_pass(scene: Scene, settings: Settings, index: int,
                      progress: ProgressCallback, cancelled: CancelCallback

@@ -327,6 +327,11 @@ class Camera:
     panorama: Panorama | None = None  # rendered from six views (frame/panorama.py)
 
     @property
+    def defocused(self) -> bool:
+        """Whether the camera has depth of field to render (an aperture wider than a point)."""
+        return self.aperture is not None and self.aperture.radius > 0
+
+    @property
     def position(self) -> np.ndarray:
         return np.linalg.inv(self.view_matrix)[:3, 3]
 
