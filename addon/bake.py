@@ -418,7 +418,7 @@ def baked_material(material: Material, source: bpy.types.Material, entry: Baked)
         (emission_constant.constant if emission_constant is not None else (0.0, 0.0, 0.0))
     return Material(material.name, (1.0, 1.0, 1.0), emission,
                     base_color_texture=entry.textures["albedo"],
-                    emission_texture=emission_texture,
+                    emission_texture=emission_texture, pass_index=material.pass_index,
                     **bake_tree.specular_constants(source))  # type: ignore[arg-type]
 
 

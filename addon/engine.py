@@ -11,6 +11,7 @@ import numpy as np
 
 from . import ENGINE_ID, bake
 from .blender_compat import pass_name
+from .core.frame.id_passes import crypto_pass_names, metadata
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats
@@ -41,7 +42,14 @@ OPTIONAL_PASSES = {
     "Denoising Normal": (3, "XYZ", "VECTOR", DENOISING_DATA),
     "Denoising Albedo": (3, "RGB", "COLOR", DENOISING_DATA),
     "Denoising Depth": (1, "Z", "VALUE", DENOISING_DATA),
+    "IndexOB": (1, "X", "VALUE", "use_pass_object_index"),
+    "IndexMA": (1, "X", "VALUE", "use_pass_material_index"),
 }
+CRYPTOMATTE_TOGGLES = {"CryptoObject": "use_pass_cryptomatte_object",
+                       "CryptoMaterial": "use_pass_cryptomatte_material",
+                       "CryptoAsset": "use_pass_cryptomatte_asset"}
+"""Cryptomatte's layers (id_passes.CRYPTO_FAMILIES) and their view-layer toggles; the
+layer's Levels (``pass_cryptomatte_depth``) give the passes (id_passes.crypto_pass_names)."""
 
 
 def toggle_owner(layer: object, toggle: str) -> tuple[object, str] | None:
@@ -62,11 +70,23 @@ def toggled(layer: object, toggle: str) -> bool:
     return found is not None and bool(getattr(*found))
 
 
+def cryptomatte_families(layer: object) -> list[str]:
+    """The Cryptomatte layers the view layer asks for."""
+    return [family for family, toggle in CRYPTOMATTE_TOGGLES.items() if toggled(layer, toggle)]
+
+
+def cryptomatte_passes(layer: object) -> list[str]:
+    """The Cryptomatte passes the view layer asks for, as Blender names them."""
+    levels = int(getattr(layer, "pass_cryptomatte_depth", 6))
+    return [name for family in cryptomatte_families(layer)
+            for name in crypto_pass_names(family, levels)]
+
+
 def layer_passes(layer: object) -> frozenset[str]:
-    """The optional passes (OPTIONAL_PASSES) the view layer asks for; Combined is always
-    rendered."""
+    """The optional passes (OPTIONAL_PASSES, Cryptomatte's) the view layer asks for;
+    Combined is always rendered."""
     return frozenset(name for name, (*_, toggle) in OPTIONAL_PASSES.items()
-                     if toggled(layer, toggle))
+                     if toggled(layer, toggle)) | frozenset(cryptomatte_passes(layer))
 
 
 @dataclass
@@ -165,6 +185,10 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
             return monitor.cancel_requested or self.test_break()
 
         passes = layer_passes(depsgraph.view_layer)
+        full_result = self.get_result()  # Cryptomatte's manifests, as Cycles stamps them
+        for key, value in metadata(exported, cryptomatte_families(depsgraph.view_layer),
+                                   depsgraph.view_layer.name).items():
+            full_result.stamp_data_add_field(key, value)
 
         def show(report: PassReport) -> None:
             """Each pass's average in the render window (Esc keeps the passes shown)."""
@@ -203,6 +227,8 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         for name, (channels, ids, kind, toggle) in OPTIONAL_PASSES.items():
             if toggled(renderlayer, toggle):
                 self.register_pass(scene, renderlayer, pass_name(name), channels, ids, kind)
+        for name in cryptomatte_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, 4, "RGBA", "COLOR")
 
 
 def register() -> None:

@@ -38,6 +38,7 @@ from .core.scene.model import (
     Aperture,
     Camera,
     EnvironmentMap,
+    Identity,
     Instance,
     Light,
     Material,
@@ -968,13 +969,24 @@ class _Export:
         for slot in obj.material_slots:
             key = slot.material.name_full if slot.material else ""
             if key not in self.materials:
-                self.materials[key] = export_material(slot.material, self.result.warnings,
-                                                      self.images, self.fallbacks)
+                exported = export_material(slot.material, self.result.warnings,
+                                           self.images, self.fallbacks)
+                if slot.material is not None and slot.material.pass_index:
+                    exported = replace(exported, pass_index=int(slot.material.pass_index))
+                self.materials[key] = exported
                 named = bake.named_uv_maps(slot.material)
                 if named:
                     self.named_uvs[slot.material.name] = named
             found.append(self.materials[key])
         return found
+
+    def identity(self, obj: bpy.types.Object) -> Identity:
+        """The object's name, Pass Index and topmost parent's name (its asset), as the ID
+        passes know it."""
+        top = obj
+        while top.parent is not None:
+            top = top.parent
+        return Identity(obj.name, int(obj.pass_index), top.name)
 
     def placed(self, inst, obj: bpy.types.Object) -> tuple[Mesh, list[Material], str]:
         """The instance's mesh and materials (with its object's bake, if any) and name."""
@@ -1076,7 +1088,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                 skipped.setdefault("LIGHT_LINKING", set()).add(obj.name)
             known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
                      state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
-                     bool(getattr(obj, "visible_diffuse", True))) \
+                     bool(getattr(obj, "visible_diffuse", True)), state.identity(obj)) \
                 if state.include(obj) else None
             entry = placements[memo] = (known, bool(known and known[0].triangle_count))
         elif entry[0]:

@@ -87,13 +87,13 @@ class _SectionPanel(_RenderPanel):
 class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
     """View Layer Properties > Passes while this engine is selected: the view-layer toggles of
     the passes it fills (Blender's own Passes panel is EEVEE's and Workbench's), Cycles'
-    Denoising Data checkbox among them."""
+    Denoising Data checkbox among them, and Cryptomatte's layers and levels."""
 
     bl_label = "Passes"
     bl_context = "view_layer"
 
     def draw(self, context: bpy.types.Context) -> None:
-        from .engine import OPTIONAL_PASSES, toggle_owner
+        from .engine import CRYPTOMATTE_TOGGLES, OPTIONAL_PASSES, toggle_owner
 
         layout = self.layout
         layout.use_property_split = True
@@ -105,6 +105,13 @@ class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
                 group, name = found
                 text = "Denoising Data" if name == "denoising_store_passes" else None
                 column.prop(group, name, text=text)
+        layer = context.view_layer
+        column = layout.column(heading="Cryptomatte", align=True)
+        for family, toggle in CRYPTOMATTE_TOGGLES.items():
+            column.prop(layer, toggle, text=family.removeprefix("Crypto"))
+        column = layout.column()
+        column.active = any(getattr(layer, t) for t in CRYPTOMATTE_TOGGLES.values())
+        column.prop(layer, "pass_cryptomatte_depth", text="Levels")
 
 
 def _panel_id(section: str | None) -> str:

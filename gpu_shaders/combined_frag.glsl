@@ -23,7 +23,7 @@ uniform sampler2D u_albedo;
 uniform sampler2D u_emission;
 uniform sampler2D u_normal;           // w: the supersample's coverage
 #ifdef HOLDOUTS
-uniform sampler2D u_geometric;        // w: 1 on a holdout
+uniform sampler2D u_geometric;        // w: -1 on a holdout
 #endif
 #if defined(BACKGROUND_IMAGE)
 uniform sampler2D u_background;
@@ -39,7 +39,7 @@ layout(location = 0) out vec4 out_combined;
 
 bool holdout(ivec2 s) {
 #ifdef HOLDOUTS
-    return texelFetch(u_geometric, s, 0).w > 0.5;
+    return texelFetch(u_geometric, s, 0).w < -0.5;
 #else
     return false;
 #endif

@@ -8,7 +8,8 @@
 // (some material has a specular layer) the albedo is the diffuse layer's colour (Cycles'
 // DiffCol) and three more layers hold the pixel's glossy lobe (principled_lib.glsl); the
 // glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w, emission.w), as OpenGL
-// guarantees only eight colour attachments. With CUTOUTS (some
+// guarantees only eight colour attachments; the geometric normal's w holds the triangle's
+// index + 1 (-1 on a holdout) for the ID passes. With CUTOUTS (some
 // material is there only in part) each supersample keeps a cutout's surface with probability
 // its coverage (coverage_lib.glsl), in a pattern of each pass's own (u_cutout_seed), so
 // supersamples and passes average it as Cycles' camera rays do.
@@ -122,7 +123,13 @@ void main() {
     float depth = -(u_view * vec4(v_world, 1.0)).z;
     out_position = vec4(v_world, depth);
     out_normal = vec4(shading, 1.0);
-    out_geometric = vec4(geometric, material.emission.w);  // w: a holdout (geometry.HOLDOUT)
+    // w: the triangle's index + 1 (the ID passes: id_passes.py), -1 on a holdout
+    // (geometry.HOLDOUT), 0 on a light's shape
+#ifdef ONE_SIDED
+    out_geometric = vec4(geometric, 0.0);
+#else
+    out_geometric = vec4(geometric, material.emission.w > 0.5 ? -1.0 : float(v_triangle + 1));
+#endif
     vec3 albedo = material.albedo.rgb;
     vec3 emission = material.emission.rgb;
 #ifdef TEXTURED

@@ -205,10 +205,11 @@ def test_settings_panels_draw_every_setting_once(blender):
 
 def test_passes_panel_draws_the_toggles_the_engine_reads(blender):
     """The Passes panel draws every view-layer toggle of the optional passes once (Cycles'
-    Denoising Data among them), on the property group engine.toggled reads it from."""
+    Denoising Data among them) and Cryptomatte's with its levels, on the property group
+    engine.toggled reads it from."""
     from types import SimpleNamespace
 
-    from addon.engine import OPTIONAL_PASSES, toggle_owner, toggled
+    from addon.engine import CRYPTOMATTE_TOGGLES, OPTIONAL_PASSES, toggle_owner, toggled
     from addon.ui import VIEWLAYER_PT_vpl_gi_passes
 
     drawn: list[tuple[object, str]] = []
@@ -222,9 +223,12 @@ def test_passes_panel_draws_the_toggles_the_engine_reads(blender):
 
     VIEWLAYER_PT_vpl_gi_passes.draw(SimpleNamespace(layout=Recorder({})), blender.context)
     toggles = {toggle.rpartition(".")[2]: toggle for *_, toggle in OPTIONAL_PASSES.values()}
-    assert sorted(name for _, name in drawn) == sorted(toggles)
+    toggles |= {toggle: toggle for toggle in CRYPTOMATTE_TOGGLES.values()}
+    assert sorted(name for _, name in drawn) == sorted([*toggles, "pass_cryptomatte_depth"])
     layer = blender.context.view_layer
     for data, name in drawn:
+        if name == "pass_cryptomatte_depth":
+            continue
         before = getattr(data, name)
         try:
             for value in (True, False):

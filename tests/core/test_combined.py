@@ -29,7 +29,7 @@ def expected(light: dict[str, np.ndarray], layers: dict[str, np.ndarray],
         alpha = np.ones_like(covered)
     image = np.concatenate([rgb, alpha], axis=-1)
     if holdouts:
-        image[layers["geometric"][..., 3] > 0.5] = 0.0
+        image[layers["geometric"][..., 3] < -0.5] = 0.0
     h, w = image.shape[0] // FACTOR, image.shape[1] // FACTOR
     return image.reshape(h, FACTOR, w, FACTOR, 4).mean(axis=(1, 3))
 
@@ -47,7 +47,7 @@ def test_combined_matches_the_pass_algebra(programs, soft, glossy, film, holdout
     layers = {name: rng.uniform(0.0, 1.0, shape).astype(np.float32)
               for name in ("albedo", "emission", "normal", "geometric")}
     layers["normal"][..., 3] = rng.choice([0.0, 0.5, 1.0], shape[:2])  # partial coverage
-    layers["geometric"][..., 3] = rng.choice([0.0, 0.0, 1.0], shape[:2])  # holdouts
+    layers["geometric"][..., 3] = rng.choice([0.0, 3.0, -1.0], shape[:2])  # holdouts (-1)
     background = {"transparent": None, "colour": np.array([0.2, 0.3, 0.4], np.float32),
                   "image": rng.uniform(0.0, 3.0, (*shape[:2], 3)).astype(np.float32)}[film]
     textures = {name: ctx.texture(shape[1::-1], 4, array.tobytes(), dtype="f4")
@@ -77,7 +77,7 @@ def test_a_transparent_film_seen_through_a_tinted_pane_is_as_opaque_as_the_pane_
     zero = np.zeros(shape, np.float32)
     layers = {"albedo": zero, "emission": zero, "normal": zero.copy(), "geometric": zero.copy()}
     layers["normal"][:, :FACTOR, 3] = 1.0  # the first column of pixels: a surface
-    layers["geometric"][:, FACTOR:2 * FACTOR, 3] = 1.0  # the second: a holdout
+    layers["geometric"][:, FACTOR:2 * FACTOR, 3] = -1.0  # the second: a holdout
     through = np.broadcast_to(np.array([1.0, 0.5, 0.25, 1.0], np.float32), shape)
     arrays = {"direct": zero, "indirect": zero, "through": np.ascontiguousarray(through),
               **layers}

@@ -67,7 +67,7 @@ def test_through_clear_surfaces_colour_passes_are_dimmed_and_holdouts_get_nothin
     tint = np.array([1.0, 0.5, 0.25, 1.0], np.float32)
     gbuffer = tile_gbuffer()
     gbuffer["albedo"][..., :3] = gbuffer["emission"][..., :3] = 0.8
-    gbuffer["geometric"][0:2, 4:6, 3] = 1.0  # the top right pixel: a holdout
+    gbuffer["geometric"][0:2, 4:6, 3] = -1.0  # the top right pixel: a holdout
     output = empty_output()
     passes = frozenset({"DiffCol", "Emit", "DiffDir", "Normal", "Depth"})
     assert {"DiffCol", "Emit"} <= SEEN_THROUGH and "DiffDir" not in SEEN_THROUGH

@@ -93,7 +93,7 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
     covered = gbuffer["normal"][..., 3:4]
     seen_surface = None  # with holdouts: the supersamples whose passes are written
     if holdouts:
-        seen_surface = (covered > 0) & (gbuffer["geometric"][..., 3:4] <= 0.5)
+        seen_surface = (covered > 0) & (gbuffer["geometric"][..., 3:4] >= -0.5)
         covered = covered * seen_surface
     seen = read_transmittance()[..., :3] if read_transmittance is not None \
         and passes & SEEN_THROUGH else None

@@ -24,8 +24,9 @@ from .gather import RAY_OFFSET, LightPass, gather, new_accumulator, read_accumul
 from .gbuffer import GBuffer, Tile, render_gbuffer
 from .gpu_scope import GpuScope
 from .gpu_session import GpuSession
+from .id_passes import IdPasses
 from .near_field import compensate_from_image
-from .result import PASS_CHANNELS
+from .result import pass_channels
 from .reuse import KeptProducts
 from .shadow_hints import render_hints, takes_hints
 from .shadow_maps import KeptAtlases, ShadowAtlases
@@ -375,14 +376,14 @@ class RenderImage(Stage):
     def __init__(self, gpu: GpuSession, kept: KeptProducts) -> None:
         self.gpu, self.kept = gpu, kept
         self.tile_stages = [GBufferStage(gpu), GatherStage(gpu), NearFieldStage(gpu),
-                            BlurStage(gpu), ComposeStage(gpu), DenoisingData()]
+                            BlurStage(gpu), ComposeStage(gpu), DenoisingData(), IdPasses()]
 
     def run(self, frame: FrameState) -> None:
         camera, settings, ctx = frame.camera, frame.settings, self.gpu.ctx
         aa = settings.antialiasing
         tiles = tiles_of(camera.width * aa, camera.height * aa, aa)
-        frame.output = {name: np.zeros((camera.height, camera.width, c), np.float32)
-                        for name, c in PASS_CHANNELS.items() if name in frame.plan.passes}
+        frame.output = {name: np.zeros((camera.height, camera.width, pass_channels(name)),
+                                       np.float32) for name in sorted(frame.plan.passes)}
         kept = KeptAtlases(self.kept.shadow_atlases, self.kept.versions.shape)
         frame.steps, frame.steps_done = len(tiles) * max(1, len(frame.light_passes)), 0
         with GpuScope() as scope:

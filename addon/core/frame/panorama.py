@@ -16,6 +16,15 @@ import numpy as np
 
 from ..scene.model import Camera, Panorama
 from .compose import BACKGROUND_DEPTH
+from .id_passes import (
+    CRYPTO_FAMILIES,
+    INDEX_PASSES,
+    family_of,
+    family_passes,
+    joined_ranks,
+    merge_ranks,
+    split_ranks,
+)
 
 GUARD_PIXELS = 2  # beyond each face's 90°, so that bilinear reads never leave it
 MAX_FACE_SIZE = 4096
@@ -156,13 +165,26 @@ def resample(faces: dict[int, dict[str, np.ndarray]], size: int, rays: list[np.n
     """The panorama's passes from the faces': the mean over each pixel's subpixels of the
     faces read bilinearly in their directions (``pixel_directions``), as Cycles' one-pixel
     box filter averages its samples (a subpixel that sees nothing adds 0: a fisheye's rim);
-    Depth the nearest, as the distance along the ray (Cycles' Z of a panorama)."""
+    Depth the nearest, as the distance along the ray (Cycles' Z of a panorama); the index
+    passes the first subpixel's nearest face pixel, Cryptomatte the merged ranks of each
+    subpixel's nearest."""
     images = [_resample_at(faces, size, d) for d in rays]
     out = {}
     for name in images[0]:
         stack = [image[name] for image in images]
-        out[name] = np.minimum.reduce(stack) if name == "Depth" \
-            else (sum(stack) / len(stack)).astype(np.float32)
+        if name in INDEX_PASSES:
+            out[name] = stack[0]
+        elif family_of(name) is None:
+            out[name] = np.minimum.reduce(stack) if name == "Depth" \
+                else (sum(stack) / len(stack)).astype(np.float32)
+    for family in CRYPTO_FAMILIES:
+        names = family_passes(images[0], family)
+        if names:
+            ranks = [split_ranks([image[n] for n in names]) for image in images]
+            ids, weights = merge_ranks(np.concatenate([r[0] for r in ranks], axis=-1),
+                                       np.concatenate([r[1] for r in ranks], axis=-1)
+                                       / len(ranks), 2 * len(names))
+            out.update(zip(names, joined_ranks(ids, weights), strict=True))
     return out
 
 
@@ -190,6 +212,9 @@ def _resample_at(faces: dict[int, dict[str, np.ndarray]], size: int, d: np.ndarr
         x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
         tx, ty = (x - x0)[:, None], (y - y0)[:, None]
         for name, image in passes.items():
+            if name in INDEX_PASSES or family_of(name) is not None:  # ids: never blended
+                out[name][rows, cols] = image[np.rint(y).astype(int), np.rint(x).astype(int)]
+                continue
             value = (image[y0, x0] * (1 - tx) * (1 - ty) + image[y0, x0 + 1] * tx * (1 - ty)
                      + image[y0 + 1, x0] * (1 - tx) * ty + image[y0 + 1, x0 + 1] * tx * ty)
             if name == "Depth":

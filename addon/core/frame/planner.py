@@ -17,6 +17,7 @@ from ..scene.geometry import WorldGeometry
 from ..scene.model import Camera, Scene
 from ..settings import Settings
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, NO_SPOT, LightSamples
+from .id_passes import family_of
 from .result import PASS_CHANNELS
 
 Bounds = tuple[np.ndarray, np.ndarray]  # (lo, hi) corners of an axis-aligned box
@@ -114,7 +115,7 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
         plan.skipped["bias compensation"] = "off"
     elif plan.indirect and settings.clamp_distance == 0:
         plan.skipped["bias compensation"] = "no distance clamp"
-    unused = sorted(set(PASS_CHANNELS) - wanted)
+    unused = sorted({family_of(name) or name for name in set(PASS_CHANNELS) - wanted})
     if unused:
         plan.skipped["passes " + ", ".join(unused)] = "not enabled in the view layer"
     return plan

@@ -31,12 +31,22 @@ import numpy as np
 from ..scene.model import Camera, Scene
 from ..settings import Settings
 from ..transport.sequences import radical_inverse
+from .id_passes import (
+    CRYPTO_FAMILIES,
+    family_of,
+    family_passes,
+    joined_ranks,
+    merge_ranks,
+    split_ranks,
+)
 from .result import Frame, Stats
 from .scene_size import flattened_triangles
 from .state import CancelCallback, ProgressCallback
 
-UNFILTERED_PASSES = frozenset({"Depth", "Denoising Depth"})
-"""Passes the last pass gives (a depth is not averaged over a pixel); the others are averaged."""
+UNFILTERED_PASSES = frozenset({"Depth", "Denoising Depth", "Position", "IndexOB", "IndexMA"})
+"""Passes the first pass gives, whose camera has no sub-sample offset (one sample at the
+pixel's centre, as Cycles writes them from a pixel's first sample); Cryptomatte's ranks are
+merged (id_passes.merge_ranks); the others are averaged."""
 SEED_STRIDE = 0x9E3779B1  # pass k's seed: seed + k × stride (mod 2³¹)
 MIN_PASSES_FOR_NOISE = 4  # passes before the noise estimate may stop a render
 CLAMP_EXPONENT = 1 / 6  # pass k's clamp distance: clamp / (k + 1)^CLAMP_EXPONENT
@@ -107,33 +117,50 @@ class PassReport:
 
 class Accumulator:
     """Weighted running sums of the passes' images, in float64, in two halves (even, odd
-    passes)."""
+    passes), and each Cryptomatte family's ranks summed over the passes."""
 
     def __init__(self) -> None:
         self.count = 0
         self._halves: list[dict[str, np.ndarray]] = [{}, {}]
         self._weights = [0.0, 0.0]
-        self._last: Frame | None = None
+        self._first: Frame | None = None
+        self._ranks: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # per family
 
     def add(self, frame: Frame, weight: float = 1.0) -> None:
         """Add a pass's images with ``weight`` (its share of the average: the inverse of its
         variance, up to a constant)."""
         half = self._halves[self.count % 2]
         for name, image in frame.passes.items():
-            if name not in UNFILTERED_PASSES:
+            if name not in UNFILTERED_PASSES and family_of(name) is None:
                 image = image.astype(np.float64) * weight
                 half[name] = half[name] + image if name in half else image
+        for family in CRYPTO_FAMILIES:
+            names = family_passes(frame.passes, family)
+            if names:
+                ids, weights = split_ranks([frame.passes[n] for n in names])
+                if family in self._ranks:
+                    kept_ids, kept = self._ranks[family]
+                    ids, weights = merge_ranks(np.concatenate([kept_ids, ids], axis=-1),
+                                               np.concatenate([kept, weights * weight], -1),
+                                               ids.shape[-1])
+                else:
+                    weights = weights * weight
+                self._ranks[family] = ids, weights
         self._weights[self.count % 2] += weight
         self.count += 1
-        self._last = frame
+        self._first = self._first or frame
 
     def average(self) -> Frame:
-        passes = dict(self._last.passes)
+        passes = dict(self._first.passes)
+        total_weight = sum(self._weights)
         for name in passes:
-            if name not in UNFILTERED_PASSES:
+            if name not in UNFILTERED_PASSES and family_of(name) is None:
                 total = sum(h[name] for h in self._halves if name in h)
-                passes[name] = (total / sum(self._weights)).astype(np.float32)
-        return Frame(self._last.width, self._last.height, passes)
+                passes[name] = (total / total_weight).astype(np.float32)
+        for family, (ids, weights) in self._ranks.items():
+            images = joined_ranks(ids, weights / np.float32(total_weight))
+            passes.update(zip(family_passes(passes, family), images, strict=True))
+        return Frame(self._first.width, self._first.height, passes)
 
     def noise(self) -> float | None:
         """RMS of (even average − odd average) · √(W_even W_odd) / (W_even + W_odd), relative

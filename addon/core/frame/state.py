@@ -19,6 +19,7 @@ from .result import Stats
 
 if TYPE_CHECKING:
     from .gather import Compensation, LightPass
+    from .id_passes import IdTables
     from .ism_maps import ImperfectShadowMapFrame
     from .near_field import NearField
 
@@ -68,6 +69,7 @@ class FrameState:
     ism_maps: ImperfectShadowMapFrame | None = None
     blur_radius: int = 0
     output: dict[str, np.ndarray] | None = None
+    id_tables: IdTables | None = None  # the ID passes' lookups (id_passes.py)
     traces_rays: bool = False  # a light pass or the bias compensation uses the ray tracer
     steps: int = 0  # light passes × tiles, for the progress bar
     steps_done: int = 0

@@ -61,6 +61,11 @@ class WorldGeometry:
     clear_transmission: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
     """Per clear triangle: the colour it lets through and the IOR of its Fresnel loss (0:
     none), (C, 4)."""
+    triangle_instance: np.ndarray | None = None
+    """Per triangle: its instance's index in ``Scene.instances`` (int32; None for geometry not
+    made from instances: light shapes)."""
+    row_materials: list[Material] = field(default_factory=list)
+    """Per row of ``materials``: the material it was made from."""
 
     @classmethod
     def from_triangles(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
@@ -361,6 +366,7 @@ class _MaterialTable:
         self.clear: list[bool] = []  # per row: a clear material (Material.is_clear)
         self.transmission: list[tuple[float, ...]] = []  # per row: colour and Fresnel IOR
         self.clear_names: set[str] = set()
+        self.materials: list[Material] = []  # per row
         self.blocks: list[np.ndarray] = []
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
@@ -381,6 +387,7 @@ class _MaterialTable:
             rows[:, SHADOWLESS] = 0.0 if casts_shadow else 1.0
             rows[:, DIFFUSE_HIDDEN] = 0.0 if visible_to_diffuse else 1.0
             self.blocks.append(rows)
+            self.materials.extend(materials)
             self.clear.extend(m.is_clear for m in materials)
             self.transmission.extend(_transmission_row(m) for m in materials)
             self.clear_names.update(m.name for m in materials if m.is_clear)
@@ -434,12 +441,13 @@ def _gather_rows(values: np.ndarray, index: np.ndarray | None, out: np.ndarray) 
 
 @dataclass
 class _Group:
-    """The instances of one mesh: their matrices, and the first row and row count of each
-    one's material list in the material table."""
+    """The instances of one mesh: their matrices, the first row and row count of each one's
+    material list in the material table, and their indices."""
 
     mesh: Mesh
     matrices: list[np.ndarray] = field(default_factory=list)
     rows: list[tuple[int, int]] = field(default_factory=list)
+    instances: list[int] = field(default_factory=list)  # their indices in Scene.instances
 
 
 def _flatten_group(group: _Group, warnings: list[str], positions_out: np.ndarray,
@@ -521,7 +529,7 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     found: dict[int, _Group] = {}
     blocks: dict[tuple, tuple[int, int]] = {}  # by material list and Instance.flags:
     # instances of an object share it
-    for inst in scene.instances:  # one pass: scenes may hold many thousand instances
+    for index, inst in enumerate(scene.instances):  # one pass: many thousand instances
         group = found.get(id(inst.mesh))
         if group is None:
             group = found[id(inst.mesh)] = _Group(inst.mesh)
@@ -531,6 +539,7 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
             rows = blocks[key] = table.block(inst.materials or NO_MATERIAL, inst.flags)
         group.matrices.append(inst.matrix)
         group.rows.append(rows)
+        group.instances.append(index)
     groups = [group for group in found.values() if group.mesh.triangle_count]
     textured = bool(table.textures.textures)
     sizes = [len(group.matrices) * group.mesh.triangle_count for group in groups]
@@ -538,6 +547,9 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     normals = np.empty((3 * sum(sizes), 3), np.float32)
     uv = np.empty((3 * sum(sizes), 2), np.float32) if textured else None
     triangle_material = np.empty(sum(sizes), np.int32)
+    triangle_instance = np.repeat(
+        np.array([i for group in groups for i in group.instances], np.int32),
+        [group.mesh.triangle_count for group in groups for _ in group.instances])
     clear = np.array(table.clear, bool)
     masks, start = [], 0
     for group, size in zip(groups, sizes, strict=True):
@@ -563,6 +575,7 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
         positions, normals = positions[keep], normals[keep]
         uv = None if uv is None else uv[keep]
         triangle_material = triangle_material[keep[::3]]
+        triangle_instance = triangle_instance[keep[::3]]
     kept = [size if mask is None else int(mask.sum()) // 3
             for mask, size in zip(masks, sizes, strict=True)]
     firsts = np.cumsum([0, *kept])[:-1]
@@ -582,7 +595,7 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
                      f"'{min(table.clamped)}'")
     return WorldGeometry(positions, normals, triangle_material, table.rows(),
                          uv if textures else None, textures, instanced, clear_triangles,
-                         clear_transmission)
+                         clear_transmission, triangle_instance, table.materials)
 
 
 def bounding_sphere(positions: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None

@@ -93,6 +93,7 @@ class Material:
     bump_distance: float | None = None  # a Bump node's Distance (negative: inverted)
     bump_filter_width: float = 0.1  # its Filter Width in pixels (4.3's default)
     holdout: bool = False  # a Holdout shader: a hole for the camera, black to light
+    pass_index: int = 0  # Blender's material Pass Index (the IndexMA pass)
 
     @property
     def is_cutout(self) -> bool:
@@ -152,6 +153,19 @@ def _per_corner(values: np.ndarray, index: np.ndarray | None) -> np.ndarray:
     return values if index is None else values[index]
 
 
+@dataclass(frozen=True)
+class Identity:
+    """What compositing knows an object by: its name, Pass Index (the IndexOB pass) and the
+    name of its topmost parent (its asset, for Cryptomatte's asset layer)."""
+
+    name: str = ""
+    pass_index: int = 0
+    asset: str = ""
+
+
+NO_IDENTITY = Identity()
+
+
 @dataclass
 class Instance:
     """One placement of a mesh in the world with its resolved materials (one per slot); one
@@ -162,7 +176,7 @@ class Instance:
     lamp), and is seen and reflects light; one not ``visible_to_diffuse`` is passed by
     diffuse bounces (Cycles' Diffuse ray visibility): it neither reflects light onto other
     surfaces nor shades them from others' reflected light, and is seen, lit and casts
-    shadows."""
+    shadows. ``identity`` names its object for the ID passes (id_passes.py)."""
 
     mesh: Mesh
     matrix: Matrix4
@@ -171,6 +185,7 @@ class Instance:
     holdout: bool = False
     cast_shadow: bool = True
     visible_to_diffuse: bool = True
+    identity: Identity = NO_IDENTITY
 
     @property
     def flags(self) -> tuple[bool, bool, bool, bool]:
