@@ -18,6 +18,7 @@ from .core.frame.result import Frame, Stats
 from .core.gpu.gl import GLUnavailableError, shared_context
 from .core.settings import SettingsError
 from .export import export_scene
+from .export_motion import motion_span, sample_motion
 from .preferences import chosen_device
 from .viewport import ViewportState
 
@@ -44,6 +45,7 @@ OPTIONAL_PASSES = {
     "Denoising Depth": (1, "Z", "VALUE", DENOISING_DATA),
     "IndexOB": (1, "X", "VALUE", "use_pass_object_index"),
     "IndexMA": (1, "X", "VALUE", "use_pass_material_index"),
+    "Vector": (4, "XYZW", "VECTOR", "use_pass_vector"),
 }
 CRYPTOMATTE_TOGGLES = {"CryptoObject": "use_pass_cryptomatte_object",
                        "CryptoMaterial": "use_pass_cryptomatte_material",
@@ -171,7 +173,10 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         scene = depsgraph.scene
         settings = scene.vpl_gi.to_settings()
         self.update_stats("", "VPL GI | Exporting scene")
-        exported = export_scene(depsgraph)
+        passes = layer_passes(depsgraph.view_layer)
+        span = motion_span(depsgraph.scene, "Vector" in passes)
+        motion = sample_motion(self, depsgraph, span) if span is not None else None
+        exported = export_scene(depsgraph, motion=motion)
         if exported.camera is None:
             raise RenderError("the scene has no active camera")
 
@@ -184,7 +189,6 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         def cancelled() -> bool:
             return monitor.cancel_requested or self.test_break()
 
-        passes = layer_passes(depsgraph.view_layer)
         full_result = self.get_result()  # Cryptomatte's manifests, as Cycles stamps them
         for key, value in metadata(exported, cryptomatte_families(depsgraph.view_layer),
                                    depsgraph.view_layer.name).items():

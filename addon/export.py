@@ -52,6 +52,7 @@ from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
 from .export_lights import export_light, is_portal
+from .export_motion import InstanceKey, SampledMotion, instance_key, placed_motion
 
 RAY_FLAGS = ("visible_camera", "visible_diffuse", "visible_shadow")
 """An object's ray visibility that VPL GI honours (glossy, transmission and volume rays reach
@@ -1036,8 +1037,10 @@ def unrendered_objects(skipped: dict[str, set[str]]) -> list[str]:
     return warnings
 
 
-def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = None) -> Scene:
-    """Everything the renderer needs from the evaluated depsgraph.
+def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = None,
+                 motion: SampledMotion | None = None) -> Scene:
+    """Everything the renderer needs from the evaluated depsgraph; with ``motion``, each
+    instance's and the camera's placement at its two times too (export_motion.py).
 
     With a cache, meshes read by earlier exports are reused unless forgotten (see ExportCache);
     ``cache.stats`` counts the meshes this export read and reused, ``cache.unbaked`` names the
@@ -1057,6 +1060,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     placements: dict[tuple[bpy.types.Object, bpy.types.ID],
                      tuple[tuple[Mesh, list[Material], str] | None, bool]] = {}
     ordinals: list[int] = []  # of the placed instances in depsgraph.object_instances
+    keys: list[InstanceKey] = []  # with motion: theirs (export_motion.instance_key)
     count = reused = 0
     for count, inst in enumerate(depsgraph.object_instances, start=1):
         obj = inst.object
@@ -1096,6 +1100,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         if entry[1]:
             ordinals.append(count - 1)
             placed.append(entry[0])
+            if motion is not None:
+                keys.append(instance_key(inst))
     cache.stats["meshes_reused"] += reused
     # every instance's world matrix in one foreach_get over the same (deterministic) instance
     # iteration, as RNA stores them (float32, column by column)
@@ -1103,12 +1109,14 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     depsgraph.object_instances.foreach_get("matrix_world", columns)
     matrices = columns.reshape(-1, 4, 4)[ordinals].transpose(0, 2, 1).astype(np.float64)
     problems = transform_problems(matrices)
-    for (mesh, materials, name, *flags), matrix, problem in zip(placed, matrices, problems,
-                                                                strict=True):
+    for index, ((mesh, materials, name, *flags), matrix, problem) in enumerate(
+            zip(placed, matrices, problems, strict=True)):
         if problem:
             result.warnings.append(f"object '{name}' {problem} and was skipped")
         else:
             result.instances.append(Instance(mesh, matrix, materials, *flags))
+            if motion is not None:
+                result.instances[-1].motion = placed_motion(motion, keys[index])
     cache._entries = state.used
     result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
                                 result.lights)
@@ -1118,6 +1126,10 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                                   result.warnings)
     if scene_eval.world is not None:
         result.mist = export_mist(scene_eval.world.mist_settings)
+    if motion is not None:
+        result.motion = motion.span
+        if result.camera is not None and all(v is not None for v in motion.views):
+            result.camera = replace(result.camera, motion_views=motion.views)
     return result
 
 

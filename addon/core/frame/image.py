@@ -25,6 +25,7 @@ from .gbuffer import GBuffer, Tile, render_gbuffer
 from .gpu_scope import GpuScope
 from .gpu_session import GpuSession
 from .id_passes import IdPasses
+from .motion import MotionVectors
 from .near_field import compensate_from_image
 from .result import pass_channels
 from .reuse import KeptProducts
@@ -376,7 +377,8 @@ class RenderImage(Stage):
     def __init__(self, gpu: GpuSession, kept: KeptProducts) -> None:
         self.gpu, self.kept = gpu, kept
         self.tile_stages = [GBufferStage(gpu), GatherStage(gpu), NearFieldStage(gpu),
-                            BlurStage(gpu), ComposeStage(gpu), DenoisingData(), IdPasses()]
+                            BlurStage(gpu), ComposeStage(gpu), DenoisingData(), IdPasses(),
+                            MotionVectors()]
 
     def run(self, frame: FrameState) -> None:
         camera, settings, ctx = frame.camera, frame.settings, self.gpu.ctx

@@ -43,7 +43,8 @@ from .result import Frame, Stats
 from .scene_size import flattened_triangles
 from .state import CancelCallback, ProgressCallback
 
-UNFILTERED_PASSES = frozenset({"Depth", "Denoising Depth", "Position", "IndexOB", "IndexMA"})
+UNFILTERED_PASSES = frozenset({"Depth", "Denoising Depth", "Position", "IndexOB", "IndexMA",
+                               "Vector"})
 """Passes the first pass gives, whose camera has no sub-sample offset (one sample at the
 pixel's centre, as Cycles writes them from a pixel's first sample); Cryptomatte's ranks are
 merged (id_passes.merge_ranks); the others are averaged."""

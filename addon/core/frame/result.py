@@ -13,7 +13,7 @@ PASS_CHANNELS = {
     "Combined": 4, "Depth": 1, "Normal": 3, "DiffDir": 3, "DiffInd": 3, "DiffCol": 3,
     "GlossDir": 3, "GlossInd": 3, "GlossCol": 3, "Emit": 3, "Mist": 1, "Position": 3,
     "Denoising Normal": 3, "Denoising Albedo": 3, "Denoising Depth": 1, "IndexOB": 1,
-    "IndexMA": 1,
+    "IndexMA": 1, "Vector": 4,
     **{f"{family}{k:02d}": 4 for family in ("CryptoObject", "CryptoMaterial", "CryptoAsset")
        for k in range(3)},
 }

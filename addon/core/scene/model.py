@@ -186,6 +186,7 @@ class Instance:
     cast_shadow: bool = True
     visible_to_diffuse: bool = True
     identity: Identity = NO_IDENTITY
+    motion: tuple[Matrix4, Matrix4] | None = None  # its matrix at Scene.motion's two times
 
     @property
     def flags(self) -> tuple[bool, bool, bool, bool]:
@@ -340,6 +341,7 @@ class Camera:
     is_orthographic: bool = False
     aperture: Aperture | None = None  # None: everything in focus (a pinhole)
     panorama: Panorama | None = None  # rendered from six views (frame/panorama.py)
+    motion_views: tuple[Matrix4, Matrix4] | None = None  # its view at Scene.motion's times
 
     @property
     def defocused(self) -> bool:
@@ -366,6 +368,17 @@ class Camera:
 
 
 @dataclass(frozen=True)
+class MotionSpan:
+    """The two times, in frames from the rendered one, at which instances and the camera
+    know their placement (Instance.motion, Camera.motion_views): -1 and 1 for the Vector
+    pass (the previous and next frame), the shutter's opening and closing with ``blur``."""
+
+    before: float = -1.0
+    after: float = 1.0
+    blur: bool = False
+
+
+@dataclass(frozen=True)
 class Mist:
     """The world's mist settings for the Mist pass: 0 at ``start`` from the camera, 1 at
     ``start + depth``, raised to ``falloff`` (2 quadratic, 1 linear, 0.5 inverse quadratic)."""
@@ -389,6 +402,7 @@ class Scene:
     portals: list[Light] = field(default_factory=list)  # area lights marked Portal (Cycles):
     # openings that world light enters through; they emit nothing themselves
     mist: Mist = field(default_factory=Mist)
+    motion: MotionSpan | None = None  # None: nothing moves (no Vector pass, no motion blur)
 
     @property
     def surface_lights(self) -> list[Light]:

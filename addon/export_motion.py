@@ -1,0 +1,87 @@
+"""Where objects and the camera are at two other times (the previous and next frame for the
+Vector pass, the shutter's opening and closing for motion blur), read by moving the render's
+depsgraph there and back, as Cycles reads its motion."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from .core.scene.model import RENDERED_OBJECT_TYPES, MotionSpan
+
+POSITION_OFFSET = {"START": 0.0, "CENTER": -0.5, "END": -1.0}
+"""Where the shutter opens, in shutters from the frame (Blender's motion blur position)."""
+
+InstanceKey = tuple[str, tuple[int, ...]]
+
+
+def instance_key(instance: bpy.types.DepsgraphObjectInstance) -> InstanceKey:
+    """What names one placed instance at every time: its object and, for an instance made
+    by another object, its persistent id."""
+    return (instance.object.name,
+            tuple(instance.persistent_id) if instance.is_instance else ())
+
+
+def motion_span(scene: bpy.types.Scene, vector_pass: bool) -> MotionSpan | None:
+    """The times the frame needs placements at: the shutter's with motion blur on, the
+    neighbouring frames' for the Vector pass (``vector_pass``), else None."""
+    render = scene.render
+    shutter = float(render.motion_blur_shutter)
+    if render.use_motion_blur and math.isfinite(shutter) and shutter > 0:
+        before = POSITION_OFFSET.get(render.motion_blur_position, -0.5) * shutter
+        return MotionSpan(before, before + shutter, blur=True)
+    return MotionSpan() if vector_pass else None
+
+
+@dataclass
+class SampledMotion:
+    """The placements at ``span``'s two times: each instance's world matrix by its key, and
+    the camera's view matrix (None without a camera)."""
+
+    span: MotionSpan
+    matrices: tuple[dict[InstanceKey, np.ndarray], dict[InstanceKey, np.ndarray]]
+    views: tuple[np.ndarray | None, np.ndarray | None]
+
+
+def sample_motion(engine: bpy.types.RenderEngine, depsgraph: bpy.types.Depsgraph,
+                  span: MotionSpan) -> SampledMotion:
+    """Move the render to ``span``'s two times, read every instance's matrix and the camera's
+    view there, and come back to the frame."""
+    scene = depsgraph.scene
+    frame, subframe = scene.frame_current, float(scene.frame_subframe)
+    matrices, views = [], []
+    try:
+        for offset in (span.before, span.after):
+            time = frame + subframe + offset
+            whole = math.floor(time)
+            engine.frame_set(int(whole), time - whole)
+            matrices.append({instance_key(inst): np.array(inst.matrix_world, np.float64)
+                             for inst in depsgraph.object_instances
+                             if inst.object.type in RENDERED_OBJECT_TYPES})
+            camera = depsgraph.scene_eval.camera
+            views.append(None if camera is None else _view(camera.matrix_world))
+    finally:
+        engine.frame_set(frame, subframe)
+    return SampledMotion(span, (matrices[0], matrices[1]), (views[0], views[1]))
+
+
+def placed_motion(motion: SampledMotion, key: InstanceKey
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """An instance's matrices at the two times; None where it is not there at both."""
+    before, after = (matrices.get(key) for matrices in motion.matrices)
+    return None if before is None or after is None else (before, after)
+
+
+def _view(matrix_world) -> np.ndarray | None:
+    """The view matrix of a camera placed at ``matrix_world``; None where it has none (not
+    finite, or singular: the frame's own camera check says why)."""
+    world = np.array(matrix_world, np.float64)
+    if not np.isfinite(world).all():
+        return None
+    try:
+        return np.linalg.inv(world)
+    except np.linalg.LinAlgError:
+        return None

@@ -1,0 +1,50 @@
+"""The Vector pass of a rendered frame: a box moving over a still floor, then the camera
+moving over both (orthographic, from above: a metre is 32 / 6 pixels)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from addon.core.scene.model import Instance, LightKind, Material, MotionSpan
+from addon.core.settings import Settings
+from tests.core.builders import floor_scene, light, pixel_centres, quad, translation
+
+PIXELS_PER_METRE = 32 / 6
+
+
+def moving_box_scene():
+    box = Instance(quad(1.0, 1.0, z=0.5), translation(0.3, 0.0, 0.0),
+                   [Material("red", (0.8, 0.1, 0.1))],
+                   motion=(translation(0.0, -0.3, 0.0), translation(0.6, 0.3, 0.0)))
+    scene = floor_scene([light(LightKind.SUN, np.eye(4), power=3.0)], extra=[box], size=32)
+    scene.motion = MotionSpan()
+    return scene
+
+
+def test_a_moving_box_has_vectors_and_the_still_floor_none(renderer):
+    frame, _ = renderer.render(moving_box_scene(), Settings(antialiasing=3, bounces=0),
+                               passes=frozenset({"Vector"}))
+    vectors = frame.passes["Vector"]
+    x, y = pixel_centres(32)
+    inside = (np.abs(x - 0.3) < 0.8) & (np.abs(y) < 0.8)
+    outside = ~((np.abs(x - 0.3) < 1.2) & (np.abs(y) < 1.2))
+    # previous - now: (-0.3, -0.3) m; now - next: (-0.3, -0.3) m
+    np.testing.assert_allclose(vectors[inside], np.full((inside.sum(), 4), -0.3 *
+                                                        PIXELS_PER_METRE), atol=1e-3)
+    assert np.all(vectors[outside] == 0.0)
+
+
+def test_a_moving_camera_moves_everything(renderer):
+    scene = moving_box_scene()
+    scene.instances[1].motion = None
+    camera = scene.camera
+    scene.camera = replace(camera, motion_views=(camera.view_matrix @ translation(0.5, 0, 0),
+                                                 camera.view_matrix @ translation(-0.5, 0, 0)))
+    frame, _ = renderer.render(scene, Settings(antialiasing=3, bounces=0),
+                               passes=frozenset({"Vector"}))
+    # the camera at x - 0.5 before and x + 0.5 after: the world moves +0.5 m, then -0.5 m
+    expected = np.array([0.5, 0.0, 0.5, 0.0]) * PIXELS_PER_METRE
+    np.testing.assert_allclose(frame.passes["Vector"].reshape(-1, 4),
+                               np.broadcast_to(expected, (32 * 32, 4)), atol=1e-3)
