@@ -12,10 +12,12 @@ import numpy as np
 from . import ENGINE_ID, bake
 from .blender_compat import pass_name
 from .core.frame.id_passes import crypto_pass_names, metadata
+from .core.frame.motion_blur import pass_span
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats
 from .core.gpu.gl import GLUnavailableError, shared_context
+from .core.scene.model import MotionSpan, Scene
 from .core.settings import SettingsError
 from .export import export_scene
 from .export_motion import motion_span, sample_motion
@@ -164,6 +166,21 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
             traceback.print_exc()
             self._fail(f"internal error: {exc!r} (details in the console)")
 
+    def _export_at(self, depsgraph: bpy.types.Depsgraph, span: MotionSpan | None) -> Scene:
+        """The scene at ``span``'s rendered time with its motion (export_motion.py), and the
+        render back at its frame; without a span, the frame's scene. Each export reads its
+        meshes afresh: a deforming mesh differs at each time."""
+        if span is None:
+            return export_scene(depsgraph)
+        scene = depsgraph.scene
+        frame, subframe = scene.frame_current, scene.frame_subframe
+        motion = sample_motion(self, depsgraph, span)
+        try:
+            return export_scene(depsgraph, motion=motion)
+        finally:
+            if span.centre:  # rendered at its part of the shutter
+                self.frame_set(frame, subframe)
+
     def _fail(self, message: str) -> None:
         monitor.last_error = message
         self.report({"ERROR"}, f"VPL GI: {message}")
@@ -175,8 +192,12 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         self.update_stats("", "VPL GI | Exporting scene")
         passes = layer_passes(depsgraph.view_layer)
         span = motion_span(depsgraph.scene, "Vector" in passes)
-        motion = sample_motion(self, depsgraph, span) if span is not None else None
-        exported = export_scene(depsgraph, motion=motion)
+        exported = self._export_at(depsgraph, span)
+        scene_at = None
+        if span is not None and span.blur and settings.passes > 1:
+            def scene_at(index: int) -> Scene:
+                """Pass ``index`` sees its own part of the shutter (motion_blur.pass_span)."""
+                return self._export_at(depsgraph, pass_span(span, index, settings.passes))
         if exported.camera is None:
             raise RenderError("the scene has no active camera")
 
@@ -205,7 +226,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
                 self.update_stats("", f"VPL GI | Pass {report.index}{planned}{noise}")
 
         _, stats = shared_renderer().render_progressive(exported, settings, progress, cancelled,
-                                                        passes, on_pass=show)
+                                                        passes, on_pass=show, scene_at=scene_at)
         bake.report(stats, exported.notes)
         monitor.last_stats, monitor.last_warnings = stats, list(stats.warnings)
         for note in stats.notes:

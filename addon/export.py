@@ -820,8 +820,6 @@ def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Objec
         warnings.append(f"camera '{cam.name}': depth of field is not rendered for a "
                         f"panoramic camera")
         aperture = None
-    if render.use_motion_blur:
-        warnings.append("motion blur is not rendered (it is on in the Render Properties)")
     projection = cam.calc_matrix_camera(depsgraph, x=width, y=height,
                                         scale_x=render.pixel_aspect_x,
                                         scale_y=render.pixel_aspect_y)

@@ -31,8 +31,8 @@ def motion_span(scene: bpy.types.Scene, vector_pass: bool) -> MotionSpan | None:
     render = scene.render
     shutter = float(render.motion_blur_shutter)
     if render.use_motion_blur and math.isfinite(shutter) and shutter > 0:
-        before = POSITION_OFFSET.get(render.motion_blur_position, -0.5) * shutter
-        return MotionSpan(before, before + shutter, blur=True)
+        opening = POSITION_OFFSET.get(render.motion_blur_position, -0.5) * shutter
+        return MotionSpan(-shutter / 2, shutter / 2, blur=True, centre=opening + shutter / 2)
     return MotionSpan() if vector_pass else None
 
 
@@ -46,25 +46,29 @@ class SampledMotion:
     views: tuple[np.ndarray | None, np.ndarray | None]
 
 
+def _set_time(engine: bpy.types.RenderEngine, time: float) -> None:
+    whole = math.floor(time)
+    engine.frame_set(int(whole), time - whole)
+
+
 def sample_motion(engine: bpy.types.RenderEngine, depsgraph: bpy.types.Depsgraph,
                   span: MotionSpan) -> SampledMotion:
     """Move the render to ``span``'s two times, read every instance's matrix and the camera's
-    view there, and come back to the frame."""
+    view there, and leave it at the rendered time (``span.centre`` from the frame: the
+    caller goes back to the frame after exporting)."""
     scene = depsgraph.scene
-    frame, subframe = scene.frame_current, float(scene.frame_subframe)
+    rendered = scene.frame_current + float(scene.frame_subframe) + span.centre
     matrices, views = [], []
     try:
         for offset in (span.before, span.after):
-            time = frame + subframe + offset
-            whole = math.floor(time)
-            engine.frame_set(int(whole), time - whole)
+            _set_time(engine, rendered + offset)
             matrices.append({instance_key(inst): np.array(inst.matrix_world, np.float64)
                              for inst in depsgraph.object_instances
                              if inst.object.type in RENDERED_OBJECT_TYPES})
             camera = depsgraph.scene_eval.camera
             views.append(None if camera is None else _view(camera.matrix_world))
     finally:
-        engine.frame_set(frame, subframe)
+        _set_time(engine, rendered)
     return SampledMotion(span, (matrices[0], matrices[1]), (views[0], views[1]))
 
 

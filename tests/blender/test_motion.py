@@ -11,12 +11,15 @@ import math
 
 import bpy
 import numpy as np
+import pytest
 
 from tests.blender.rendering import (
     add_camera,
     add_primitive,
     add_sun,
+    assert_near_cycles,
     configure_cycles,
+    cycles_and_ours,
     plain_world,
     render_linear,
     shader_material,
@@ -80,3 +83,37 @@ def test_the_vector_pass_is_cycles(blender, tmp_path):
         assert np.abs(reference).max() > 3.0  # pixels of motion to see
         assert np.median(error) < 0.01
         assert (error > 0.5).mean() < 0.04  # edges only
+
+
+def blurred_scene(position: str) -> bpy.types.Scene:
+    """A red box crossing the view fast (about 20 pixels over the shutter) and turning, in
+    front of a lit backdrop, with motion blur on (shutter 0.5 at ``position``)."""
+    scene = motion_scene(False)
+    box = bpy.data.objects["Cube"]
+    box.active_material = shader_material("Red", "ShaderNodeBsdfDiffuse",
+                                          Color=(0.8, 0.1, 0.1, 1))
+    keyframed(box, "location", [(-2.0, 1.0, -0.4), (1.6, 1.0, 0.4)], [1, 3])
+    scene.frame_set(2)
+    scene.render.use_motion_blur = True
+    scene.render.motion_blur_shutter = 0.5
+    scene.render.motion_blur_position = position
+    scene.view_layers[0].use_pass_vector = False
+    return scene
+
+
+@pytest.mark.parametrize("position", ["CENTER", "START"])
+def test_motion_blur_is_cycles(blender, tmp_path, position):
+    """Eight passes each see an eighth of the shutter, blurred over it; one pass blurs the
+    whole shutter from the frame at its middle (a moving object then hides what its trail
+    passes over: measured 7.3–8.2 % against 1.6 % for eight passes)."""
+    scene = blurred_scene(position)
+    scene.vpl_gi.passes = 8
+    reference, ours = cycles_and_ours(scene, tmp_path, 64, 0)
+    scene.vpl_gi.passes = 1
+    one_pass = render_linear(scene, "VPL_GI", tmp_path / "one.exr")
+    scene.render.use_motion_blur = False
+    sharp = render_linear(scene, "VPL_GI", tmp_path / "sharp.exr")
+    assert_near_cycles(f"motion blur ({position.lower()}), 8 passes", ours, reference,
+                       (0.01, 0.025), sharp, "without it", factor=4.0)
+    assert_near_cycles(f"motion blur ({position.lower()}), 1 pass", one_pass, reference,
+                       (0.02, 0.09), sharp, "without it", factor=1.3)

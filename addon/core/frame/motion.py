@@ -101,8 +101,8 @@ class MotionVectors:
     name = "motion vectors"
 
     def run(self, frame: FrameState, data: FrameGpu, work: TileWork) -> None:
-        if "Vector" not in frame.output:
-            return
+        if "Vector" not in frame.output or frame.scene.motion is None:
+            return  # nothing moves (or a panorama's face: its views are not the camera's)
         with frame.stats.timed(self.name):
             if frame.id_tables is None:
                 frame.id_tables = IdTables(frame.scene, frame.geometry)

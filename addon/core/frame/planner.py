@@ -92,6 +92,8 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
         else frozenset(passes) | {"Combined"}
     if scene.camera is not None and scene.camera.defocused:
         wanted |= {"Depth"}  # depth of field blurs by it (depth_of_field.py)
+    if scene.motion is not None and scene.motion.blur:
+        wanted |= {"Depth", "Vector"}  # motion blur smears by them (motion_blur.py)
     plan = FramePlan(passes=wanted)
     reason = no_indirect_reason(scene, geometry, settings)  # off: bounces = 0, no surfaces
     if reason:

@@ -24,6 +24,7 @@ from .denoise import Denoise, PlanDenoise
 from .depth_of_field import DepthOfField, PlanDepthOfField
 from .gpu_session import GpuSession
 from .image import RenderImage
+from .motion_blur import MotionBlur
 from .progressive import PassReport, merge_stats, render_passes
 from .result import Frame, Stats
 from .reuse import KeptProducts
@@ -52,6 +53,11 @@ PANORAMA_NOT_AUTOMATIC = ("automatic parameters are not applied to a panoramic c
                           "rendered with the settings as set")
 
 
+PANORAMA_STILL = ("a panoramic camera's motion is not blurred within a pass, and its Vector "
+                  "pass is empty: with motion blur, each pass renders one moment of the "
+                  "shutter (more passes, a smoother blur)")
+
+
 def _without_automatic(scene: Scene, settings: Settings) -> tuple[Scene, Settings]:
     """A panorama's scene and settings with the automatic mode off (it would choose for each
     face alike), and a warning where it was on."""
@@ -77,7 +83,8 @@ class Renderer:
             CheckInput(self.gpu), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
             PlanLightPasses(self.gpu, self.kept), PlanDenoise(), PlanDepthOfField(),
-            RenderImage(self.gpu, self.kept), Denoise(), DepthOfField(), Sanitize(),
+            RenderImage(self.gpu, self.kept), Denoise(), MotionBlur(), DepthOfField(),
+            Sanitize(),
         ]
 
     def render(self, scene: Scene, settings: Settings, progress: ProgressCallback | None = None,
@@ -119,6 +126,8 @@ class Renderer:
         (panorama.py), each with the same light paths; camera guidance is off, since it would
         keep other VPLs for each face (seams)."""
         scene, settings = _without_automatic(scene, settings)
+        if scene.motion is not None:
+            scene = replace(scene, motion=None, warnings=[*scene.warnings, PANORAMA_STILL])
         camera = scene.camera
         rays = panorama.pixel_directions(camera.panorama, camera.width, camera.height)
         needed = panorama.needed_faces(rays)
@@ -146,11 +155,13 @@ class Renderer:
                            progress: ProgressCallback | None = None,
                            cancelled: CancelCallback | None = None,
                            passes: frozenset[str] | None = None,
-                           on_pass: Callable[[PassReport], None] | None = None
+                           on_pass: Callable[[PassReport], None] | None = None,
+                           scene_at: Callable[[int], Scene] | None = None
                            ) -> tuple[Frame, Stats]:
         """A final render: ``settings.passes`` passes averaged (see progressive.py), or in the
         automatic mode 'time' passes until the budget is spent (budget.py), with ``on_pass``
-        called after each."""
+        called after each; ``scene_at`` gives pass k's scene where passes see the scene at
+        different times (motion blur), else every pass renders ``scene``."""
         settings.validate()
         if scene.camera is not None and scene.camera.panorama is not None:
             scene, settings = _without_automatic(scene, settings)
@@ -158,6 +169,8 @@ class Renderer:
         def one_pass(scene: Scene, settings: Settings, index: int,
                      progress: ProgressCallback, cancelled: CancelCallback
                      ) -> tuple[Frame, Stats]:
+            if scene_at is not None:
+                scene = scene_at(index)
             return self.render(scene, settings, progress, cancelled, passes, index)
 
         if settings.auto_parameters == "time":

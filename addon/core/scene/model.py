@@ -371,11 +371,13 @@ class Camera:
 class MotionSpan:
     """The two times, in frames from the rendered one, at which instances and the camera
     know their placement (Instance.motion, Camera.motion_views): -1 and 1 for the Vector
-    pass (the previous and next frame), the shutter's opening and closing with ``blur``."""
+    pass (the previous and next frame), the shutter's opening and closing with ``blur``; the
+    rendered time is ``centre`` frames from the frame's (the shutter's middle)."""
 
     before: float = -1.0
     after: float = 1.0
     blur: bool = False
+    centre: float = 0.0
 
 
 @dataclass(frozen=True)
