@@ -84,6 +84,28 @@ class _SectionPanel(_RenderPanel):
             layout.operator("vpl_gi.bake_materials")
 
 
+class RENDER_PT_vpl_gi_motion_blur(_RenderPanel, bpy.types.Panel):
+    """Render Properties > Motion Blur while this engine is selected: the render's shutter
+    (Blender's own panel is EEVEE's and draws EEVEE's settings too)."""
+
+    bl_label = "Motion Blur"
+    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+
+    def draw_header(self, context: bpy.types.Context) -> None:
+        self.layout.prop(context.scene.render, "use_motion_blur", text="")
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        render = context.scene.render
+        column = layout.column()
+        column.active = render.use_motion_blur
+        column.prop(render, "motion_blur_position", text="Position")
+        column.prop(render, "motion_blur_shutter")
+        column.label(text="Each pass renders its own part of the shutter (Sampling > Passes)")
+
+
 class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
     """View Layer Properties > Passes while this engine is selected: the view-layer toggles of
     the passes it fills (Blender's own Passes panel is EEVEE's and Workbench's), Cycles'
@@ -128,8 +150,12 @@ PANELS: tuple[type, ...] = (RENDER_PT_vpl_gi, *(_section_panel(s) for s in SECTI
 """Registered in this order: every parent before its sub-panels."""
 
 
+OWN_PANELS = (RENDER_PT_vpl_gi_motion_blur, VIEWLAYER_PT_vpl_gi_passes)
+"""Panels drawn for this engine that are not settings sections."""
+
+
 def register() -> None:
-    for panel in (*PANELS, VIEWLAYER_PT_vpl_gi_passes):
+    for panel in (*PANELS, *OWN_PANELS):
         bpy.utils.register_class(panel)
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.add(ENGINE_ID)
@@ -138,5 +164,5 @@ def register() -> None:
 def unregister() -> None:
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.discard(ENGINE_ID)
-    for panel in reversed((*PANELS, VIEWLAYER_PT_vpl_gi_passes)):
+    for panel in reversed((*PANELS, *OWN_PANELS)):
         bpy.utils.unregister_class(panel)

@@ -300,3 +300,32 @@ def test_denoising_data_passes_are_registered_and_filled(blender, tmp_path):
     clean = render_linear(scene, "VPL_GI", tmp_path / "denoised.exr")[..., :3]
     assert np.isfinite(clean).all()
     assert abs(clean.mean() / noisy.mean() - 1.0) < 0.1
+
+
+def test_motion_blur_panel_draws_the_shutter_the_render_reads(blender):
+    """Render Properties > Motion Blur: its checkbox, and the shutter and its position, greyed
+    out while motion blur is off (Blender's own panel is EEVEE's)."""
+    from types import SimpleNamespace
+
+    from addon.ui import RENDER_PT_vpl_gi_motion_blur
+
+    class Recorder(_Layout):
+        def column(self, **_kwargs) -> Recorder:
+            return Recorder(self.drawn)
+
+        def prop(self, data, name: str, **_kwargs) -> None:
+            super().prop(data, name)
+
+        def label(self, **_kwargs) -> None:
+            pass
+
+    render = blender.context.scene.render
+    for on in (False, True):
+        render.use_motion_blur = on
+        drawn: dict[str, bool] = {}
+        fake = SimpleNamespace(layout=Recorder(drawn))
+        RENDER_PT_vpl_gi_motion_blur.draw_header(fake, blender.context)
+        RENDER_PT_vpl_gi_motion_blur.draw(fake, blender.context)
+        assert drawn == {"use_motion_blur": True, "motion_blur_position": on,
+                         "motion_blur_shutter": on}
+    render.use_motion_blur = False
