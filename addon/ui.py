@@ -33,6 +33,14 @@ def _compatible_panels() -> list[type]:
     return panels
 
 
+def _split(layout: bpy.types.UILayout) -> bpy.types.UILayout:
+    """The panel's layout with labels beside the values and no animation dots, as Blender's
+    property panels draw."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout
+
+
 class _EnginePanel:
     """Mixin: a panel in the Properties editor shown while this engine is selected."""
 
@@ -58,9 +66,7 @@ class RENDER_PT_vpl_gi(_RenderPanel, bpy.types.Panel):
     bl_label = "VPL GI"
 
     def draw(self, context: bpy.types.Context) -> None:
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = _split(self.layout)
         layout.prop(context.scene.vpl_gi, "viewport_display")
 
 
@@ -70,9 +76,7 @@ class _SectionPanel(_RenderPanel):
     section: ClassVar[str]
 
     def draw(self, context: bpy.types.Context) -> None:
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = _split(self.layout)
         props = context.scene.vpl_gi
         values = props.values()
         for name, meta in SCHEMA.items():
@@ -95,9 +99,7 @@ class RENDER_PT_vpl_gi_motion_blur(_RenderPanel, bpy.types.Panel):
         self.layout.prop(context.scene.render, "use_motion_blur", text="")
 
     def draw(self, context: bpy.types.Context) -> None:
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = _split(self.layout)
         render = context.scene.render
         column = layout.column()
         column.active = render.use_motion_blur
@@ -117,9 +119,7 @@ class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
     def draw(self, context: bpy.types.Context) -> None:
         from .engine import CRYPTOMATTE_TOGGLES, OPTIONAL_PASSES, toggle_owner
 
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = _split(self.layout)
         column = layout.column(heading="Include", align=True)
         for toggle in dict.fromkeys(toggle for *_, toggle in OPTIONAL_PASSES.values()):
             found = toggle_owner(context.view_layer, toggle)
