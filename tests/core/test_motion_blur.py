@@ -14,7 +14,8 @@ def test_passes_split_the_shutter_into_strata():
     span = MotionSpan(-0.25, 0.25, blur=True, centre=0.1)
     parts = [pass_span(span, k, 4) for k in range(4)]
     assert sorted(round(p.centre - 0.1, 9) for p in parts) == [-0.1875, -0.0625, 0.0625, 0.1875]
-    assert parts[0].centre < parts[2].centre < parts[1].centre  # first passes spread out
+    assert parts[1].centre < 0.1 < parts[0].centre < parts[2].centre  # the first passes
+    assert parts[0].centre - 0.1 == pytest.approx(0.0625)  # spread out, from the middle
     assert all(p.after - p.before == pytest.approx(0.125) and p.blur for p in parts)
     assert pass_span(span, 3, 1) == span
 

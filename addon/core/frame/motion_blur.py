@@ -27,12 +27,15 @@ MIN_MOTION = 0.5  # pixels: slower pixels are not blurred
 
 def pass_span(span: MotionSpan, index: int, passes: int) -> MotionSpan:
     """The part of the shutter pass ``index`` of ``passes`` renders: a 1/passes share of it
-    about its van der Corput point (the strata's middles, in an order that spreads any first
-    passes over the shutter), blurred over that share alone; one pass blurs the whole."""
+    about its van der Corput point turned by half the shutter (the strata's middles, the
+    first one at the shutter's middle, which the data passes come from, in an order that
+    spreads any first passes over the shutter), blurred over that share alone; one pass
+    blurs the whole."""
     if passes <= 1 or not span.blur:
         return span
     length = span.after - span.before
-    middle = span.before + length * (radical_inverse(index, 2) + 0.5 / passes)
+    point = (radical_inverse(index, 2) + 0.5) % 1.0
+    middle = span.before + length * (point + 0.5 / passes)
     return MotionSpan(-0.5 * length / passes, 0.5 * length / passes, blur=True,
                       centre=span.centre + middle)
 
