@@ -64,33 +64,42 @@ def _instance_deltas(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeometry,
                    scene: Scene, camera: Camera, x0: int, y0: int) -> np.ndarray:
     """The Vector pass (h, w, 4) of pixels [x0, x0 + w) × [y0, y0 + h) whose surfaces are at
-    world ``position`` (h, w, 3) on triangles ``codes`` (IdTables.triangles: 0 none)."""
+    world ``position`` (h, w, 3) on triangles ``codes`` (IdTables.triangles: 0 none). Only
+    moving pixels are projected: those of moving instances, or all where the camera moves."""
     h, w = codes.shape
     projection = camera.projection_matrix
     views = camera.motion_views or (camera.view_matrix, camera.view_matrix)
-    now = projection @ camera.view_matrix
-    then = [projection @ view for view in views]
-    seen = codes.ravel() > 0
-    points = np.ones((h * w, 4))
-    points[:, :3] = position.reshape(-1, 3)
-    directions = camera_directions(camera, 1, x0, y0, w, h).reshape(-1, 3)
-    points[~seen, :3], points[~seen, 3] = directions[~seen], 0.0  # at infinity
-    moved = [points.copy(), points.copy()]
+    camera_moves = not all(np.array_equal(v, camera.view_matrix) for v in views)
+    codes = codes.ravel()
+    seen = codes > 0
+    instance = np.zeros(h * w, np.int64)
     owners = geometry.triangle_instance
+    moves, deltas = np.zeros(1, bool), np.broadcast_to(np.eye(4), (2, 1, 4, 4))
     if owners is not None and len(owners) and seen.any():
-        moves, before, after = _instance_deltas(scene)
-        instance = np.zeros(h * w, np.int64)
-        instance[seen] = np.take(owners, codes.ravel()[seen] - 1, mode="clip") + 1
-        moving = np.flatnonzero(moves[instance])
-        for k, delta in enumerate((before, after)):
-            moved[k][moving] = np.einsum("nij,nj->ni", delta[instance[moving]],
-                                         points[moving])
-    current, ahead = _pixels(now, points, camera)
-    previous, ahead_before = _pixels(then[0], moved[0], camera)
-    following, ahead_after = _pixels(then[1], moved[1], camera)
+        moves, *pair = _instance_deltas(scene)
+        deltas = np.stack(pair)
+        instance[seen] = np.take(owners, codes[seen] - 1, mode="clip") + 1
+    pixels = np.arange(h * w) if camera_moves else np.flatnonzero(moves[instance])
     vectors = np.zeros((h * w, 4), np.float32)
-    vectors[:, :2] = np.where((ahead & ahead_before)[:, None], previous - current, 0.0)
-    vectors[:, 2:] = np.where((ahead & ahead_after)[:, None], current - following, 0.0)
+    if pixels.size == 0:
+        return vectors.reshape(h, w, 4)
+    points = np.ones((pixels.size, 4))
+    points[:, :3] = position.reshape(-1, 3)[pixels]
+    background = ~seen[pixels]
+    if background.any():  # at infinity, in the pixel's direction
+        directions = camera_directions(camera, 1, x0, y0, w, h).reshape(-1, 3)
+        points[background, :3], points[background, 3] = directions[pixels[background]], 0.0
+    current, ahead = _pixels(projection @ camera.view_matrix, points, camera)
+    ends = []
+    for k, view in enumerate(views):
+        moved = points.copy()
+        owner = instance[pixels]
+        moving = np.flatnonzero(moves[owner])
+        moved[moving] = np.einsum("nij,nj->ni", deltas[k][owner[moving]], points[moving])
+        ends.append(_pixels(projection @ view, moved, camera))
+    (previous, ahead_before), (following, ahead_after) = ends
+    vectors[pixels, :2] = np.where((ahead & ahead_before)[:, None], previous - current, 0.0)
+    vectors[pixels, 2:] = np.where((ahead & ahead_after)[:, None], current - following, 0.0)
     return np.nan_to_num(vectors, nan=0.0, posinf=0.0, neginf=0.0).reshape(h, w, 4)
 
 
