@@ -18,6 +18,8 @@ def test_passes_split_the_shutter_into_strata():
     assert parts[0].centre - 0.1 == pytest.approx(0.0625)  # spread out, from the middle
     assert all(p.after - p.before == pytest.approx(0.125) and p.blur for p in parts)
     assert pass_span(span, 3, 1) == span
+    late = [pass_span(span, k, 4).centre - 0.1 for k in range(4, 64)]  # a budget's passes
+    assert all(-0.1875 - 1e-12 <= t <= 0.1875 + 1e-12 for t in late)
 
 
 def test_half_exposure_is_half_the_motion_over_the_shutter_and_clamped():

@@ -34,8 +34,8 @@ def pass_span(span: MotionSpan, index: int, passes: int) -> MotionSpan:
     if passes <= 1 or not span.blur:
         return span
     length = span.after - span.before
-    point = (radical_inverse(index, 2) + 0.5) % 1.0
-    middle = span.before + length * (point + 0.5 / passes)
+    point = min((radical_inverse(index, 2) + 0.5) % 1.0 + 0.5 / passes, 1.0 - 0.5 / passes)
+    middle = span.before + length * point  # within the shutter past ``passes`` passes too
     return MotionSpan(-0.5 * length / passes, 0.5 * length / passes, blur=True,
                       centre=span.centre + middle)
 
