@@ -117,3 +117,25 @@ def test_motion_blur_is_cycles(blender, tmp_path, position):
                        (0.01, 0.025), sharp, "without it", factor=4.0)
     assert_near_cycles(f"motion blur ({position.lower()}), 1 pass", one_pass, reference,
                        (0.02, 0.09), sharp, "without it", factor=1.3)
+
+
+def test_degenerate_motion_renders_finite_passes(blender, tmp_path):
+    """A box scaled to nothing at the previous frame and one flying to a huge distance at the
+    next, with motion blur on and the Vector pass asked for: finite passes, no warning
+    about non-finite pixels."""
+    scene = motion_scene(False)
+    box = bpy.data.objects["Cube"]
+    keyframed(box, "scale", [(0.0, 0.0, 0.0), (1.0, 1.0, 1.0)], [1, 2])
+    far = add_primitive("cube", bpy.data.materials["Grey"], size=0.5, location=(0, 2, 0))
+    keyframed(far, "location", [(0.0, 2.0, 0.0), (1e30, 2.0, 0.0)], [2, 3])
+    scene.frame_set(2)
+    scene.render.use_motion_blur = True
+    scene.vpl_gi.passes = 2
+    from addon.engine import monitor
+
+    for blurred in (True, False):
+        scene.render.use_motion_blur = blurred
+        image = vector_pass(scene, "VPL_GI", tmp_path / f"{blurred}.exr")
+        assert np.isfinite(image).all() and monitor.last_error is None
+        assert not any("non-finite" in w for w in monitor.last_warnings), monitor.last_warnings
+    assert np.abs(image).max() > 1.0  # the Vector pass, motion blur off
