@@ -48,3 +48,15 @@ def test_a_moving_camera_moves_everything(renderer):
     expected = np.array([0.5, 0.0, 0.5, 0.0]) * PIXELS_PER_METRE
     np.testing.assert_allclose(frame.passes["Vector"].reshape(-1, 4),
                                np.broadcast_to(expected, (32 * 32, 4)), atol=1e-3)
+
+
+def test_motion_blur_hands_out_only_the_passes_asked_for(renderer):
+    """Motion blur reads Depth and Vector (the planner adds them): they are returned only
+    when asked for."""
+    scene = moving_box_scene()
+    scene.motion = MotionSpan(-0.25, 0.25, blur=True)
+    settings = Settings(antialiasing=2, bounces=0)
+    frame, stats = renderer.render(scene, settings, passes=frozenset({"Combined"}))
+    assert set(frame.passes) == {"Combined"} and stats.counts["motion-blurred pixels"] > 0
+    frame, _ = renderer.render(scene, settings, passes=frozenset({"Depth"}))
+    assert set(frame.passes) == {"Combined", "Depth"}

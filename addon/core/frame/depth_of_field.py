@@ -222,7 +222,7 @@ def aperture_problem(aperture: Aperture) -> str | None:
 
 class PlanDepthOfField(Stage):
     """One warning, and a camera in focus, where the aperture cannot be rendered (the planner
-    asks for the Depth pass the blur reads; it is dropped again when not asked for)."""
+    asks for the Depth pass the blur reads; DropBorrowed drops it again when not asked for)."""
 
     name = "depth of field plan"
     needs = ("camera",)
@@ -248,5 +248,3 @@ class DepthOfField(Stage):
         frame.report(1.0, "Depth of field")
         with frame.stats.timed(self.name):
             defocus_frame(frame.output, frame.camera, frame.stats.notes, frame.check_cancelled)
-        if frame.passes is not None and "Depth" not in frame.passes:
-            del frame.output["Depth"]

@@ -117,7 +117,7 @@ def blur(images: dict[str, np.ndarray], vectors: np.ndarray, depth: np.ndarray,
 
 class MotionBlur(Stage):
     """The shutter's motion blur over the finished passes (after denoising, before depth of
-    field); the Vector and Depth passes it reads are dropped again when not asked for."""
+    field)."""
 
     name = "motion blur"
     needs = ("output",)
@@ -132,7 +132,3 @@ class MotionBlur(Stage):
             blurred = blur(images, frame.output["Vector"], frame.output["Depth"],
                            seed=frame.pass_index)
             frame.stats.counts["motion-blurred pixels"] = blurred
-        kept = {"Depth"} if frame.camera.defocused else set()  # depth of field reads it
-        for name in {"Vector", "Depth"} - kept:
-            if frame.passes is not None and name not in frame.passes:
-                del frame.output[name]

@@ -37,6 +37,8 @@ class FramePlan:
     sample_dark: bool = False  # sample zero-power lights and a black world anyway
     cull_to_view: bool = True  # leave out light samples and VPLs the camera cannot see lit
     passes: frozenset[str] = frozenset(PASS_CHANNELS)
+    borrowed: frozenset[str] = frozenset()  # passes only the frame's own stages read (depth
+    # of field's and motion blur's): dropped before the frame is returned (DropBorrowed)
     skipped: dict[str, str] = field(default_factory=dict)
 
 
@@ -90,11 +92,13 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
     """The stages this frame needs, from the scene, the settings and the requested passes."""
     wanted = frozenset(PASS_CHANNELS) if passes is None or not settings.planner \
         else frozenset(passes) | {"Combined"}
+    read: set[str] = set()
     if scene.camera is not None and scene.camera.defocused:
-        wanted |= {"Depth"}  # depth of field blurs by it (depth_of_field.py)
+        read |= {"Depth"}  # depth of field blurs by it (depth_of_field.py)
     if scene.motion is not None and scene.motion.blur:
-        wanted |= {"Depth", "Vector"}  # motion blur smears by them (motion_blur.py)
-    plan = FramePlan(passes=wanted)
+        read |= {"Depth", "Vector"}  # motion blur smears by them (motion_blur.py)
+    asked = wanted if passes is None else frozenset(passes)
+    plan = FramePlan(passes=wanted | read, borrowed=frozenset(read - asked))
     reason = no_indirect_reason(scene, geometry, settings)  # off: bounces = 0, no surfaces
     if reason:
         plan.indirect = False

@@ -30,6 +30,7 @@ from .result import Frame, Stats
 from .reuse import KeptProducts
 from .stages import (
     CheckInput,
+    DropBorrowed,
     FlattenGeometry,
     PlanFrame,
     PlanGather,
@@ -84,7 +85,7 @@ class Renderer:
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
             PlanLightPasses(self.gpu, self.kept), PlanDenoise(), PlanDepthOfField(),
             RenderImage(self.gpu, self.kept), Denoise(), MotionBlur(), DepthOfField(),
-            Sanitize(),
+            DropBorrowed(), Sanitize(),
         ]
 
     def render(self, scene: Scene, settings: Settings, progress: ProgressCallback | None = None,

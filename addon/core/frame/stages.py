@@ -332,6 +332,18 @@ class PlanLightPasses(Stage):
                 for subset, k, blurred in ((world, interleave, interleave > 1), *others)]
 
 
+class DropBorrowed(Stage):
+    """The passes only the frame's own stages read (FramePlan.borrowed: depth of field's and
+    motion blur's Depth and Vector) are not handed out."""
+
+    name = "drop borrowed passes"
+    needs = ("output",)
+
+    def run(self, frame: FrameState) -> None:
+        for name in frame.plan.borrowed:
+            frame.output.pop(name, None)
+
+
 class Sanitize(Stage):
     """No NaN or Inf leaves the renderer (each replaced by 0, with a warning)."""
 
