@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import struct
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -164,15 +164,42 @@ def merge_ranks(ids: np.ndarray, weights: np.ndarray, levels: int
     """Per pixel, the ``levels`` ids of largest total weight among (h, w, n) ``ids`` (0: no
     id) and their weights, summed over equal ids, largest first; (h, w, levels) each. Pixels
     of one id (most, inside objects) are ranked without sorting."""
-    lead = ids[..., 0]
-    simple = ids.max(axis=-1) == ids.min(axis=-1)
-    out_ids = np.zeros((*ids.shape[:-1], levels), np.float32)
-    out_weights = np.zeros((*ids.shape[:-1], levels), np.float32)
-    out_ids[..., 0] = np.where(simple, lead, 0.0)
-    out_weights[..., 0] = np.where(simple & (lead != 0), weights.sum(axis=-1), 0.0)
-    mixed = ~simple
+    uniform = ids.max(axis=-1) == ids.min(axis=-1)
+    return _ranks(ids[..., 0], uniform, weights.sum(axis=-1),
+                  lambda mixed: (ids[mixed], weights[mixed]), levels)
+
+
+def supersample_ranks(ids: np.ndarray, aa: int, levels: int
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The ranks (``merge_ranks``) of each pixel's aa × aa supersample ids (h·aa, w·aa), each
+    supersample weighing 1 / aa²; pixels whose supersamples agree (most) are compared as
+    whole strided images, without gathering their supersamples."""
+    views = [ids[i::aa, j::aa] for i in range(aa) for j in range(aa)]
+    lead = views[0]
+    uniform = np.ones(lead.shape, bool)
+    for view in views[1:]:
+        uniform &= view == lead
+
+    def gathered(mixed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        blocks = np.stack([view[mixed] for view in views], axis=-1)
+        return blocks, np.full(blocks.shape, 1.0 / (aa * aa), np.float32)
+
+    return _ranks(lead, uniform, np.float32(1.0), gathered, levels)
+
+
+def _ranks(lead: np.ndarray, uniform: np.ndarray, lead_weight: np.ndarray | np.float32,
+           gather: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], levels: int
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """Ranks (h, w, levels) of ids and weights: where ``uniform``, the pixel's one id
+    ``lead`` (none where 0) of ``lead_weight``; elsewhere the sorted ranks of the pixels'
+    (m, n) ids and weights ``gather`` returns for that mask."""
+    out_ids = np.zeros((*lead.shape, levels), np.float32)
+    out_weights = np.zeros((*lead.shape, levels), np.float32)
+    out_ids[..., 0] = np.where(uniform, lead, 0.0)
+    out_weights[..., 0] = np.where(uniform & (lead != 0), lead_weight, 0.0)
+    mixed = ~uniform
     if mixed.any():
-        out_ids[mixed], out_weights[mixed] = _sorted_ranks(ids[mixed], weights[mixed], levels)
+        out_ids[mixed], out_weights[mixed] = _sorted_ranks(*gather(mixed), levels)
     return out_ids, out_weights
 
 
@@ -197,28 +224,6 @@ def _sorted_ranks(ids: np.ndarray, weights: np.ndarray, levels: int
     best = np.argsort(-totals, axis=-1, kind="stable")[:, :levels]
     return (np.take_along_axis(run_ids, best, axis=-1),
             np.take_along_axis(totals, best, axis=-1).astype(np.float32))
-
-
-def supersample_ranks(ids: np.ndarray, aa: int, levels: int
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """The ranks (``merge_ranks``) of each pixel's aa × aa supersample ids (h·aa, w·aa), each
-    supersample weighing 1 / aa²; pixels whose supersamples agree (most) are compared as
-    whole strided images, without gathering their supersamples."""
-    views = [ids[i::aa, j::aa] for i in range(aa) for j in range(aa)]
-    lead = views[0]
-    uniform = np.ones(lead.shape, bool)
-    for view in views[1:]:
-        uniform &= view == lead
-    out_ids = np.zeros((*lead.shape, levels), np.float32)
-    out_weights = np.zeros((*lead.shape, levels), np.float32)
-    out_ids[..., 0] = np.where(uniform, lead, 0.0)
-    out_weights[..., 0] = uniform & (lead != 0)
-    mixed = ~uniform
-    if mixed.any():
-        blocks = np.stack([view[mixed] for view in views], axis=-1)
-        weights = np.full(blocks.shape, 1.0 / (aa * aa), np.float32)
-        out_ids[mixed], out_weights[mixed] = _sorted_ranks(blocks, weights, levels)
-    return out_ids, out_weights
 
 
 def split_ranks(images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
