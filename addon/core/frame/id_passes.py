@@ -278,9 +278,14 @@ def metadata(scene: Scene, families: list[str], layer: str) -> dict[str, str]:
     return fields
 
 
+def is_id_pass(name: str) -> bool:
+    """Whether a pass holds ids (an index pass, a Cryptomatte pass): never blended."""
+    return name in INDEX_PASSES or family_of(name) is not None
+
+
 def wants_ids(passes: Mapping[str, np.ndarray] | frozenset[str]) -> bool:
     """Whether any ID pass is among ``passes``."""
-    return any(name in INDEX_PASSES or family_of(name) for name in passes)
+    return any(is_id_pass(name) for name in passes)
 
 
 class IdPasses:

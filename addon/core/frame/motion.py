@@ -36,9 +36,10 @@ def _pixels(view_projection: np.ndarray, points: np.ndarray, camera: Camera
     return (clip[:, :2] / safe * 0.5 + 0.5) * size, ahead
 
 
-def _instance_deltas(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per instance: whether it moves, and the maps from its world placement now to those at
-    the two times (identity where it does not move), (I, 4, 4) each."""
+def _instance_deltas(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """Per instance + 1 (entry 0: none): whether it moves, and the maps from its world
+    placement now to those at the two times (identity where it does not move), (2, I + 1, 4,
+    4)."""
     count = len(scene.instances)
     moves = np.zeros(count + 1, bool)
     deltas = np.broadcast_to(np.eye(4), (2, count + 1, 4, 4)).copy()
@@ -58,7 +59,7 @@ def _instance_deltas(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             moves[index + 1] = True
         else:
             deltas[:, index + 1] = np.eye(4)
-    return moves, deltas[0], deltas[1]
+    return moves, deltas
 
 
 def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeometry,
@@ -76,8 +77,7 @@ def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeome
     owners = geometry.triangle_instance
     moves, deltas = np.zeros(1, bool), np.broadcast_to(np.eye(4), (2, 1, 4, 4))
     if owners is not None and len(owners) and seen.any():
-        moves, *pair = _instance_deltas(scene)
-        deltas = np.stack(pair)
+        moves, deltas = _instance_deltas(scene)
         instance[seen] = np.take(owners, codes[seen] - 1, mode="clip") + 1
     pixels = np.arange(h * w) if camera_moves else np.flatnonzero(moves[instance])
     vectors = np.zeros((h * w, 4), np.float32)

@@ -21,6 +21,7 @@ from .id_passes import (
     INDEX_PASSES,
     family_of,
     family_passes,
+    is_id_pass,
     joined_ranks,
     merge_ranks,
     split_ranks,
@@ -212,7 +213,7 @@ def _resample_at(faces: dict[int, dict[str, np.ndarray]], size: int, d: np.ndarr
         x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
         tx, ty = (x - x0)[:, None], (y - y0)[:, None]
         for name, image in passes.items():
-            if name in INDEX_PASSES or family_of(name) is not None:  # ids: never blended
+            if is_id_pass(name):
                 out[name][rows, cols] = image[np.rint(y).astype(int), np.rint(x).astype(int)]
                 continue
             value = (image[y0, x0] * (1 - tx) * (1 - ty) + image[y0, x0 + 1] * tx * (1 - ty)
