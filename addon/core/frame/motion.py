@@ -91,10 +91,10 @@ def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeome
         points[background, :3], points[background, 3] = directions[pixels[background]], 0.0
     current, ahead = _pixels(projection @ camera.view_matrix, points, camera)
     ends = []
+    owner = instance[pixels]
+    moving = np.flatnonzero(moves[owner])
     for k, view in enumerate(views):
         moved = points.copy()
-        owner = instance[pixels]
-        moving = np.flatnonzero(moves[owner])
         moved[moving] = np.einsum("nij,nj->ni", deltas[k][owner[moving]], points[moving])
         ends.append(_pixels(projection @ view, moved, camera))
     (previous, ahead_before), (following, ahead_after) = ends
@@ -116,9 +116,9 @@ class MotionVectors:
             if frame.id_tables is None:
                 frame.id_tables = IdTables(frame.scene, frame.geometry)
             aa, tile, images = frame.settings.antialiasing, work.tile, work.gbuffer.images
-            codes = central(frame.id_tables.triangles(images["geometric"])[..., None], aa)
+            codes = frame.id_tables.triangles(central(images["geometric"], aa))
             position = central(images["position"][..., :3], aa)
-            vectors = motion_vectors(position, codes[..., 0], frame.geometry, frame.scene,
+            vectors = motion_vectors(position, codes, frame.geometry, frame.scene,
                                      frame.camera, tile.x0 // aa, tile.y0 // aa)
             h, w = vectors.shape[:2]
             frame.output["Vector"][tile.y0 // aa:tile.y0 // aa + h,
