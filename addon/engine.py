@@ -192,12 +192,14 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         self.update_stats("", "VPL GI | Exporting scene")
         passes = layer_passes(depsgraph.view_layer)
         span = motion_span(depsgraph.scene, "Vector" in passes)
-        exported = self._export_at(depsgraph, span)
+        first = None if span is None else pass_span(span, 0, settings.passes)
+        exported = self._export_at(depsgraph, first)
         scene_at = None
-        if span is not None and span.blur and settings.passes > 1:
+        if first is not span:  # motion blur's shutter split over the passes
             def scene_at(index: int) -> Scene:
                 """Pass ``index`` sees its own part of the shutter (motion_blur.pass_span)."""
-                return self._export_at(depsgraph, pass_span(span, index, settings.passes))
+                return exported if index == 0 else \
+                    self._export_at(depsgraph, pass_span(span, index, settings.passes))
         if exported.camera is None:
             raise RenderError("the scene has no active camera")
 
