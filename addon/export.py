@@ -51,6 +51,7 @@ from .core.scene.model import (
 from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
+from .export_light_linking import scene_light_linking
 from .export_lights import export_light, is_portal
 from .export_motion import InstanceKey, SampledMotion, instance_key, placed_motion
 
@@ -1003,11 +1004,11 @@ UNRENDERED = {
     "VOLUME": "volume objects are not rendered: {}",
     "HAIR": "hair particles are not rendered, on {}",
     "SHADOW_CATCHER": "shadow catchers are rendered as ordinary surfaces: {}",
-    "LIGHT_LINKING": "light linking is not rendered (each light lights and shadows every "
-                     "object): {}",
+    "SHADOW_LINKING": "shadow linking is not rendered (every object casts the shadows of "
+                      "these emitters' light): {}",
 }
 """What Cycles renders and VPL GI does not, by kind: Blender's object types, HAIR for a
-mesh's hair particle systems, SHADOW_CATCHER and LIGHT_LINKING for objects with them (keys
+mesh's hair particle systems, SHADOW_CATCHER and SHADOW_LINKING for objects with them (keys
 of ``export_scene``'s skipped objects); each a warning naming them."""
 
 
@@ -1017,12 +1018,11 @@ def has_particle_hair(obj: bpy.types.Object) -> bool:
                for system in getattr(obj, "particle_systems", ()))
 
 
-def has_light_linking(obj: bpy.types.Object) -> bool:
-    """True if the object's light or its emission is linked to some objects only, or its
-    shadows blocked by some only (Cycles' light and shadow linking)."""
+def has_shadow_linking(obj: bpy.types.Object) -> bool:
+    """True if the shadows of the object's light or emission are cast by some objects only
+    (Cycles' shadow linking: a blocker collection)."""
     linking = getattr(obj, "light_linking", None)
-    return linking is not None and (linking.receiver_collection is not None
-                                    or linking.blocker_collection is not None)
+    return linking is not None and linking.blocker_collection is not None
 
 
 def unrendered_objects(skipped: dict[str, set[str]]) -> list[str]:
@@ -1049,6 +1049,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     cache.stats.update(meshes_read=0, meshes_reused=0)
     cache.unbaked.clear()
     state = _Export(depsgraph, cache, result)
+    linking = scene_light_linking(depsgraph)
+    result.warnings.extend(linking.warnings)
     placed: list[tuple[Mesh, list[Material], str]] = []
     skipped: dict[str, set[str]] = {}  # what VPL GI does not render (UNRENDERED): objects
     # Per (object, data): its mesh, materials and name, or None when no ray sees it. Keyed by
@@ -1064,8 +1066,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         obj = inst.object
         kind = obj.type
         if kind == "LIGHT":
-            if has_light_linking(obj):
-                skipped.setdefault("LIGHT_LINKING", set()).add(obj.name)
+            if has_shadow_linking(obj):
+                skipped.setdefault("SHADOW_LINKING", set()).add(obj.name)
             matrix = _matrix(inst.matrix_world)
             problem, = transform_problems(matrix[None])
             if problem:
@@ -1074,6 +1076,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                 result.portals.append(export_light(obj, matrix))
             else:
                 result.lights.append(export_light(obj, matrix, result.warnings))
+                result.lights[-1].receivers = linking.receivers_of(obj)
             continue
         if kind not in RENDERED_OBJECT_TYPES or not inst.show_self:
             if kind in UNRENDERED and inst.show_self:
@@ -1086,11 +1089,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                 skipped.setdefault("HAIR", set()).add(obj.name)
             if getattr(obj, "is_shadow_catcher", False):
                 skipped.setdefault("SHADOW_CATCHER", set()).add(obj.name)
-            if has_light_linking(obj):  # an emitter's light
-                skipped.setdefault("LIGHT_LINKING", set()).add(obj.name)
+            if has_shadow_linking(obj):  # an emitter's light
+                skipped.setdefault("SHADOW_LINKING", set()).add(obj.name)
             known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
                      state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
-                     bool(getattr(obj, "visible_diffuse", True)), state.identity(obj)) \
+                     bool(getattr(obj, "visible_diffuse", True)), state.identity(obj),
+                     linking.receiver_set(obj), linking.receivers_of(obj)) \
                 if state.include(obj) else None
             entry = placements[memo] = (known, bool(known and known[0].triangle_count))
         elif entry[0]:

@@ -136,6 +136,35 @@ class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
         column.prop(layer, "pass_cryptomatte_depth", text="Levels")
 
 
+class OBJECT_PT_vpl_gi_light_linking(_EnginePanel, bpy.types.Panel):
+    """Object Properties > Light Linking while this engine is selected, where Blender's own
+    panel is Cycles' (4.2; later versions' is any engine's): the receiver collection an
+    emitter lights, and its entries to include or exclude."""
+
+    bl_label = "Light Linking"
+    bl_context = "object"
+    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return super().poll(context) and context.object is not None \
+            and context.object.type in {"LIGHT", "MESH", "CURVE", "SURFACE", "META", "FONT"}
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = _split(self.layout)
+        linking = context.object.light_linking
+        layout.column().template_ID(linking, "receiver_collection",
+                                    new="object.light_linking_receiver_collection_new")
+        if linking.receiver_collection is None:
+            return
+        row = layout.row()
+        row.column().template_light_linking_collection(row, linking, "receiver_collection")
+        column = row.column(align=True)
+        column.operator("object.light_linking_receivers_link", icon="ADD",
+                        text="").link_state = "INCLUDE"
+        column.operator("object.light_linking_unlink_from_collection", icon="REMOVE", text="")
+
+
 def _panel_id(section: str | None) -> str:
     return f"RENDER_PT_vpl_gi_{section}" if section else RENDER_PT_vpl_gi.__name__
 
@@ -154,8 +183,18 @@ OWN_PANELS = (RENDER_PT_vpl_gi_motion_blur, VIEWLAYER_PT_vpl_gi_passes)
 """Panels drawn for this engine that are not settings sections."""
 
 
+def _version_panels() -> tuple[type, ...]:
+    """Panels drawn for this engine where this Blender version's own are another engine's."""
+    return () if hasattr(bpy.types, "OBJECT_PT_light_linking") \
+        else (OBJECT_PT_vpl_gi_light_linking,)
+
+
+_registered: list[type] = []
+
+
 def register() -> None:
-    for panel in (*PANELS, *OWN_PANELS):
+    _registered[:] = (*PANELS, *OWN_PANELS, *_version_panels())
+    for panel in _registered:
         bpy.utils.register_class(panel)
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.add(ENGINE_ID)
@@ -164,5 +203,6 @@ def register() -> None:
 def unregister() -> None:
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.discard(ENGINE_ID)
-    for panel in reversed((*PANELS, *OWN_PANELS)):
+    for panel in reversed(_registered):
         bpy.utils.unregister_class(panel)
+    _registered.clear()

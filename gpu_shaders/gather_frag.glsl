@@ -11,8 +11,14 @@
 // With GLOSSY a second target gets the glossy radiance towards the camera, summed over the
 // same samples with the pixel's lobe from the g-buffer (bias compensation adds no glossy
 // light). With VPL_GLOSSY, VPLs at glossy surfaces also emit through their lobe (lights_lib).
+// With LIGHT_LINKING the draw's samples light only the surfaces of some receiver sets
+// (light_linking_lib.glsl): elsewhere, and at bias compensation's hits elsewhere, they add
+// nothing.
 #include "lights_lib.glsl"
 #include "interleave_lib.glsl"
+#ifdef LIGHT_LINKING
+#include "light_linking_lib.glsl"
+#endif
 #ifdef GLOSSY
 #include "principled_lib.glsl"
 uniform sampler2D u_lobe_a;
@@ -128,6 +134,12 @@ uniform int u_max_generation;  // light that may bounce once more at y
 bool hit_radiance(vec3 origin, vec3 dir, float t, int triangle, out vec3 radiance) {
     vec3 n_y = facing_normal(triangle, dir);
     vec3 unused;
+#ifdef LIGHT_LINKING
+    if (!lights_triangle(triangle)) {
+        radiance = vec3(0.0);
+        return true;
+    }
+#endif
     radiance = material_of(triangle).albedo.rgb / PI
                * gather(origin + dir * t, n_y, n_y, u_max_generation,
                         Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0)), unused);
@@ -156,6 +168,9 @@ void main() {
 #ifdef BIAS_COMPENSATION
     out_light = vec4(compensation(world, normal.xyz, geometric), 0.0);
 #else
+#ifdef LIGHT_LINKING
+    if (!lights_triangle(int(texelFetch(u_geometric, px, 0).w + 0.5) - 1)) discard;
+#endif
 #ifdef SHADOW_HINTS
     read_shadow_hints(px);
 #endif

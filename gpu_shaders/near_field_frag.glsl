@@ -41,7 +41,8 @@ layout(location = 1) out vec4 out_glossy;
 #include "materials_lib.glsl"
 #include "surface_lib.glsl"
 layout(location = HIT_POSITION_LOCATION) out vec4 out_hit_position;  // y, w = 1
-layout(location = HIT_NORMAL_LOCATION) out vec4 out_hit_normal;  // facing x, w = 1 at a hit
+layout(location = HIT_NORMAL_LOCATION) out vec4 out_hit_normal;  // facing x, w = triangle
+// + 1 at a hit (as the g-buffer's geometric normal holds it: light linking's receiver set)
 layout(location = HIT_FACTOR_LOCATION) out vec4 out_hit_factor;  // albedo(y) · weight / rays
 
 // y's diffuse radiance from the image, or false where the camera does not see y from x's side.
@@ -92,6 +93,6 @@ void main() {
     }
     gl_FragDepth = 1.0;
     out_hit_position = vec4(origin + dir * t, 1.0);
-    out_hit_normal = vec4(facing_normal(triangle, dir), 1.0);
+    out_hit_normal = vec4(facing_normal(triangle, dir), float(triangle + 1));
     out_hit_factor = vec4(material_of(triangle).albedo.rgb * weight, 0.0);
 }

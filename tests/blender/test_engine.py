@@ -329,3 +329,46 @@ def test_motion_blur_panel_draws_the_shutter_the_render_reads(blender):
         assert drawn == {"use_motion_blur": True, "motion_blur_position": on,
                          "motion_blur_shutter": on}
     render.use_motion_blur = False
+
+
+def test_light_linking_panel_shows_for_this_engine(blender):
+    """Object Properties > Light Linking (rendered: test_light_linking.py): Blender's own
+    panel where it serves any engine (4.5 on), this engine's where it is Cycles' (4.2)."""
+    from types import SimpleNamespace
+
+    from addon.ui import OBJECT_PT_vpl_gi_light_linking
+
+    bpy = blender
+    bpy.context.scene.render.engine = "VPL_GI"
+    if hasattr(bpy.types, "OBJECT_PT_light_linking"):  # under OBJECT_PT_shading
+        assert "VPL_GI" in bpy.types.OBJECT_PT_shading.COMPAT_ENGINES
+        assert not hasattr(bpy.types, "OBJECT_PT_vpl_gi_light_linking")
+        return
+    assert hasattr(bpy.types, "OBJECT_PT_vpl_gi_light_linking")
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    lamp.light_linking.receiver_collection = bpy.data.collections.new("Lit")
+    calls: list[str] = []
+
+    class Recorder:
+        use_property_split = use_property_decorate = False
+
+        def column(self, **_kwargs) -> Recorder:
+            return self
+
+        row = column
+
+        def template_ID(self, data, name: str, **_kwargs) -> None:
+            calls.append(name)
+
+        def template_light_linking_collection(self, _row, data, name: str) -> None:
+            calls.append(f"entries of {name}")
+
+        def operator(self, idname: str, **_kwargs) -> SimpleNamespace:
+            calls.append(idname)
+            return SimpleNamespace(link_state="")
+
+    OBJECT_PT_vpl_gi_light_linking.draw(SimpleNamespace(layout=Recorder()),
+                                        SimpleNamespace(object=lamp))
+    assert calls == ["receiver_collection", "entries of receiver_collection",
+                     "object.light_linking_receivers_link",
+                     "object.light_linking_unlink_from_collection"]

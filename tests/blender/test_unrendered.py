@@ -95,7 +95,7 @@ def test_hair_point_clouds_volumes_and_a_world_volume_are_named(blender):
     assert "world 'Misty': its Volume shader (fog) is not rendered" in warnings
 
 
-def test_shadow_catchers_and_light_linking_are_named_and_motion_blur_is_not(blender):
+def test_shadow_catchers_and_shadow_linking_are_named_and_light_linking_is_not(blender):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     floor = add_primitive("plane", shader_material("Grey", "ShaderNodeBsdfDiffuse"), size=4)
@@ -108,9 +108,12 @@ def test_shadow_catchers_and_light_linking_are_named_and_motion_blur_is_not(blen
     warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
     assert not any("depth of field" in w for w in warnings)
     assert not any("motion blur" in w for w in warnings)  # rendered (test_motion.py)
+    assert not any("linking" in w for w in warnings)  # rendered (test_light_linking.py)
     assert "shadow catchers are rendered as ordinary surfaces: 'Plane'" in warnings
-    assert "light linking is not rendered (each light lights and shadows every object): " \
-        "'Lamp'" in warnings
+    lamp.light_linking.blocker_collection = bpy.data.collections.new("Blockers")
+    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+    assert "shadow linking is not rendered (every object casts the shadows of these " \
+        "emitters' light): 'Lamp'" in warnings
 
 
 def test_principled_layers_left_out_are_named_once_per_material(blender):

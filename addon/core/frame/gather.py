@@ -94,6 +94,12 @@ def area_shapes_texture(ctx: moderngl.Context, shapes: AreaShapes) -> moderngl.T
     return ctx.texture((AREA_SHAPES_WIDTH, rows), 4, padded.tobytes(), dtype="f4")
 
 
+def receiver_words(receivers: int) -> tuple[int, int]:
+    """A draw's receiver sets (LightSamples.receivers) as the uvec2 light_linking_lib.glsl
+    reads: bits 0-31, 32-63."""
+    return receivers & 0xFFFFFFFF, receivers >> 32
+
+
 def samples_per_draw(rays_per_sample: int, compensation: Compensation | None) -> int:
     """Light samples one full-screen draw may loop over. Software OpenGL (Mesa llvmpipe) stops
     a shader invocation's loops after 65535 iterations in all; a ray's BVH traversal takes a
@@ -155,6 +161,8 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
             profile_defines, profile_uniforms = bind_light_profiles(ctx, s.profiles, scope)
             defines.update(profile_defines)
             uniforms.update(profile_uniforms)
+        if s.linked and scene is not None:  # light linking: draws of one emitter's receivers
+            defines.update(LIGHT_LINKING=1)
         if clear_atlas is not None:
             defines.update(CLEAR_SHADOWS=1)
             clear_atlas.use(CLEAR_ATLAS_UNIT)
@@ -193,15 +201,21 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         if compensation is not None:  # the surfaces rays reach: positions and materials
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
             scene.bind_materials(program)
+        elif "LIGHT_LINKING" in defines:
+            for shader in shaders:
+                scene.bind_triangle_rows(shader)
         accumulator.use()
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.ONE, moderngl.ONE
         vao = scope.own(ctx.vertex_array(program, []))
         chunk = samples_per_draw(visibility.rays_per_sample, compensation)
         shape = s.shape if "AREA_SHAPES" in defines else None
-        for first, count in draws(len(s), shape, chunk):
+        receivers = s.receivers if "LIGHT_LINKING" in defines else None
+        for first, count in draws(len(s), chunk, shape, receivers):
             for shader in shaders:
                 set_uniforms(shader, u_first=first, u_count=count)
+                if receivers is not None:
+                    set_uniforms(shader, u_receivers=receiver_words(int(receivers[first])))
             if hinted is None:
                 vao.render(moderngl.TRIANGLES, vertices=3)
             else:
@@ -248,10 +262,12 @@ class _HintedDraws:
         ctx.disable(moderngl.DEPTH_TEST)
 
 
-def draws(count: int, shape: np.ndarray | None, chunk: int) -> list[tuple[int, int]]:
-    """(first, count) of the draws of ``count`` samples: at most ``chunk`` each and, with
-    ``shape`` (each sample's area light, -1 for none), one light's samples or none per draw."""
-    bounds = np.flatnonzero(np.diff(shape)) + 1 if shape is not None else np.zeros(0, int)
+def draws(count: int, chunk: int, *runs_of: np.ndarray | None) -> list[tuple[int, int]]:
+    """(first, count) of the draws of ``count`` samples: at most ``chunk`` each, and each of
+    one value of every array of ``runs_of`` given (per sample: its area light, -1 for none;
+    the receiver sets it lights)."""
+    changes = [np.flatnonzero(np.diff(values)) + 1 for values in runs_of if values is not None]
+    bounds = np.unique(np.concatenate([np.zeros(0, int), *changes]))
     runs = zip(np.r_[0, bounds], np.r_[bounds, count], strict=True)
     return [(first, min(chunk, int(stop) - first)) for start, stop in runs
             for first in range(int(start), int(stop), chunk)]

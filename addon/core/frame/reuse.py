@@ -40,8 +40,8 @@ def _texture_state(geometry: WorldGeometry) -> tuple[np.ndarray, ...]:
 class SceneVersions:
     """Versions of the frame's geometry: ``shape`` changes when triangle positions, clear
     triangles, the triangles that cast no shadow or diffuse bounces pass, or cutouts do (the
-    BVH and shadow maps read them), ``geometry`` when those, materials or textures do (VPLs
-    read all)."""
+    BVH and shadow maps read them), ``geometry`` when those, materials, textures or light
+    linking's sets do (VPLs read all)."""
 
     def __init__(self) -> None:
         self.shape = 0
@@ -53,7 +53,10 @@ class SceneVersions:
         """Compare this frame's geometry with the last one's and bump the versions."""
         shape = (geometry.positions, geometry.clear_triangles, geometry.clear_transmission,
                  geometry.shadowless, geometry.diffuse_hidden, *geometry.cutout_state())
-        arrays = (*shape, geometry.albedo, geometry.emission, *_texture_state(geometry))
+        linking = tuple(np.zeros(0) if a is None else a
+                        for a in (geometry.receiver_set, geometry.emission_receivers))
+        arrays = (*shape, geometry.albedo, geometry.emission, *_texture_state(geometry),
+                  *linking)
         before = self._arrays
         same = [k < len(before) and a.shape == before[k].shape and np.array_equal(a, before[k])
                 for k, a in enumerate(arrays)]

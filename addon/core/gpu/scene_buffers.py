@@ -1,6 +1,6 @@
 """A WorldGeometry on the GPU: its position and normal buffers, its material table and each
-triangle's row (as textures read by gpu_shaders/materials_lib.glsl), and its UVs and image
-textures when textured."""
+triangle's row (as textures read by gpu_shaders/materials_lib.glsl; with light linking each
+triangle's receiver set beside its row), and its UVs and image textures when textured."""
 
 from __future__ import annotations
 
@@ -44,7 +44,9 @@ class SceneBuffers:
             self.positions = self._own(ctx.buffer(geometry.positions))
             self.normals = self._own(ctx.buffer(geometry.normals))
             rows = geometry.triangle_material.astype(np.int32, copy=False)[:, None]
-            self.triangle_material = self._own(_table_texture(ctx, rows, 1, "i4"))
+            if geometry.receiver_set is not None:  # light linking (light_linking_lib.glsl)
+                rows = np.concatenate([rows, geometry.receiver_set[:, None]], axis=1)
+            self.triangle_material = self._own(_table_texture(ctx, rows, rows.shape[1], "i4"))
             table = geometry.materials.reshape(-1, 4)  # seven RGBA texels a row
             self.materials = self._own(_table_texture(ctx, table, 4, "f4"))
             self.uv = None if geometry.uv is None else self._own(ctx.buffer(geometry.uv))
@@ -74,10 +76,14 @@ class SceneBuffers:
 
     def bind_materials(self, program: moderngl.Program) -> None:
         """Bind the triangles' rows and the material table for materials_lib.glsl."""
-        self.triangle_material.use(MATERIAL_UNITS[0])
+        self.bind_triangle_rows(program)
         self.materials.use(MATERIAL_UNITS[1])
-        program["u_triangle_materials"].value = MATERIAL_UNITS[0]
         program["u_materials"].value = MATERIAL_UNITS[1]
+
+    def bind_triangle_rows(self, program: moderngl.Program) -> None:
+        """Bind the triangles' rows (and receiver sets) alone (light_linking_lib.glsl)."""
+        self.triangle_material.use(MATERIAL_UNITS[0])
+        program["u_triangle_materials"].value = MATERIAL_UNITS[0]
 
     def cutout_streams(self) -> tuple[list[tuple], dict[str, int]]:
         """For a draw of the positions that leaves cutouts out (shadow_vert.glsl,

@@ -10,7 +10,16 @@ import numpy as np
 
 from . import principled
 from . import textures as tex
-from .model import DEFAULT_MATERIAL, Light, LightKind, Material, Mesh, Scene, Texture
+from .model import (
+    DEFAULT_MATERIAL,
+    EVERY_RECEIVER_SET,
+    Light,
+    LightKind,
+    Material,
+    Mesh,
+    Scene,
+    Texture,
+)
 
 DISK_SEGMENTS = 48
 MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a finite float32
@@ -66,6 +75,12 @@ class WorldGeometry:
     made from instances: light shapes)."""
     row_materials: list[Material] = field(default_factory=list)
     """Per row of ``materials``: the material it was made from."""
+    row_receiver_set: np.ndarray | None = None
+    """Per row of ``materials``: its instances' light-linking receiver set (int32;
+    Instance.receiver_set); None where every row is in set 0."""
+    row_emission_receivers: np.ndarray | None = None
+    """Per row of ``materials``: the receiver sets its emission lights (uint64;
+    Instance.emission_receivers); None where every row's lights all."""
 
     @classmethod
     def from_triangles(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
@@ -94,6 +109,18 @@ class WorldGeometry:
     def _path_albedo(self, base: np.ndarray, row: int) -> np.ndarray:
         params = self.materials[row, SPECULAR:CUTOUT]
         return np.clip(principled.path_albedo(base.astype(np.float64), params), 0.0, MAX_ALBEDO)
+
+    @property
+    def receiver_set(self) -> np.ndarray | None:
+        """Each triangle's light-linking receiver set (T,) int32, or None: all in set 0."""
+        return None if self.row_receiver_set is None \
+            else self.row_receiver_set[self.triangle_material]
+
+    @property
+    def emission_receivers(self) -> np.ndarray | None:
+        """The receiver sets each triangle's emission lights (T,) uint64, or None: all."""
+        return None if self.row_emission_receivers is None \
+            else self.row_emission_receivers[self.triangle_material]
 
     @property
     def has_specular(self) -> bool:
@@ -367,17 +394,20 @@ class _MaterialTable:
         self.transmission: list[tuple[float, ...]] = []  # per row: colour and Fresnel IOR
         self.clear_names: set[str] = set()
         self.materials: list[Material] = []  # per row
+        self.receiver_set: list[int] = []  # per row: Instance.receiver_set
+        self.emission_receivers: list[int] = []  # per row: Instance.emission_receivers
         self.blocks: list[np.ndarray] = []
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
 
-    def block(self, materials: list[Material], flags: tuple[bool, bool, bool, bool]
-              ) -> tuple[int, int]:
+    def block(self, materials: list[Material], flags: tuple[bool, bool, bool, bool],
+              linking: tuple[int, int] = (0, EVERY_RECEIVER_SET)) -> tuple[int, int]:
         """The first row and row count of a material list's block (added on first use) for
         instances of ``flags`` (Instance.flags): the rows of instances the camera does not see
         are marked (column HIDDEN), those of holdouts (HOLDOUT) and those that cast no shadow
-        (SHADOWLESS) and those diffuse bounces pass (DIFFUSE_HIDDEN)."""
-        key = (*(id(m) for m in materials), *flags)
+        (SHADOWLESS) and those diffuse bounces pass (DIFFUSE_HIDDEN). ``linking``: the
+        instances' receiver set and emission receivers (Instance)."""
+        key = (*(id(m) for m in materials), *flags, *linking)
         if key not in self._first:
             self._first[key] = self.row_count
             rows = _material_rows(materials, self.warnings, self.textures, self.clamped)
@@ -388,6 +418,8 @@ class _MaterialTable:
             rows[:, DIFFUSE_HIDDEN] = 0.0 if visible_to_diffuse else 1.0
             self.blocks.append(rows)
             self.materials.extend(materials)
+            self.receiver_set.extend([linking[0]] * len(materials))
+            self.emission_receivers.extend([linking[1]] * len(materials))
             self.clear.extend(m.is_clear for m in materials)
             self.transmission.extend(_transmission_row(m) for m in materials)
             self.clear_names.update(m.name for m in materials if m.is_clear)
@@ -399,6 +431,14 @@ class _MaterialTable:
         if not self.blocks:
             return np.zeros((1, MATERIAL_COLUMNS), np.float32)
         return np.concatenate(self.blocks)
+
+    def linking(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Per row: the receiver set and the emission's receivers, each None where all rows
+        have the default (no light linking)."""
+        sets = np.array(self.receiver_set, np.int32)
+        receivers = np.array(self.emission_receivers, np.uint64)
+        return (sets if sets.any() else None,
+                receivers if (receivers != np.uint64(EVERY_RECEIVER_SET)).any() else None)
 
 
 def _apply(rows: np.ndarray, maps: np.ndarray) -> np.ndarray:
@@ -533,10 +573,12 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
         group = found.get(id(inst.mesh))
         if group is None:
             group = found[id(inst.mesh)] = _Group(inst.mesh)
-        key = (id(inst.materials), *inst.flags)
+        linking = inst.receiver_set, inst.emission_receivers
+        key = (id(inst.materials), *inst.flags, *linking)
         rows = blocks.get(key)
         if rows is None:
-            rows = blocks[key] = table.block(inst.materials or NO_MATERIAL, inst.flags)
+            rows = blocks[key] = table.block(inst.materials or NO_MATERIAL, inst.flags,
+                                             linking)
         group.matrices.append(inst.matrix)
         group.rows.append(rows)
         group.instances.append(index)
@@ -595,7 +637,8 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
                      f"'{min(table.clamped)}'")
     return WorldGeometry(positions, normals, triangle_material, table.rows(),
                          uv if textures else None, textures, instanced, clear_triangles,
-                         clear_transmission, triangle_instance, table.materials)
+                         clear_transmission, triangle_instance, table.materials,
+                         *table.linking())
 
 
 def bounding_sphere(positions: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None

@@ -19,6 +19,11 @@ from .vectors import unit
 Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
 
 
+EVERY_RECEIVER_SET = (1 << 64) - 1
+"""An emitter's ``receivers`` when light linking leaves it lighting every object: bit s set
+lights the objects of receiver set s (Blender's light linking allows 64 sets, 0 the objects
+no receiver collection names)."""
+
 INTERPOLATIONS = ("Closest", "Linear", "Cubic")  # Image Texture node names (Smart: Cubic)
 EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
 
@@ -176,7 +181,9 @@ class Instance:
     lamp), and is seen and reflects light; one not ``visible_to_diffuse`` is passed by
     diffuse bounces (Cycles' Diffuse ray visibility): it neither reflects light onto other
     surfaces nor shades them from others' reflected light, and is seen, lit and casts
-    shadows. ``identity`` names its object for the ID passes (id_passes.py)."""
+    shadows. ``identity`` names its object for the ID passes (id_passes.py). Light linking:
+    an emitter lights it where bit ``receiver_set`` of the emitter's receivers is set (a
+    light's ``Light.receivers``, an emissive object's ``emission_receivers``)."""
 
     mesh: Mesh
     matrix: Matrix4
@@ -186,6 +193,8 @@ class Instance:
     cast_shadow: bool = True
     visible_to_diffuse: bool = True
     identity: Identity = NO_IDENTITY
+    receiver_set: int = 0
+    emission_receivers: int = EVERY_RECEIVER_SET
     motion: tuple[Matrix4, Matrix4] | None = None  # its matrix at Scene.motion's two times
 
     @property
@@ -235,6 +244,8 @@ class Light:
     visible_to_diffuse: bool = True  # off: lights no diffuse surface, directly or not (Cycles)
     profile: IesProfile | None = None  # an IES profile its light is multiplied by (ies.py),
     # towards directions in ``frame`` (point, spot and area lights)
+    receivers: int = EVERY_RECEIVER_SET  # light linking: the receiver sets it lights
+    # (Instance.receiver_set)
 
     @property
     def area_size(self) -> tuple[float, float]:

@@ -60,6 +60,7 @@ from .vpl import (
     VPLs,
     environment_emitters,
     light_emitter,
+    lit_hits,
     propagate,
     start_paths,
     trace_hits,
@@ -182,7 +183,7 @@ class IncrementalVPLs:
                                          epsilon, settings.seed)
             state.anchors = self._redistribute(state.anchors, domain, tracer, geometry, epsilon,
                                                settings)
-            hits.append(self._anchor_hits(state.anchors, domain, permutation))
+            hits.append(self._anchor_hits(state.anchors, domain, permutation, geometry))
         if environment and len(free):
             hits.append(self._environment_hits(environment, free, n, permutation, tracer,
                                                geometry, epsilon, settings.seed))
@@ -315,12 +316,15 @@ class IncrementalVPLs:
         return remaining.append(self._trace(domain, spots[:moves], offsets, slots, tracer,
                                             geometry, epsilon))
 
-    def _anchor_hits(self, anchors: _Anchors, domain: LightDomain,
-                     permutation: np.ndarray) -> tuple[SurfaceHits, np.ndarray]:
-        """Surface hits of the anchors whose path met a surface, carrying their cell's flux,
-        and their path ids."""
+    def _anchor_hits(self, anchors: _Anchors, domain: LightDomain, permutation: np.ndarray,
+                     geometry: WorldGeometry) -> tuple[SurfaceHits, np.ndarray]:
+        """Surface hits of the anchors whose path met a surface its light lights (light
+        linking), carrying their cell's flux, and their path ids."""
         _, flux = cell_integrals(domain, anchors.coords)
-        hit = anchors.hit
+        hit = anchors.hit.copy()
+        lit = lit_hits(anchors.triangle[hit], domain.light.receivers, geometry)
+        if lit is not None:
+            hit[hit] = lit
         return SurfaceHits(anchors.position[hit], anchors.normal[hit], anchors.albedo[hit],
                            flux[hit] * anchors.transmittance[hit],
                            permutation[anchors.slot[hit]],
@@ -337,6 +341,7 @@ class IncrementalVPLs:
                            np.arange(len(slots)), epsilon, from_light=True)
         if self.stats.reset or not np.array_equal(slots, self._environment_slots):
             self._environment_slots, self._environment_ids = slots, self._ids(len(slots))
+        found = found.kept(lit_hits(found.triangle, paths.receivers[found.rank], geometry))
         return (SurfaceHits(found.position, found.normal, found.albedo, found.flux,
                             permutation[slots[found.rank]], found.triangle),
                 self._environment_ids[found.rank])

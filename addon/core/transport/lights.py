@@ -19,7 +19,7 @@ import numpy as np
 
 from ..scene.environment import EnvironmentSampler
 from ..scene.geometry import WorldGeometry, area_light_outline, transform_points
-from ..scene.model import Light, LightKind, Scene
+from ..scene.model import EVERY_RECEIVER_SET, Light, LightKind, Scene
 from ..scene.vectors import unit
 from ..settings import Settings
 from .light_profiles import LightProfiles
@@ -57,6 +57,8 @@ class LightSamples:
     profile: np.ndarray | None = None  # (n,) int the sample's light in ``profiles``, -1 for
     # none; None: no sample has one
     profiles: LightProfiles | None = None  # the IES-profiled lights (per light, not sample)
+    receivers: np.ndarray | None = None  # (n,) uint64 light linking: the receiver sets
+    # (Instance.receiver_set) the sample's emitter lights; None: every sample lights all
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -101,6 +103,12 @@ class LightSamples:
         return LightSamples(**{f: getattr(self, f) if f in per_light else
                                None if getattr(self, f) is None else getattr(self, f)[index]
                                for f in self.__dataclass_fields__})
+
+    @property
+    def linked(self) -> bool:
+        """Whether some sample lights only some receiver sets (light linking)."""
+        return self.receivers is not None \
+            and bool(np.any(self.receivers != np.uint64(EVERY_RECEIVER_SET)))
 
     @property
     def has_profiles(self) -> bool:
@@ -195,7 +203,8 @@ class _Builder:
 
     def add(self, *, position, axis, kind, intensity, shadow, resolution,
             spot_cos=NO_SPOT, spot_smooth=0.0, soft=False, spread=(0.0, 0.0),
-            broad=False, shape=-1, soft_radius=0.0, profile=-1) -> None:
+            broad=False, shape=-1, soft_radius=0.0, profile=-1,
+            receivers=EVERY_RECEIVER_SET) -> None:
         position = np.atleast_2d(position)
         n = len(position)
         self.rows.append({
@@ -214,7 +223,13 @@ class _Builder:
             "shape": np.full(n, shape),
             "soft_radius": np.full(n, soft_radius),
             "profile": np.full(n, profile),
+            "receivers": np.broadcast_to(np.asarray(receivers, np.uint64), (n,)),
         })
+
+    def link(self, first_row: int, receivers: int) -> None:
+        """The receiver sets of the samples added from row ``first_row`` on (light linking)."""
+        for row in self.rows[first_row:]:
+            row["receivers"] = np.full(len(row["kind"]), receivers, np.uint64)
 
     def build(self) -> LightSamples:
         if not self.rows:
@@ -226,6 +241,8 @@ class _Builder:
         samples = LightSamples(**{k: np.concatenate([r[k] for r in self.rows]) for k in keys})
         if self.profiled:
             samples.profiles = LightProfiles.build(self.profiled)
+        if not samples.linked:
+            samples.receivers = None
         if self.outlines:
             samples.shapes = AreaShapes.build(self.outlines, list(np.bincount(
                 samples.shape[samples.shape >= 0], minlength=len(self.outlines))))
@@ -386,8 +403,10 @@ def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
     points = t[:, 0] + u[:, :1] * (t[:, 1] - t[:, 0]) + u[:, 1:] * (t[:, 2] - t[:, 0])
     probability = power[pick] / power.sum()
     intensity = emission[emitting][pick] * (area[pick] / (n * probability))[:, None]
+    receivers = geometry.emission_receivers
     b.add(position=points, axis=unit(cross[pick]), kind=KIND_COSINE2,
-          intensity=intensity, shadow=True, resolution=s.sample_shadow_resolution, soft=True)
+          intensity=intensity, shadow=True, resolution=s.sample_shadow_resolution, soft=True,
+          receivers=EVERY_RECEIVER_SET if receivers is None else receivers[emitting][pick])
 
 
 def light_problem(light: Light) -> str | None:
@@ -420,7 +439,9 @@ def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Setting
             warnings.append(f"area light '{light.name}' has zero or negative size: lit as a "
                             f"point emitter of the same power")
         if include_dark or (light.power != 0 and any(c != 0 for c in light.color)):
+            first_row = len(b.rows)
             _add_light(b, light, settings, rng)
+            b.link(first_row, light.receivers)
     if include_dark or np.any(scene.world.radiance > 0):
         _add_world(b, scene, settings, rng)
     _add_emission(b, geometry, settings, rng)

@@ -31,7 +31,7 @@ import numpy as np
 from ..scene import principled
 from ..scene.environment import EnvironmentSampler, lookup
 from ..scene.geometry import WorldGeometry
-from ..scene.model import Light, LightKind, Scene, World
+from ..scene.model import EVERY_RECEIVER_SET, Light, LightKind, Scene, World
 from ..scene.textures import LUMINANCE
 from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
@@ -112,13 +112,15 @@ class VPLs:
 
 @dataclass
 class _Paths:
-    """A batch of rays leaving emitters: origins, unit directions and carried flux, and the
-    Soft Falloff radius of a path's light (at its origin; 0 for none)."""
+    """A batch of rays leaving emitters: origins, unit directions and carried flux, the
+    Soft Falloff radius of a path's light (at its origin; 0 for none) and the receiver sets
+    its emitter lights (light linking: Light.receivers; per path or one for all)."""
 
     origin: np.ndarray
     direction: np.ndarray
     flux: np.ndarray
     soft_radius: float | np.ndarray = 0.0
+    receivers: int | np.ndarray = EVERY_RECEIVER_SET
 
 
 def _frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -157,15 +159,39 @@ def average_reflectance(geometry: WorldGeometry) -> float:
 
 
 class _Emitter:
-    """One source of light paths: its flux (for allocation) and a sampler of start rays."""
+    """One source of light paths: its flux (for allocation), a sampler of start rays and the
+    receiver sets it lights (light linking; its paths' own where they carry them)."""
 
-    def __init__(self, flux: np.ndarray, sample) -> None:
+    def __init__(self, flux: np.ndarray, sample, receivers: int = EVERY_RECEIVER_SET) -> None:
         self.flux = np.asarray(flux, dtype=np.float64)
         self.power = float(self.flux @ LUMINANCE)
         self.sample = sample  # (u (n, 5) in [0,1)) -> (_Paths with flux per unit path)
+        self.receivers = receivers
 
 
 def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
+    """A light's emitter of light paths (None for one that emits none)."""
+    emitter = _light_emitter(light, centre, radius)
+    if emitter is not None:
+        emitter.receivers = light.receivers
+    return emitter
+
+
+def lit_hits(triangle: np.ndarray, receivers: int | np.ndarray, geometry: WorldGeometry
+             ) -> np.ndarray | None:
+    """Light linking: whether each path's first hit, on ``triangle``, is lit by its emitter
+    of ``receivers`` (per hit or one), or None where every hit is (Cycles: an emitter's
+    light reaches no surface of an unlinked object, so none of it bounces on from there)."""
+    receivers = np.asarray(receivers, np.uint64)
+    sets = geometry.receiver_set
+    if not np.any(receivers != np.uint64(EVERY_RECEIVER_SET)):
+        return None
+    bit = np.zeros(len(triangle), np.uint64) if sets is None \
+        else sets[triangle].astype(np.uint64)
+    return ((receivers >> bit) & np.uint64(1)).astype(bool)
+
+
+def _light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
     color = np.asarray(light.color, dtype=np.float64) * light.power
     m = light.matrix
     position, travel = m[:3, 3], unit(-m[:3, 2][None])[0]
@@ -313,6 +339,8 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
         return None
     cdf = np.cumsum(power) / power.sum()
     normal = unit(cross)
+    linked = geometry.emission_receivers
+    receivers = None if linked is None else linked[emitting]
 
     def sample(u: np.ndarray) -> _Paths:
         pick = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), len(cdf) - 1)
@@ -325,7 +353,8 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
         v = np.stack([u[:, 3], (u[:, 4] * 2) % 1.0], axis=1)
         direction = cosine_directions(normal[pick] * side[:, None], v)
         probability = power[pick] / power.sum()
-        return _Paths(origin, direction, flux[pick] / probability[:, None])
+        return _Paths(origin, direction, flux[pick] / probability[:, None],
+                      receivers=EVERY_RECEIVER_SET if receivers is None else receivers[pick])
     return _Emitter(flux.sum(axis=0), sample)
 
 
@@ -356,6 +385,7 @@ def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
     n = len(u)
     origin, direction, flux = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     soft_radius = np.zeros(n)
+    receivers = np.full(n, EVERY_RECEIVER_SET, np.uint64)
     for index, emitter in enumerate(emitters):
         rows = np.flatnonzero(choice == index)
         if len(rows):
@@ -363,7 +393,9 @@ def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
             origin[rows], direction[rows] = paths.origin, paths.direction
             flux[rows] = paths.flux / (n * probability[index])
             soft_radius[rows] = paths.soft_radius
-    return _Paths(origin, direction, flux, soft_radius)
+            receivers[rows] = paths.receivers if np.ndim(paths.receivers) \
+                else emitter.receivers
+    return _Paths(origin, direction, flux, soft_radius, receivers)
 
 
 @dataclass
@@ -379,6 +411,14 @@ class SurfaceHits:
     triangle: np.ndarray | None = None  # (m,) int, the triangle hit (where known)
     incoming: np.ndarray | None = None  # (m, 3) direction of travel (where known)
     base: np.ndarray | None = None  # (m, 3) base colour, WorldGeometry.base_at (where known)
+
+    def kept(self, keep: np.ndarray | None) -> SurfaceHits:
+        """The hits ``keep`` (a boolean mask; None keeps all)."""
+        if keep is None:
+            return self
+        return SurfaceHits(*(None if value is None else value[keep] for value in (
+            self.position, self.normal, self.albedo, self.flux, self.rank, self.triangle,
+            self.incoming, self.base)))
 
 
 def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
@@ -505,4 +545,5 @@ def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tra
     first = trace_hits(tracer, geometry, paths.origin[alive], paths.direction[alive],
                        paths.flux[alive], alive, 1e-5 * radius, from_light=True,
                        soft_radius=paths.soft_radius[alive])
+    first = first.kept(lit_hits(first.triangle, paths.receivers[first.rank], geometry))
     return propagate(first, n, u[:, START_DIMENSIONS:], settings, tracer, geometry, radius)
