@@ -6,7 +6,13 @@ import math
 
 import numpy as np
 
+from addon.core.frame.reuse import settings_key
+from addon.core.frame.vpl_stage import INCREMENTAL_FIELDS
+from addon.core.scene.geometry import bounding_sphere, flatten_instances
 from addon.core.scene.model import Camera, Instance, Light, LightKind, Material, Mesh, Scene, World
+from addon.core.settings import Settings
+from addon.core.transport.incremental import IncrementalVPLs
+from addon.core.transport.vpl import VPLs, generate_vpls
 
 
 def quad(half_x: float, half_y: float, z: float = 0.0, flip: bool = False) -> Mesh:
@@ -136,3 +142,16 @@ def downlight_text() -> str:
     return "\n".join(["IESNA:LM-63-2002", "[TEST] VPL GI test downlight", "TILT=NONE",
                       f"1 -1 1 {len(v_angles)} 1 1 2 0 0 0", "1 1 100",
                       " ".join(map(str, v_angles)), "0", values, ""])
+
+
+def traced_vpls(renderer, scene: Scene, settings: Settings) -> VPLs:
+    """The scene's VPLs traced by the renderer's ray tracer: fresh light paths, or with
+    ``settings.incremental`` Incremental Instant Radiosity's first frame."""
+    geometry = flatten_instances(scene, [])
+    centre, radius = bounding_sphere(geometry.positions)
+    renderer.tracer.upload(geometry.positions.reshape(-1, 3, 3))
+    if settings.incremental:
+        return IncrementalVPLs().update(scene, geometry, settings, renderer.tracer, centre,
+                                        radius, shape_version=0,
+                                        key=settings_key(settings, INCREMENTAL_FIELDS))
+    return generate_vpls(scene, geometry, settings, renderer.tracer, centre, radius)

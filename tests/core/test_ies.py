@@ -10,21 +10,17 @@ import re
 import numpy as np
 import pytest
 
-from addon.core.frame.reuse import settings_key
-from addon.core.frame.vpl_stage import INCREMENTAL_FIELDS
-from addon.core.scene.geometry import bounding_sphere, flatten_instances
 from addon.core.scene.ies import IesError, catmull_rom, parse_ies
 from addon.core.scene.model import Instance, LightKind, Material
 from addon.core.settings import Settings
-from addon.core.transport.incremental import IncrementalVPLs
 from addon.core.transport.light_profiles import ProfileSampler
-from addon.core.transport.vpl import generate_vpls
 from tests.core.builders import (
     floor_scene,
     light,
     pixel_centres,
     profile_text,
     quad,
+    traced_vpls,
     translation,
 )
 
@@ -157,16 +153,8 @@ def test_an_uplights_vpls_carry_its_light_to_the_ceiling(renderer, incremental):
     scene = floor_scene([light(LightKind.POINT, translation(0, 0, 1.0), power=100.0,
                                profile=profile)], extra=[ceiling])
     renderer.forget_frames()  # the tracer is given other triangles than the frames' here
-    geometry = flatten_instances(scene, [])
-    centre, radius = bounding_sphere(geometry.positions)
-    renderer.tracer.upload(geometry.positions.reshape(-1, 3, 3))
-    settings = Settings(bounces=1, vpl_count=1024, seed=2, incremental=incremental)
-    if incremental:
-        vpls = IncrementalVPLs().update(scene, geometry, settings, renderer.tracer, centre,
-                                        radius, shape_version=0,
-                                        key=settings_key(settings, INCREMENTAL_FIELDS))
-    else:
-        vpls = generate_vpls(scene, geometry, settings, renderer.tracer, centre, radius)
+    vpls = traced_vpls(renderer, scene,
+                       Settings(bounces=1, vpl_count=1024, seed=2, incremental=incremental))
     renderer.forget_frames()
     on_ceiling = (vpls.generation == 1) & (np.abs(vpls.position[:, 2] - 2.0) < 1e-3)
     assert on_ceiling.sum() > 300

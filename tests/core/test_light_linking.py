@@ -8,20 +8,17 @@ import numpy as np
 import pytest
 
 from addon.core.frame.gather import draws, receiver_words
-from addon.core.frame.reuse import settings_key
-from addon.core.frame.vpl_stage import INCREMENTAL_FIELDS
-from addon.core.scene.geometry import bounding_sphere, flatten_instances
+from addon.core.scene.geometry import flatten_instances
 from addon.core.scene.model import EVERY_RECEIVER_SET, Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
-from addon.core.transport.incremental import IncrementalVPLs
 from addon.core.transport.lights import build_light_samples
-from addon.core.transport.vpl import generate_vpls
 from tests.core.builders import (
     floor_scene,
     icosphere,
     inside_sphere_camera,
     light,
     quad,
+    traced_vpls,
     translation,
 )
 
@@ -102,17 +99,8 @@ def closed_halves() -> Scene:
 def test_light_paths_leave_first_bounce_vpls_only_on_receivers(renderer, incremental):
     """Every path hits the sphere; those that hit the unlinked half end there: the first
     bounce keeps about half the light's power, all on the upper half."""
-    scene = closed_halves()
-    geometry = flatten_instances(scene, [])
-    centre, radius = bounding_sphere(geometry.positions)
-    renderer.tracer.upload(geometry.positions.reshape(-1, 3, 3))
-    settings = Settings(vpl_count=512, bounces=2, incremental=incremental)
-    if incremental:
-        vpls = IncrementalVPLs().update(scene, geometry, settings, renderer.tracer, centre,
-                                        radius, shape_version=0,
-                                        key=settings_key(settings, INCREMENTAL_FIELDS))
-    else:
-        vpls = generate_vpls(scene, geometry, settings, renderer.tracer, centre, radius)
+    vpls = traced_vpls(renderer, closed_halves(),
+                       Settings(vpl_count=512, bounces=2, incremental=incremental))
     first = vpls.generation == 1
     assert (vpls.position[first, 2] > -1e-6).all()
     assert (vpls.position[~first, 2] < 0).any()  # their light bounces on everywhere
