@@ -53,7 +53,13 @@ from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
 from .export_light_linking import scene_light_linking
 from .export_lights import export_light, is_portal
-from .export_motion import InstanceKey, SampledMotion, instance_key, placed_motion
+from .export_motion import (
+    InstanceKey,
+    SampledMotion,
+    deformed_mesh,
+    instance_key,
+    placed_motion,
+)
 
 RAY_FLAGS = ("visible_camera", "visible_diffuse", "visible_shadow")
 """An object's ray visibility that VPL GI honours (glossy, transmission and volume rays reach
@@ -1116,6 +1122,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         if problem:
             result.warnings.append(f"object '{name}' {problem} and was skipped")
         else:
+            if motion is not None:
+                mesh = deformed_mesh(motion, keys[index], mesh)
             result.instances.append(Instance(mesh, matrix, materials, *flags))
             if motion is not None:
                 result.instances[-1].motion = placed_motion(motion, keys[index])

@@ -5,12 +5,13 @@ depsgraph there and back, as Cycles reads its motion."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import bpy
 import numpy as np
 
-from .core.scene.model import RENDERED_OBJECT_TYPES, MotionSpan
+from .blender_read import positions
+from .core.scene.model import RENDERED_OBJECT_TYPES, Mesh, MotionSpan
 
 POSITION_OFFSET = {"START": 0.0, "CENTER": -0.5, "END": -1.0}
 """Where the shutter opens, in shutters from the frame (Blender's motion blur position)."""
@@ -44,6 +45,9 @@ class SampledMotion:
     span: MotionSpan
     matrices: tuple[dict[InstanceKey, np.ndarray], dict[InstanceKey, np.ndarray]]
     views: tuple[np.ndarray | None, np.ndarray | None]
+    positions: tuple[dict[InstanceKey, np.ndarray], dict[InstanceKey, np.ndarray]] = \
+        field(default_factory=lambda: ({}, {}))
+    """The vertex positions (object space) of deforming meshes at the two times."""
 
 
 def _set_time(engine: bpy.types.RenderEngine, time: float) -> None:
@@ -58,18 +62,51 @@ def sample_motion(engine: bpy.types.RenderEngine, depsgraph: bpy.types.Depsgraph
     caller goes back to the frame after exporting)."""
     scene = depsgraph.scene
     rendered = scene.frame_current + float(scene.frame_subframe) + span.centre
-    matrices, views = [], []
+    matrices, views, shapes = [], [], []
+    deforms: dict[int, bool] = {}  # by original object pointer
     try:
         for offset in (span.before, span.after):
             _set_time(engine, rendered + offset)
-            matrices.append({instance_key(inst): np.array(inst.matrix_world, np.float64)
-                             for inst in depsgraph.object_instances
-                             if inst.object.type in RENDERED_OBJECT_TYPES})
+            placed, shaped = {}, {}
+            for inst in depsgraph.object_instances:
+                obj = inst.object
+                if obj.type not in RENDERED_OBJECT_TYPES:
+                    continue
+                key = instance_key(inst)
+                placed[key] = np.array(inst.matrix_world, np.float64)
+                if obj.type == "MESH" and _deforms(obj, scene, deforms):
+                    shaped[key] = positions(obj.data)
+            matrices.append(placed)
+            shapes.append(shaped)
             camera = depsgraph.scene_eval.camera
             views.append(None if camera is None else _view(camera.matrix_world))
     finally:
         _set_time(engine, rendered)
-    return SampledMotion(span, (matrices[0], matrices[1]), (views[0], views[1]))
+    return SampledMotion(span, (matrices[0], matrices[1]), (views[0], views[1]),
+                         (shapes[0], shapes[1]))
+
+
+def _deforms(obj: bpy.types.Object, scene: bpy.types.Scene, known: dict[int, bool]) -> bool:
+    """Whether modifiers or shape keys deform the object's mesh (Cycles' deformation blur),
+    asked once per object."""
+    pointer = obj.original.as_pointer()
+    if pointer not in known:
+        known[pointer] = bool(obj.original.is_deform_modified(scene, "RENDER"))
+    return known[pointer]
+
+
+def deformed_mesh(motion: SampledMotion, key: InstanceKey, mesh: Mesh) -> Mesh:
+    """The mesh with how its vertices move by the two times (Mesh.deform), where it deforms
+    and keeps its vertex count; itself otherwise."""
+    before, after = (shapes.get(key) for shapes in motion.positions)
+    if before is None or after is None \
+            or not before.shape == after.shape == mesh.positions.shape:
+        return mesh
+    with np.errstate(all="ignore"):
+        moved = np.nan_to_num(np.stack([before, after]) - mesh.positions[None])
+    if not moved.any():
+        return mesh
+    return replace(mesh, deform=moved.astype(np.float32))
 
 
 def placed_motion(motion: SampledMotion, key: InstanceKey

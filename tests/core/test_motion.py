@@ -36,6 +36,31 @@ def test_a_moving_box_has_vectors_and_the_still_floor_none(renderer):
     assert np.all(vectors[outside] == 0.0)
 
 
+def test_a_deforming_mesh_moves_with_its_vertices(renderer):
+    """A quad whose corners stretch it along x (each x doubles by the next time and halves
+    back before: Mesh.deform) in an instance turned 90° about z that moves by +0.2 m in y
+    by each time: a point at x_w = -y (local), y_w = x gets vectors from both."""
+    quad_mesh = quad(1.0, 1.0, z=0.5)
+    local = quad_mesh.positions.astype(np.float64)
+    stretch = np.zeros((2, len(local), 3), np.float32)
+    stretch[0, :, 0] = -0.5 * local[:, 0]  # before: x / 2
+    stretch[1, :, 0] = local[:, 0]  # after: 2 x
+    turn = np.array([[0, -1, 0, 0], [1, 0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], float)
+    sheet = Instance(replace(quad_mesh, deform=stretch), turn, [Material("red")],
+                     motion=(translation(0, -0.2, 0) @ turn, translation(0, 0.2, 0) @ turn))
+    scene = floor_scene([light(LightKind.SUN, np.eye(4), power=3.0)], extra=[sheet], size=32)
+    scene.motion = MotionSpan()
+    frame, _ = renderer.render(scene, Settings(antialiasing=3, bounces=0),
+                               passes=frozenset({"Vector"}))
+    vectors = frame.passes["Vector"] / PIXELS_PER_METRE
+    x, y = pixel_centres(32)
+    inside = (np.abs(x) < 0.8) & (np.abs(y) < 0.8)
+    # world y = local x: before at y/2 - 0.2, after at 2y + 0.2
+    expected = np.stack([np.zeros_like(y), -0.5 * y - 0.2, np.zeros_like(y), -y - 0.2], -1)
+    np.testing.assert_allclose(vectors[inside], expected[inside], atol=1e-3)
+    assert np.all(vectors[~((np.abs(x) < 2.2) & (np.abs(y) < 2.2))] == 0.0)
+
+
 def test_a_moving_camera_moves_everything(renderer):
     scene = moving_box_scene()
     scene.instances[1].motion = None

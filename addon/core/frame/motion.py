@@ -2,7 +2,9 @@
 frame to where it is now (x, y) and from now to the next frame (z, w), both as Blender's
 Vector Blur node reads them (measured against Cycles: a surface moving right by 6 pixels a
 frame reads (-6, 0, -6, 0)). Surfaces move with their instance's matrices at the two times
-(Instance.motion), the view with the camera's (Camera.motion_views); the background is at
+(Instance.motion) and, on a deforming mesh, with its vertices (WorldGeometry.deform: the
+point's barycentric share of its triangle's corners' displacements, in its instance's space
+at each time), the view with the camera's (Camera.motion_views); the background is at
 infinity, so only the camera's turning moves it."""
 
 from __future__ import annotations
@@ -36,14 +38,18 @@ def _pixels(view_projection: np.ndarray, points: np.ndarray, camera: Camera
     return (clip[:, :2] / safe * 0.5 + 0.5) * size, ahead
 
 
-def _instance_deltas(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Per instance + 1 (entry 0: none): whether it moves, and the maps from its world
-    placement now to those at the two times (identity where it does not move), (2, I + 1, 4,
-    4)."""
+def _instance_deltas(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per instance + 1 (entry 0: none): whether it moves, the maps from its world placement
+    now to those at the two times (identity where it does not move), (2, I + 1, 4, 4), and
+    its linear map (object to world) at the two times, (2, I + 1, 3, 3)."""
     count = len(scene.instances)
     moves = np.zeros(count + 1, bool)
     deltas = np.broadcast_to(np.eye(4), (2, count + 1, 4, 4)).copy()
+    linear = np.broadcast_to(np.eye(3), (2, count + 1, 3, 3)).copy()
     for index, instance in enumerate(scene.instances):
+        for k in (0, 1):
+            at = instance.matrix if instance.motion is None else instance.motion[k]
+            linear[k, index + 1] = np.nan_to_num(np.asarray(at, np.float64)[:3, :3])
         if instance.motion is None:
             continue
         with np.errstate(all="ignore"):
@@ -59,14 +65,34 @@ def _instance_deltas(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
             moves[index + 1] = True
         else:
             deltas[:, index + 1] = np.eye(4)
-    return moves, deltas
+    return moves, deltas, linear
+
+
+def _displacements(points: np.ndarray, triangles: np.ndarray, geometry: WorldGeometry
+                   ) -> np.ndarray:
+    """How far world ``points`` (n, 3) on ``triangles`` (n,) of a deforming mesh move by the
+    two times, in their instance's space: their barycentric share of the corners'
+    (WorldGeometry.deform), (2, n, 3)."""
+    corners = geometry.positions.reshape(-1, 3, 3)[triangles].astype(np.float64)
+    a, e1, e2 = corners[:, 0], corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    p = points - a
+    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    p1, p2 = (p * e1).sum(1), (p * e2).sum(1)
+    with np.errstate(all="ignore"):
+        det = d11 * d22 - d12 * d12
+        u = np.nan_to_num((d22 * p1 - d12 * p2) / det)
+        v = np.nan_to_num((d11 * p2 - d12 * p1) / det)
+    weights = np.stack([1.0 - u - v, u, v], axis=1)
+    moved = geometry.deform.reshape(2, -1, 3, 3)[:, triangles].astype(np.float64)
+    return np.einsum("nc,kncj->knj", weights, moved)
 
 
 def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeometry,
                    scene: Scene, camera: Camera, x0: int, y0: int) -> np.ndarray:
     """The Vector pass (h, w, 4) of pixels [x0, x0 + w) × [y0, y0 + h) whose surfaces are at
     world ``position`` (h, w, 3) on triangles ``codes`` (IdTables.triangles: 0 none). Only
-    moving pixels are projected: those of moving instances, or all where the camera moves."""
+    moving pixels are projected: those of moving instances and deforming triangles, or all
+    where the camera moves."""
     h, w = codes.shape
     projection = camera.projection_matrix
     views = camera.motion_views or (camera.view_matrix, camera.view_matrix)
@@ -76,10 +102,14 @@ def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeome
     instance = np.zeros(h * w, np.int64)
     owners = geometry.triangle_instance
     moves, deltas = np.zeros(1, bool), np.broadcast_to(np.eye(4), (2, 1, 4, 4))
+    linear = np.broadcast_to(np.eye(3), (2, 1, 3, 3))
+    warps = np.zeros(h * w, bool)  # on a deforming mesh's moving triangles
     if owners is not None and len(owners) and seen.any():
-        moves, deltas = _instance_deltas(scene)
+        moves, deltas, linear = _instance_deltas(scene)
         instance[seen] = np.take(owners, codes[seen] - 1, mode="clip") + 1
-    pixels = np.arange(h * w) if camera_moves else np.flatnonzero(moves[instance])
+        if geometry.deforming is not None:
+            warps[seen] = np.take(geometry.deforming, codes[seen] - 1, mode="clip")
+    pixels = np.arange(h * w) if camera_moves else np.flatnonzero(moves[instance] | warps)
     vectors = np.zeros((h * w, 4), np.float32)
     if pixels.size == 0:
         return vectors.reshape(h, w, 4)
@@ -93,9 +123,15 @@ def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeome
     ends = []
     owner = instance[pixels]
     moving = np.flatnonzero(moves[owner])
+    warped = np.flatnonzero(warps[pixels])
+    if warped.size:
+        displaced = _displacements(points[warped, :3], codes[pixels[warped]] - 1, geometry)
     for k, view in enumerate(views):
         moved = points.copy()
         moved[moving] = np.einsum("nij,nj->ni", deltas[k][owner[moving]], points[moving])
+        if warped.size:
+            moved[warped, :3] += np.einsum("nij,nj->ni", linear[k][owner[warped]],
+                                           displaced[k])
         ends.append(_pixels(projection @ view, moved, camera))
     (previous, ahead_before), (following, ahead_after) = ends
     vectors[pixels, :2] = np.where((ahead & ahead_before)[:, None], previous - current, 0.0)

@@ -81,6 +81,9 @@ class WorldGeometry:
     row_emission_receivers: np.ndarray | None = None
     """Per row of ``materials``: the receiver sets its emission lights (uint64;
     Instance.emission_receivers); None where every row's lights all."""
+    deform: np.ndarray | None = None
+    """Per vertex: how far it moves (in its instance's object space) by Scene.motion's two
+    times, (2, V, 3) float32 (Mesh.deform); None where no mesh deforms."""
 
     @classmethod
     def from_triangles(cls, positions: np.ndarray, normals: np.ndarray, albedo: np.ndarray,
@@ -121,6 +124,14 @@ class WorldGeometry:
         """The receiver sets each triangle's emission lights (T,) uint64, or None: all."""
         return None if self.row_emission_receivers is None \
             else self.row_emission_receivers[self.triangle_material]
+
+    @cached_property
+    def deforming(self) -> np.ndarray | None:
+        """Per triangle: whether a corner moves by the motion's times (``deform``), or None
+        where no mesh deforms."""
+        if self.deform is None:
+            return None
+        return np.any(self.deform.reshape(2, -1, 9) != 0, axis=(0, 2))
 
     @property
     def has_specular(self) -> bool:
@@ -593,12 +604,18 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
         np.array([i for group in groups for i in group.instances], np.int32),
         [group.mesh.triangle_count for group in groups for _ in group.instances])
     clear = np.array(table.clear, bool)
+    deform = np.zeros((2, 3 * sum(sizes), 3), np.float32) \
+        if any(group.mesh.deform is not None for group in groups) else None
     masks, start = [], 0
     for group, size in zip(groups, sizes, strict=True):
         corners = slice(3 * start, 3 * (start + size))
         masks.append(_flatten_group(group, warnings, positions[corners], normals[corners],
                                     None if uv is None else uv[corners],
                                     triangle_material[start:start + size], clear))
+        if deform is not None and group.mesh.deform is not None:
+            index = group.mesh.position_index
+            moved = group.mesh.deform if index is None else group.mesh.deform[:, index]
+            deform[:, corners] = np.tile(moved, (1, len(group.matrices), 1))
         start += size
     is_clear = clear[triangle_material] if clear.any() else np.zeros(0, bool)
     clear_count = int(is_clear.sum())
@@ -616,6 +633,7 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
                                for mask, size in zip(masks, sizes, strict=True)])
         positions, normals = positions[keep], normals[keep]
         uv = None if uv is None else uv[keep]
+        deform = None if deform is None else deform[:, keep]
         triangle_material = triangle_material[keep[::3]]
         triangle_instance = triangle_instance[keep[::3]]
     kept = [size if mask is None else int(mask.sum()) // 3
@@ -638,7 +656,7 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     return WorldGeometry(positions, normals, triangle_material, table.rows(),
                          uv if textures else None, textures, instanced, clear_triangles,
                          clear_transmission, triangle_instance, table.materials,
-                         *table.linking())
+                         *table.linking(), deform)
 
 
 def bounding_sphere(positions: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None

@@ -136,6 +136,8 @@ class Mesh:
     position_index: np.ndarray | None = None  # (T*3,) int32 rows of positions, or None
     normal_index: np.ndarray | None = None  # (T*3,) int32 rows of normals, or None
     uv_index: np.ndarray | None = None  # (T*3,) int32 rows of uvs, or None
+    deform: np.ndarray | None = None  # (2, P, 3) float32: how far each row of positions
+    # moves (object space) by Scene.motion's two times (a deforming mesh); None: it does not
 
     @property
     def triangle_count(self) -> int:
