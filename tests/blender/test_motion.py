@@ -101,18 +101,23 @@ def blurred_scene(position: str) -> bpy.types.Scene:
     return scene
 
 
+def blur_renders(scene: bpy.types.Scene, tmp_path) -> tuple[np.ndarray, ...]:
+    """The motion-blurred scene by Cycles (64 samples), by VPL GI with 8 passes and with
+    one, and by VPL GI without motion blur."""
+    scene.vpl_gi.passes = 8
+    reference, eight = cycles_and_ours(scene, tmp_path, 64, 0)
+    scene.vpl_gi.passes = 1
+    one_pass = render_linear(scene, "VPL_GI", tmp_path / "one.exr")
+    scene.render.use_motion_blur = False
+    return reference, eight, one_pass, render_linear(scene, "VPL_GI", tmp_path / "sharp.exr")
+
+
 @pytest.mark.parametrize("position", ["CENTER", "START"])
 def test_motion_blur_is_cycles(blender, tmp_path, position):
     """Eight passes each see an eighth of the shutter, blurred over it; one pass blurs the
     whole shutter from the frame at its middle (a moving object then hides what its trail
     passes over: measured 7.3–8.2 % against 1.6 % for eight passes)."""
-    scene = blurred_scene(position)
-    scene.vpl_gi.passes = 8
-    reference, ours = cycles_and_ours(scene, tmp_path, 64, 0)
-    scene.vpl_gi.passes = 1
-    one_pass = render_linear(scene, "VPL_GI", tmp_path / "one.exr")
-    scene.render.use_motion_blur = False
-    sharp = render_linear(scene, "VPL_GI", tmp_path / "sharp.exr")
+    reference, ours, one_pass, sharp = blur_renders(blurred_scene(position), tmp_path)
     assert_near_cycles(f"motion blur ({position.lower()}), 8 passes", ours, reference,
                        (0.01, 0.025), sharp, "without it", factor=4.0)
     assert_near_cycles(f"motion blur ({position.lower()}), 1 pass", one_pass, reference,
@@ -185,12 +190,7 @@ def test_a_deforming_mesh_moves_and_blurs_as_in_cycles(blender, tmp_path):
     scene = deforming_scene()  # without the compositor's Vector output
     scene.render.use_motion_blur = True
     scene.view_layers[0].use_pass_vector = False
-    scene.vpl_gi.passes = 8
-    reference, eight = cycles_and_ours(scene, tmp_path, 64, 0)
-    scene.vpl_gi.passes = 1
-    one_pass = render_linear(scene, "VPL_GI", tmp_path / "one.exr")
-    scene.render.use_motion_blur = False
-    sharp = render_linear(scene, "VPL_GI", tmp_path / "sharp.exr")
+    reference, eight, one_pass, sharp = blur_renders(scene, tmp_path)
     assert_near_cycles("deformation blur, 8 passes", eight, reference, (0.01, 0.025), sharp,
                        "without it", factor=3.0)
     # one pass smears each pixel along its own motion: without the vertices' (the object
