@@ -40,6 +40,8 @@ _PASS_NAMES_5 = {
     "Emit": "Emission",
     "IndexOB": "Object Index",
     "IndexMA": "Material Index",
+    "AO": "Ambient Occlusion",
+    "Env": "Environment",
 }
 
 DEFAULT_SURFACE_IS_PRINCIPLED = BLENDER_5
@@ -53,7 +55,7 @@ IES_SPLINE_EDGE = "repeat" if BLENDER_5 else "zero"
 def pass_name(name: str) -> str:
     """Blender's name, in the running version, of the render pass VPL GI calls ``name`` (its
     4.x name: Combined, Depth, Normal, DiffDir, DiffInd, DiffCol, GlossDir, GlossInd, GlossCol,
-    Emit, IndexOB, IndexMA)."""
+    Emit, IndexOB, IndexMA, AO, Env)."""
     return _PASS_NAMES_5.get(name, name) if BLENDER_5 else name
 
 

@@ -48,6 +48,8 @@ OPTIONAL_PASSES = {
     "IndexOB": (1, "X", "VALUE", "use_pass_object_index"),
     "IndexMA": (1, "X", "VALUE", "use_pass_material_index"),
     "Vector": (4, "XYZW", "VECTOR", "use_pass_vector"),
+    "AO": (3, "RGB", "COLOR", "use_pass_ambient_occlusion"),
+    "Env": (3, "RGB", "COLOR", "use_pass_environment"),
 }
 CRYPTOMATTE_TOGGLES = {"CryptoObject": "use_pass_cryptomatte_object",
                        "CryptoMaterial": "use_pass_cryptomatte_material",

@@ -1136,6 +1136,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                                   result.warnings)
     if scene_eval.world is not None:
         result.mist = export_mist(scene_eval.world.mist_settings)
+        result.ao_distance = ao_distance(scene_eval.world.light_settings.distance)
     if motion is not None:
         result.motion = motion.span
         if result.camera is not None and all(v is not None for v in motion.views):
@@ -1144,6 +1145,14 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
 
 
 MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}
+
+
+def ao_distance(distance: float) -> float:
+    """The world's AO distance as the Ambient Occlusion pass's rays run (finite, >= 0)."""
+    return float(np.clip(np.nan_to_num(float(distance), nan=0.0), 0.0, MAX_AO_DISTANCE))
+
+
+MAX_AO_DISTANCE = 1e30
 
 
 def export_mist(settings: bpy.types.WorldMistSettings) -> Mist:

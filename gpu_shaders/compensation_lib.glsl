@@ -6,27 +6,13 @@
 // raytrace_lib.glsl.
 #ifndef COMPENSATION_LIB_GLSL
 #define COMPENSATION_LIB_GLSL
-#include "common_lib.glsl"
+#include "hemisphere_lib.glsl"
 
 uniform float u_clamp_distance;
-uniform uint u_seed;
 
 // The radiance leaving the hit at ``origin + dir * t`` on ``triangle`` towards the pixel, or
 // false where the including shader does not know it.
 bool hit_radiance(vec3 origin, vec3 dir, float t, int triangle, out vec3 radiance);
-
-vec2 random2(uvec2 pixel, uint k) {
-    uint h = pcg(pixel.x + pcg(pixel.y + pcg(k + pcg(u_seed))));
-    return vec2(float(h & 0xffffu), float(h >> 16u)) / 65536.0;
-}
-
-vec3 cosine_direction(vec3 n, vec2 u) {
-    vec3 t, b;
-    basis_of(n, t, b);
-    float r = sqrt(u.x);
-    float phi = 2.0 * PI * u.y;
-    return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u.x)) * n);
-}
 
 // The weighted sum of rays first .. first + count - 1 of the pixel (the caller divides by all
 // its rays).

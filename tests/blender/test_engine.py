@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from addon.core.frame.renderer import Renderer
-from addon.core.frame.result import PASS_CHANNELS
+from addon.core.frame.result import ON_DEMAND_PASSES, PASS_CHANNELS
 from addon.core.scene.model import LightKind
 from addon.core.settings import Settings
 from addon.export import export_scene
@@ -97,7 +97,7 @@ def test_passes_compose_into_combined(blender):
     open_scene("light_area", 32)
     exported = export_scene(bpy.context.evaluated_depsgraph_get())
     frame, _ = Renderer().render(exported, Settings(antialiasing=1, vpl_count=64))
-    assert set(frame.passes) == set(PASS_CHANNELS)
+    assert set(frame.passes) == set(PASS_CHANNELS) - ON_DEMAND_PASSES
     p = frame.passes
     covered = p["Depth"][..., 0] < 1e10
     rebuilt = (p["DiffDir"] + p["DiffInd"]) * p["DiffCol"] + p["Emit"]

@@ -123,9 +123,10 @@ def test_passes_not_asked_for_are_left_out(renderer):
     assert np.array_equal(some.passes["Combined"], every.passes["Combined"])
     assert np.array_equal(some.passes["DiffDir"], every.passes["DiffDir"])
     assert set(some.passes) == {"Combined", "DiffDir"} and every.passes["DiffInd"].any()
-    assert skipped_with(stats, "Depth, DiffCol, DiffInd, Emit, GlossCol, GlossDir, GlossInd, "
-                               "IndexMA, IndexOB, Mist, Normal, Position")
-    assert skipped_with(stats, "passes CryptoAsset, CryptoMaterial, CryptoObject, Denoising")
+    assert skipped_with(stats, "Depth, DiffCol, DiffInd, Emit, Env, GlossCol, GlossDir, "
+                               "GlossInd, IndexMA, IndexOB, Mist, Normal, Position")
+    assert "AO" not in every.passes  # rays of its own: only where asked for
+    assert skipped_with(stats, "passes AO, CryptoAsset, CryptoMaterial, CryptoObject, Denoising")
 
 
 def test_a_camera_that_sees_no_surface_runs_no_light_work(renderer):

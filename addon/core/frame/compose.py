@@ -12,9 +12,9 @@ from .result import Stats
 
 BACKGROUND_DEPTH = 1e10  # Blender's Z pass value where no surface is hit
 COMPOSED_PASSES = frozenset({"DiffDir", "DiffInd", "DiffCol", "Emit", "Normal", "GlossDir",
-                             "GlossInd", "GlossCol", "Depth", "Mist", "Position"})
+                             "GlossInd", "GlossCol", "Depth", "Mist", "Position", "Env"})
 """The passes ``compose`` writes from the supersamples read back."""
-SEEN_THROUGH = frozenset({"DiffCol", "GlossCol", "Emit"})
+SEEN_THROUGH = frozenset({"DiffCol", "GlossCol", "Emit", "Env"})
 """The passes clear surfaces in front dim, as Cycles writes them (measured, 4.5: through a
 tinted Transparent BSDF the colour passes and Emit carry the tint, the light passes, which
 are light over colour, do not)."""
@@ -78,7 +78,8 @@ def mist(position: np.ndarray, covered: np.ndarray, camera: Camera, settings: Mi
 def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
             read_light: Callable[[], tuple[np.ndarray, np.ndarray]], aa: int, x0: int, y0: int,
             passes: frozenset[str], read_transmittance: Callable[[], np.ndarray] | None = None,
-            holdouts: bool = False, view: tuple[Camera, Mist] | None = None) -> None:
+            holdouts: bool = False, view: tuple[Camera, Mist] | None = None,
+            read_background: Callable[[], np.ndarray] | None = None) -> None:
     """Write one supersampled tile's ``passes`` (of COMPOSED_PASSES; Combined is composed on
     the GPU, gpu/combined.py) into ``output`` at output resolution. ``read_light`` returns
     the direct and indirect light, (h, w, 4) diffuse or (h, w, 8) with glossy radiance in
@@ -89,7 +90,9 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
     the background does (Cycles writes no pass there). Depth and Position are the pixel
     centre's (Cycles writes both from a pixel's first sample, measured at its centre:
     ``central``). ``view``: the pass's camera and the
-    mist settings, for the Mist pass."""
+    mist settings, for the Mist pass. ``read_background``: what the camera sees where no
+    surface is, per supersample (h, w, 3), for the Environment pass (Env), which Cycles
+    writes whether the film is transparent or not."""
     covered = gbuffer["normal"][..., 3:4]
     seen_surface = None  # with holdouts: the supersamples whose passes are written
     if holdouts:
@@ -117,6 +120,10 @@ def compose(output: dict[str, np.ndarray], gbuffer: Mapping[str, np.ndarray],
             if seen_surface is not None:
                 values = values * seen_surface
             output[name][region] = downsample(values, aa)
+    if "Env" in passes and read_background is not None:  # none on holdouts: covered
+        environment = (1.0 - gbuffer["normal"][..., 3:4]) * read_background()[..., :3]
+        output["Env"][region] = downsample(environment if seen is None
+                                           else environment * seen, aa)
     if "Mist" in passes and view is not None:  # the background's (and holdouts') is 1
         output["Mist"][region] = downsample(mist(gbuffer["position"], covered, *view), aa)
     if "Position" in passes:

@@ -39,7 +39,7 @@ MAX_RADIUS_SHARE = 0.5  # of the image's larger side: the widest circle of confu
 HIDDEN_FILL_FROM = 0.05  # a slice's own coverage from which it fills what is hidden in full
 KERNEL_SUBSAMPLES = 4  # per pixel and axis, where the aperture's outline is drawn
 BLURRED_PASSES = ("Combined", "DiffDir", "DiffInd", "DiffCol", "GlossDir", "GlossInd",
-                  "GlossCol", "Emit")
+                  "GlossCol", "Emit", "AO", "Env")
 """The passes depth of field blurs; data passes (Depth, Normal, the denoising guides) stay
 sharp for the compositor."""
 

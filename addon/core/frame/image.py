@@ -18,6 +18,7 @@ from ..gpu.upsample import upsample
 from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
 from . import ism_maps
+from .ambient_occlusion import AmbientOcclusion
 from .compose import COMPOSED_PASSES, compose
 from .denoise import DenoisingData
 from .gather import RAY_OFFSET, LightPass, gather, new_accumulator, read_accumulator
@@ -356,7 +357,17 @@ class ComposeStage(TileStage):
                     partial(read_textures, [work.transmittance])
                 compose(frame.output, work.gbuffer.images, partial(read_light, work), aa,
                         tile.x0, tile.y0, others, through, holdouts,
-                        (frame.camera, frame.scene.mist))
+                        (frame.camera, frame.scene.mist), partial(_background, frame, work))
+
+
+def _background(frame: FrameState, work: TileWork) -> np.ndarray:
+    """What the tile's supersamples see where no surface is: the composed background, or
+    with a transparent film the world all the same (the Environment pass)."""
+    if work.background is not None:
+        return work.background
+    tile = work.tile
+    return background(frame.scene.world, frame.camera, frame.settings.antialiasing, tile.x0,
+                      tile.y0, *tile.size)
 
 
 def read_light(work: TileWork) -> tuple[np.ndarray, np.ndarray]:
@@ -377,8 +388,8 @@ class RenderImage(Stage):
     def __init__(self, gpu: GpuSession, kept: KeptProducts) -> None:
         self.gpu, self.kept = gpu, kept
         self.tile_stages = [GBufferStage(gpu), GatherStage(gpu), NearFieldStage(gpu),
-                            BlurStage(gpu), ComposeStage(gpu), DenoisingData(), IdPasses(),
-                            MotionVectors()]
+                            BlurStage(gpu), ComposeStage(gpu), AmbientOcclusion(gpu),
+                            DenoisingData(), IdPasses(), MotionVectors()]
 
     def run(self, frame: FrameState) -> None:
         camera, settings, ctx = frame.camera, frame.settings, self.gpu.ctx

@@ -18,7 +18,7 @@ from ..scene.model import Camera, Scene
 from ..settings import Settings
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, NO_SPOT, LightSamples
 from .id_passes import family_of
-from .result import PASS_CHANNELS
+from .result import ON_DEMAND_PASSES, PASS_CHANNELS
 
 Bounds = tuple[np.ndarray, np.ndarray]  # (lo, hi) corners of an axis-aligned box
 
@@ -90,8 +90,9 @@ def plan_gather(plan: FramePlan, settings: Settings, uses_ism: bool
 def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
                passes: frozenset[str] | None = None) -> FramePlan:
     """The stages this frame needs, from the scene, the settings and the requested passes."""
-    wanted = frozenset(PASS_CHANNELS) if passes is None or not settings.planner \
-        else frozenset(passes) | {"Combined"}
+    every = frozenset(PASS_CHANNELS) - ON_DEMAND_PASSES
+    wanted = every if passes is None else every | (frozenset(passes) & ON_DEMAND_PASSES) \
+        if not settings.planner else frozenset(passes) | {"Combined"}
     read: set[str] = set()
     if scene.camera is not None and scene.camera.defocused:
         read |= {"Depth"}  # depth of field blurs by it (depth_of_field.py)

@@ -92,8 +92,9 @@ class Renderer:
                cancelled: CancelCallback | None = None, passes: frozenset[str] | None = None,
                pass_index: int = 0) -> tuple[Frame, Stats]:
         """Render one pass of ``scene`` (``pass_index`` of a progressive render): the Combined
-        pass and ``passes`` (all by default, and all when the planner is off; OIDN adds its
-        guides, the Denoising Data passes). Raises RenderError or RenderCancelled."""
+        pass and ``passes`` (all by default, and all when the planner is off, but those of
+        result.ON_DEMAND_PASSES only where asked for; OIDN adds its guides, the Denoising
+        Data passes). Raises RenderError or RenderCancelled."""
         last_index, paths_end = self._last_pass
         first_path = paths_end if pass_index and last_index == pass_index - 1 else \
             pass_index * settings.vpl_count  # passes of N paths before it elsewhere (viewport)

@@ -13,12 +13,17 @@ PASS_CHANNELS = {
     "Combined": 4, "Depth": 1, "Normal": 3, "DiffDir": 3, "DiffInd": 3, "DiffCol": 3,
     "GlossDir": 3, "GlossInd": 3, "GlossCol": 3, "Emit": 3, "Mist": 1, "Position": 3,
     "Denoising Normal": 3, "Denoising Albedo": 3, "Denoising Depth": 1, "IndexOB": 1,
-    "IndexMA": 1, "Vector": 4,
+    "IndexMA": 1, "Vector": 4, "AO": 3, "Env": 3,
     **{f"{family}{k:02d}": 4 for family in ("CryptoObject", "CryptoMaterial", "CryptoAsset")
        for k in range(3)},
 }
 """Blender's pass names (4.x's) and channel counts, in the order the engine registers them;
 Cryptomatte's at Blender's default of 6 levels (``pass_channels`` knows the others)."""
+
+
+ON_DEMAND_PASSES = frozenset({"AO"})
+"""Passes that trace rays of their own: rendered where asked for by name, never as part of
+"every pass" (a render's default, or with the planner off)."""
 
 
 def pass_channels(name: str) -> int:

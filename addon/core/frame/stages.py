@@ -14,6 +14,7 @@ from ..settings import Settings
 from ..transport.guidance import camera_points
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, LightSamples, build_light_samples
 from ..transport.view_probe import reaches_view
+from .ambient_occlusion import needs_ambient_occlusion
 from .batches import shadow_map_batches
 from .compose import sanitize
 from .gather import RAY_OFFSET, Compensation, LightPass
@@ -225,7 +226,8 @@ class PlanLightPasses(Stage):
                                          settings.bias_samples, settings.seed,
                                          settings.bounces > 1)
         frame.traces_rays = frame.compensation is not None or frame.near_field is not None \
-            or any(p.visibility.rays_per_sample for p in passes)
+            or any(p.visibility.rays_per_sample for p in passes) \
+            or needs_ambient_occlusion(frame, self.gpu.ctx.version_code)
         if frame.traces_rays:
             upload_triangles(self.gpu, self.kept, frame.geometry, stats)
         batches = [p.batch for p in passes if p.visibility.uses_ism]

@@ -418,6 +418,7 @@ class Scene:
     # openings that world light enters through; they emit nothing themselves
     mist: Mist = field(default_factory=Mist)
     motion: MotionSpan | None = None  # None: nothing moves (no Vector pass, no motion blur)
+    ao_distance: float = 10.0  # the world's AO distance: the Ambient Occlusion pass's rays
 
     @property
     def surface_lights(self) -> list[Light]:
