@@ -85,7 +85,8 @@ def test_the_position_and_depth_passes_are_cycles(blender, tmp_path, name):
 
 def test_the_ambient_occlusion_pass_is_cycles(blender, tmp_path):
     """AO with the world's distance at 1 m (the box's and sphere's contact with the floor,
-    the floor under them): VPL GI's 36 rays a pixel against Cycles' one a sample (256)."""
+    the floor under them): VPL GI's 18 rays a pixel against Cycles' one a sample (256). Where
+    Cycles' AO is below 0.95, the mean error against what no occlusion (1) would be off."""
     from addon.blender_compat import pass_name
 
     scene = passes_scene()
@@ -94,15 +95,18 @@ def test_the_ambient_occlusion_pass_is_cycles(blender, tmp_path):
     configure_cycles(scene, 256)
     reference = rendered_pass(scene, "CYCLES", pass_name("AO"), tmp_path / "cycles.exr")
     ours = rendered_pass(scene, "VPL_GI", pass_name("AO"), tmp_path / "ours.exr")
-    surface = reference.max(axis=2) > 0
-    unoccluded = np.where(surface[..., None], 1.0, 0.0)
-    error = np.abs(ours - reference).mean()
-    print(f"AO pass: mean {ours.mean():.4f} (Cycles {reference.mean():.4f}), mean abs error "
-          f"{error:.4f}, relRMSE {metrics.relative_rmse(ours, reference):.4f}; no occlusion: "
-          f"{np.abs(unoccluded - reference).mean():.4f}")
-    assert (reference < 0.9).mean() > 0.05  # occlusion to see
+    occluded = (reference[..., 0] > 0) & (reference[..., 0] < 0.95)
+    error = np.abs(ours - reference)[occluded].mean()
+    unoccluded = np.abs(1.0 - reference)[occluded].mean()
+    shift = ours[occluded].mean() - reference[occluded].mean()
+    print(f"AO pass: mean {ours.mean():.4f} (Cycles {reference.mean():.4f}); where occluded "
+          f"({occluded.mean():.3f} of pixels) mean {shift:+.4f} off, mean abs error "
+          f"{error:.4f} (no occlusion: {unoccluded:.4f}); relRMSE "
+          f"{metrics.relative_rmse(ours, reference):.4f}")
+    assert occluded.mean() > 0.05  # occlusion to see
     assert abs(ours.mean() / reference.mean() - 1.0) < 0.02
-    assert error < 0.3 * np.abs(unoccluded - reference).mean()
+    assert abs(shift) < 0.1 * unoccluded  # no bias: the rays' noise averages out
+    assert error < 0.4 * unoccluded  # per pixel, within the rays' noise
 
 
 @pytest.mark.parametrize("transparent", [False, True])

@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # image.py runs AmbientOcclusion among its tile stages
     from .image import FrameGpu, TileWork
     from .state import FrameState
 
-AO_RAYS = 4  # per supersample and pass: 36 a pixel at the default antialiasing
+AO_RAYS_PER_PIXEL = 16  # and pass, spread over its supersamples (2 each at antialiasing 3)
 NEEDS_RAYS = "the Ambient Occlusion pass needs OpenGL 4.3 (ray tracing): it is left black"
 
 
@@ -33,6 +33,12 @@ def needs_ambient_occlusion(frame: FrameState, version_code: int) -> bool:
             frame.stats.warnings.append(NEEDS_RAYS)
         return False
     return True
+
+
+def rays_per_sample(aa: int) -> int:
+    """AO rays per supersample: AO_RAYS_PER_PIXEL spread over a pixel's aa × aa, one at
+    least."""
+    return max(1, -(-AO_RAYS_PER_PIXEL // (aa * aa)))
 
 
 class AmbientOcclusion:
@@ -59,7 +65,7 @@ class AmbientOcclusion:
                 textures[name].use(unit)
             self.gpu.tracer.bind()
             set_uniforms(program, u_position=0, u_normal=1, u_geometric=2,
-                         u_distance=frame.scene.ao_distance, u_rays=AO_RAYS,
+                         u_distance=frame.scene.ao_distance, u_rays=rays_per_sample(aa),
                          u_ray_offset=RAY_OFFSET * frame.radius,
                          u_seed=frame.settings.seed & 0xFFFFFFFF)
             target.use()
