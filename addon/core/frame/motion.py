@@ -9,6 +9,7 @@ infinity, so only the camera's turning moves it."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -38,34 +39,46 @@ def _pixels(view_projection: np.ndarray, points: np.ndarray, camera: Camera
     return (clip[:, :2] / safe * 0.5 + 0.5) * size, ahead
 
 
-def _instance_deltas(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per instance + 1 (entry 0: none): whether it moves, the maps from its world placement
-    now to those at the two times (identity where it does not move), (2, I + 1, 4, 4), and
-    its linear map (object to world) at the two times, (2, I + 1, 3, 3)."""
-    count = len(scene.instances)
-    moves = np.zeros(count + 1, bool)
-    deltas = np.broadcast_to(np.eye(4), (2, count + 1, 4, 4)).copy()
-    linear = np.broadcast_to(np.eye(3), (2, count + 1, 3, 3)).copy()
-    for index, instance in enumerate(scene.instances):
-        for k in (0, 1):
-            at = instance.matrix if instance.motion is None else instance.motion[k]
-            linear[k, index + 1] = np.nan_to_num(np.asarray(at, np.float64)[:3, :3])
-        if instance.motion is None:
-            continue
-        with np.errstate(all="ignore"):
-            try:
-                inverse = np.linalg.inv(instance.matrix)
-            except np.linalg.LinAlgError:
+@dataclass(frozen=True)
+class InstanceMotion:
+    """Per instance + 1 (entry 0: none), made once a frame: whether it moves, the maps from
+    its world placement now to those at the two times (identity where it does not move),
+    (2, I + 1, 4, 4), and, where some mesh deforms, its linear map (object to world) at the
+    two times, (2, I + 1, 3, 3)."""
+
+    moves: np.ndarray
+    deltas: np.ndarray
+    linear: np.ndarray | None
+
+    @classmethod
+    def of(cls, scene: Scene, deforming: bool) -> InstanceMotion:
+        count = len(scene.instances)
+        moves = np.zeros(count + 1, bool)
+        deltas = np.broadcast_to(np.eye(4), (2, count + 1, 4, 4)).copy()
+        for index, instance in enumerate(scene.instances):
+            if instance.motion is None:
                 continue
-            for k in (0, 1):
-                deltas[k, index + 1] = instance.motion[k] @ inverse
-        if np.isfinite(deltas[:, index + 1]).all() and not (
-                np.allclose(deltas[0, index + 1], np.eye(4), atol=1e-12)
-                and np.allclose(deltas[1, index + 1], np.eye(4), atol=1e-12)):
-            moves[index + 1] = True
-        else:
-            deltas[:, index + 1] = np.eye(4)
-    return moves, deltas, linear
+            with np.errstate(all="ignore"):
+                try:
+                    inverse = np.linalg.inv(instance.matrix)
+                except np.linalg.LinAlgError:
+                    continue
+                for k in (0, 1):
+                    deltas[k, index + 1] = instance.motion[k] @ inverse
+            if np.isfinite(deltas[:, index + 1]).all() and not (
+                    np.allclose(deltas[0, index + 1], np.eye(4), atol=1e-12)
+                    and np.allclose(deltas[1, index + 1], np.eye(4), atol=1e-12)):
+                moves[index + 1] = True
+            else:
+                deltas[:, index + 1] = np.eye(4)
+        linear = None
+        if deforming:
+            linear = np.broadcast_to(np.eye(3), (2, count + 1, 3, 3)).copy()
+            linear[:, 1:] = np.nan_to_num(np.array(
+                [[inst.matrix if inst.motion is None else inst.motion[k]
+                  for inst in scene.instances] for k in (0, 1)],
+                np.float64).reshape(2, count, 4, 4)[..., :3, :3])
+        return cls(moves, deltas, linear)
 
 
 def _displacements(points: np.ndarray, triangles: np.ndarray, geometry: WorldGeometry
@@ -88,9 +101,10 @@ def _displacements(points: np.ndarray, triangles: np.ndarray, geometry: WorldGeo
 
 
 def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeometry,
-                   scene: Scene, camera: Camera, x0: int, y0: int) -> np.ndarray:
+                   motion: InstanceMotion, camera: Camera, x0: int, y0: int) -> np.ndarray:
     """The Vector pass (h, w, 4) of pixels [x0, x0 + w) × [y0, y0 + h) whose surfaces are at
-    world ``position`` (h, w, 3) on triangles ``codes`` (IdTables.triangles: 0 none). Only
+    world ``position`` (h, w, 3) on triangles ``codes`` (IdTables.triangles: 0 none), which
+    move as ``motion`` (of the frame's instances) says. Only
     moving pixels are projected: those of moving instances and deforming triangles, or all
     where the camera moves."""
     h, w = codes.shape
@@ -101,11 +115,9 @@ def motion_vectors(position: np.ndarray, codes: np.ndarray, geometry: WorldGeome
     seen = codes > 0
     instance = np.zeros(h * w, np.int64)
     owners = geometry.triangle_instance
-    moves, deltas = np.zeros(1, bool), np.broadcast_to(np.eye(4), (2, 1, 4, 4))
-    linear = np.broadcast_to(np.eye(3), (2, 1, 3, 3))
+    moves, deltas, linear = motion.moves, motion.deltas, motion.linear
     warps = np.zeros(h * w, bool)  # on a deforming mesh's moving triangles
     if owners is not None and len(owners) and seen.any():
-        moves, deltas, linear = _instance_deltas(scene)
         instance[seen] = np.take(owners, codes[seen] - 1, mode="clip") + 1
         if geometry.deforming is not None:
             warps[seen] = np.take(geometry.deforming, codes[seen] - 1, mode="clip")
@@ -151,10 +163,13 @@ class MotionVectors:
         with frame.stats.timed(self.name):
             if frame.id_tables is None:
                 frame.id_tables = IdTables(frame.scene, frame.geometry)
+            if frame.instance_motion is None:
+                frame.instance_motion = InstanceMotion.of(
+                    frame.scene, frame.geometry.deforming is not None)
             aa, tile, images = frame.settings.antialiasing, work.tile, work.gbuffer.images
             codes = frame.id_tables.triangles(central(images["geometric"], aa))
             position = central(images["position"][..., :3], aa)
-            vectors = motion_vectors(position, codes, frame.geometry, frame.scene,
+            vectors = motion_vectors(position, codes, frame.geometry, frame.instance_motion,
                                      frame.camera, tile.x0 // aa, tile.y0 // aa)
             h, w = vectors.shape[:2]
             frame.output["Vector"][tile.y0 // aa:tile.y0 // aa + h,

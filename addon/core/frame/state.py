@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from .gather import Compensation, LightPass
     from .id_passes import IdTables
     from .ism_maps import ImperfectShadowMapFrame
+    from .motion import InstanceMotion
     from .near_field import NearField
 
 
@@ -70,6 +71,7 @@ class FrameState:
     blur_radius: int = 0
     output: dict[str, np.ndarray] | None = None
     id_tables: IdTables | None = None  # the ID passes' lookups (id_passes.py)
+    instance_motion: InstanceMotion | None = None  # the Vector pass's (motion.py)
     traces_rays: bool = False  # a light pass or the bias compensation uses the ray tracer
     steps: int = 0  # light passes × tiles, for the progress bar
     steps_done: int = 0

@@ -113,13 +113,13 @@ class WorldGeometry:
         params = self.materials[row, SPECULAR:CUTOUT]
         return np.clip(principled.path_albedo(base.astype(np.float64), params), 0.0, MAX_ALBEDO)
 
-    @property
+    @cached_property
     def receiver_set(self) -> np.ndarray | None:
         """Each triangle's light-linking receiver set (T,) int32, or None: all in set 0."""
         return None if self.row_receiver_set is None \
             else self.row_receiver_set[self.triangle_material]
 
-    @property
+    @cached_property
     def emission_receivers(self) -> np.ndarray | None:
         """The receiver sets each triangle's emission lights (T,) uint64, or None: all."""
         return None if self.row_emission_receivers is None \
