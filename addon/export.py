@@ -51,7 +51,7 @@ from .core.scene.model import (
 from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
-from .export_light_linking import scene_light_linking
+from .export_light_linking import has_shadow_linking, scene_light_linking
 from .export_lights import export_light, is_portal
 from .export_motion import (
     InstanceKey,
@@ -1022,13 +1022,6 @@ def has_particle_hair(obj: bpy.types.Object) -> bool:
     """True if Cycles renders hair particles on the object (a Hair system drawn as Path)."""
     return any(system.settings.type == "HAIR" and system.settings.render_type == "PATH"
                for system in getattr(obj, "particle_systems", ()))
-
-
-def has_shadow_linking(obj: bpy.types.Object) -> bool:
-    """True if the shadows of the object's light or emission are cast by some objects only
-    (Cycles' shadow linking: a blocker collection)."""
-    linking = getattr(obj, "light_linking", None)
-    return linking is not None and linking.blocker_collection is not None
 
 
 def unrendered_objects(skipped: dict[str, set[str]]) -> list[str]:

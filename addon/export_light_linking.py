@@ -10,7 +10,8 @@ Properties > Shading) as Cycles evaluates it (Blender's depsgraph light-linking 
 - an emitter whose collection some set includes lights only the sets that include it, else
   every set; in both cases not the sets that exclude it.
 
-Shadow linking (blocker collections) is not read here: export.py names it as not rendered."""
+Shadow linking (blocker collections) is not rendered: ``has_shadow_linking`` finds it, and
+export.py names it in a warning."""
 
 from __future__ import annotations
 
@@ -54,6 +55,13 @@ def receiver_collection(obj: bpy.types.Object) -> bpy.types.Collection | None:
     return None if linking is None else linking.receiver_collection
 
 
+def has_shadow_linking(obj: bpy.types.Object) -> bool:
+    """True if the shadows of the object's light or emission are cast by some objects only
+    (Cycles' shadow linking: a blocker collection)."""
+    linking = getattr(obj, "light_linking", None)
+    return linking is not None and linking.blocker_collection is not None
+
+
 def _entries(collection: bpy.types.Collection) -> Iterator[tuple[str, bpy.types.Object]]:
     """(link state, object) of every object the collection reaches, children first, as
     Blender's cache visits them."""
@@ -75,7 +83,7 @@ def read_light_linking(objects: list[bpy.types.Object]) -> LightLinking:
     """The light linking of the scene whose (evaluated) ``objects`` are given."""
     collections: dict[int, int] = {}  # emitter collection pointer -> its bit
     found = LightLinking()
-    masks: dict[int, list[int]] = {}  # receiver pointer -> [included, excluded] bits
+    masks: dict[int, tuple[int, int]] = {}  # receiver pointer -> (included, excluded) bits
     for obj in objects:
         collection = receiver_collection(obj)
         if collection is None:
@@ -90,18 +98,17 @@ def read_light_linking(objects: list[bpy.types.Object]) -> LightLinking:
             break
         bit = collections[pointer] = 1 << len(collections)
         for state, receiver in _entries(collection):
-            included, excluded = masks.setdefault(receiver.original.as_pointer(), [0, 0])
-            if state == "INCLUDE":
-                masks[receiver.original.as_pointer()] = [included | bit, excluded & ~bit]
-            else:
-                masks[receiver.original.as_pointer()] = [included & ~bit, excluded | bit]
+            pointer = receiver.original.as_pointer()
+            included, excluded = masks.get(pointer, (0, 0))
+            masks[pointer] = (included | bit, excluded & ~bit) if state == "INCLUDE" \
+                else (included & ~bit, excluded | bit)
     ids: dict[tuple[int, int], int] = {}
     for receiver, key in masks.items():
-        if tuple(key) not in ids and len(ids) + 1 < MAX_SETS:
-            ids[tuple(key)] = len(ids) + 1
-        if tuple(key) in ids:
-            found.sets[receiver] = ids[tuple(key)]
-    if len({tuple(key) for key in masks.values()}) > len(ids):
+        if key not in ids and len(ids) + 1 < MAX_SETS:
+            ids[key] = len(ids) + 1
+        if key in ids:
+            found.sets[receiver] = ids[key]
+    if len(set(masks.values())) > len(ids):
         found.warnings.append(f"light linking: more than {MAX_SETS - 1} distinct receiver "
                               f"sets; the objects of the others are lit as those no receiver "
                               f"collection names (as in Blender)")

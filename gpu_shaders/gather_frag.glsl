@@ -157,7 +157,8 @@ void main() {
     vec4 normal = texelFetch(u_normal, px, 0);
     if (normal.w == 0.0) discard;
     vec3 world = texelFetch(u_position, px, 0).xyz;
-    vec3 geometric = texelFetch(u_geometric, px, 0).xyz;
+    vec4 geometric_texel = texelFetch(u_geometric, px, 0);  // w: the triangle + 1
+    vec3 geometric = geometric_texel.xyz;
     Lobe lobe = Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
 #ifdef GLOSSY
     out_glossy = vec4(0.0);
@@ -169,7 +170,7 @@ void main() {
     out_light = vec4(compensation(world, normal.xyz, geometric), 0.0);
 #else
 #ifdef LIGHT_LINKING
-    if (!lights_triangle(int(texelFetch(u_geometric, px, 0).w + 0.5) - 1)) discard;
+    if (!lights_triangle(int(geometric_texel.w + 0.5) - 1)) discard;
 #endif
 #ifdef SHADOW_HINTS
     read_shadow_hints(px);

@@ -91,8 +91,12 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
                passes: frozenset[str] | None = None) -> FramePlan:
     """The stages this frame needs, from the scene, the settings and the requested passes."""
     every = frozenset(PASS_CHANNELS) - ON_DEMAND_PASSES
-    wanted = every if passes is None else every | (frozenset(passes) & ON_DEMAND_PASSES) \
-        if not settings.planner else frozenset(passes) | {"Combined"}
+    if passes is None:
+        wanted = every
+    elif not settings.planner:  # every pass, and those on demand where asked for
+        wanted = every | (frozenset(passes) & ON_DEMAND_PASSES)
+    else:
+        wanted = frozenset(passes) | {"Combined"}
     read: set[str] = set()
     if scene.camera is not None and scene.camera.defocused:
         read |= {"Depth"}  # depth of field blurs by it (depth_of_field.py)

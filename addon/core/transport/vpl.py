@@ -183,9 +183,9 @@ def lit_hits(triangle: np.ndarray, receivers: int | np.ndarray, geometry: WorldG
     of ``receivers`` (per hit or one), or None where every hit is (Cycles: an emitter's
     light reaches no surface of an unlinked object, so none of it bounces on from there)."""
     receivers = np.asarray(receivers, np.uint64)
-    sets = geometry.receiver_set
     if not np.any(receivers != np.uint64(EVERY_RECEIVER_SET)):
         return None
+    sets = geometry.receiver_set
     bit = np.zeros(len(triangle), np.uint64) if sets is None \
         else sets[triangle].astype(np.uint64)
     return ((receivers >> bit) & np.uint64(1)).astype(bool)
