@@ -50,6 +50,7 @@ OPTIONAL_PASSES = {
     "Vector": (4, "XYZW", "VECTOR", "use_pass_vector"),
     "AO": (3, "RGB", "COLOR", "use_pass_ambient_occlusion"),
     "Env": (3, "RGB", "COLOR", "use_pass_environment"),
+    "Shadow Catcher": (3, "RGB", "COLOR", "cycles.use_pass_shadow_catcher"),
 }
 CRYPTOMATTE_TOGGLES = {"CryptoObject": "use_pass_cryptomatte_object",
                        "CryptoMaterial": "use_pass_cryptomatte_material",

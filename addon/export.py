@@ -1009,12 +1009,11 @@ UNRENDERED = {
     "POINTCLOUD": "point clouds are not rendered: {}",
     "VOLUME": "volume objects are not rendered: {}",
     "HAIR": "hair particles are not rendered, on {}",
-    "SHADOW_CATCHER": "shadow catchers are rendered as ordinary surfaces: {}",
     "SHADOW_LINKING": "shadow linking is not rendered (every object casts the shadows of "
                       "these emitters' light): {}",
 }
 """What Cycles renders and VPL GI does not, by kind: Blender's object types, HAIR for a
-mesh's hair particle systems, SHADOW_CATCHER and SHADOW_LINKING for objects with them (keys
+mesh's hair particle systems, SHADOW_LINKING for objects with it (keys
 of ``export_scene``'s skipped objects); each a warning naming them."""
 
 
@@ -1086,14 +1085,13 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         if entry is None:
             if has_particle_hair(obj):
                 skipped.setdefault("HAIR", set()).add(obj.name)
-            if getattr(obj, "is_shadow_catcher", False):
-                skipped.setdefault("SHADOW_CATCHER", set()).add(obj.name)
             if has_shadow_linking(obj):  # an emitter's light
                 skipped.setdefault("SHADOW_LINKING", set()).add(obj.name)
             known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
                      state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
                      bool(getattr(obj, "visible_diffuse", True)), state.identity(obj),
-                     linking.receiver_set(obj), linking.receivers_of(obj)) \
+                     linking.receiver_set(obj), linking.receivers_of(obj),
+                     bool(getattr(obj, "is_shadow_catcher", False))) \
                 if state.include(obj) else None
             entry = placements[memo] = (known, bool(known and known[0].triangle_count))
         elif entry[0]:

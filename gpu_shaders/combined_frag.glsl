@@ -3,7 +3,9 @@
 // u_factor² supersamples' (direct + soft + indirect) × albedo + glossy + emission, alpha the
 // surface's coverage; with BACKGROUND (a colour) or BACKGROUND_IMAGE (one per supersample)
 // the uncovered part sees the background and alpha is 1. With HOLDOUTS a holdout's
-// supersample (the g-buffer's geometric.w) is a hole: black, alpha 0, as in Cycles. Defines: SOFT (blurred soft direct
+// supersample (the g-buffer's geometric.w) is a hole: black, alpha 0, as in Cycles; with
+// CATCHERS too, so are the supersamples of shadow catchers (the matte of
+// frame/shadow_catcher.py). Defines: SOFT (blurred soft direct
 // light), GLOSSY (each light's glossy radiance, added without the albedo), TRANSMITTANCE (what
 // clear surfaces in front let through to the camera, per supersample: gpu/clear_view.py).
 
@@ -37,9 +39,24 @@ uniform int u_factor;                 // supersamples per pixel edge
 
 layout(location = 0) out vec4 out_combined;
 
+#ifdef CATCHERS
+uniform isampler2D u_catchers;        // per triangle: 1 on a shadow catcher's (a table)
+
+bool catcher(float code) {
+    int triangle = int(code) - 1;
+    if (triangle < 0) return false;
+    int width = textureSize(u_catchers, 0).x;
+    return texelFetch(u_catchers, ivec2(triangle % width, triangle / width), 0).r != 0;
+}
+#endif
+
 bool holdout(ivec2 s) {
 #ifdef HOLDOUTS
-    return texelFetch(u_geometric, s, 0).w < -0.5;
+    float code = texelFetch(u_geometric, s, 0).w;
+#ifdef CATCHERS
+    if (catcher(code)) return true;
+#endif
+    return code < -0.5;
 #else
     return false;
 #endif

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from .compose import downsample
+from .result import MATTE
 from .state import FrameState, Stage
 
 if TYPE_CHECKING:  # image.py runs DenoisingData among its tile stages
@@ -170,6 +171,10 @@ class Denoise(Stage):
                 frame.stats.warnings.append(f"Open Image Denoise failed ({exc}); the image is "
                                             f"not denoised")
                 return
+        if MATTE in output:  # the shadow catchers' matte takes the change off their pixels
+            combined = output["Combined"]
+            catcher = np.clip(combined[..., 3:4] - output[MATTE][..., 3:4], 0.0, 1.0)
+            output[MATTE][..., :3] += (after - before) * (1.0 - catcher)
         if indirect:
             output["Combined"][..., :3] += after - before
             albedo = output["DiffCol"]

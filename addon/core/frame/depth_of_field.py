@@ -29,6 +29,7 @@ from scipy import signal
 
 from ..scene.model import Aperture, Camera
 from .compose import BACKGROUND_DEPTH, downsample
+from .result import BACKDROP, MATTE
 from .state import FrameState, Stage
 
 FOCUS_RADIUS = 0.5  # pixels: a circle of confusion smaller than this is left sharp
@@ -39,9 +40,10 @@ MAX_RADIUS_SHARE = 0.5  # of the image's larger side: the widest circle of confu
 HIDDEN_FILL_FROM = 0.05  # a slice's own coverage from which it fills what is hidden in full
 KERNEL_SUBSAMPLES = 4  # per pixel and axis, where the aperture's outline is drawn
 BLURRED_PASSES = ("Combined", "DiffDir", "DiffInd", "DiffCol", "GlossDir", "GlossInd",
-                  "GlossCol", "Emit", "AO", "Env")
-"""The passes depth of field blurs; data passes (Depth, Normal, the denoising guides) stay
-sharp for the compositor."""
+                  "GlossCol", "Emit", "AO", "Env", MATTE, BACKDROP)
+"""The passes depth of field blurs (with the shadow catchers' matte and backdrop, which
+make Combined); data passes (Depth, Normal, the denoising guides) stay sharp for the
+compositor."""
 
 
 def circle_of_confusion(depth: np.ndarray, camera: Camera) -> np.ndarray:

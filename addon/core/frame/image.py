@@ -13,13 +13,13 @@ import numpy as np
 from ..gpu.clear_view import ClearView
 from ..gpu.combined import combined_pass
 from ..gpu.gl import read_textures
-from ..gpu.scene_buffers import SceneBuffers
+from ..gpu.scene_buffers import SceneBuffers, table_texture
 from ..gpu.upsample import upsample
 from ..scene.environment import background
 from ..scene.geometry import WorldGeometry
 from . import ism_maps
 from .ambient_occlusion import AmbientOcclusion
-from .compose import COMPOSED_PASSES, compose
+from .compose import COMPOSED_PASSES, compose, downsample
 from .denoise import DenoisingData
 from .gather import RAY_OFFSET, LightPass, gather, new_accumulator, read_accumulator
 from .gbuffer import GBuffer, Tile, render_gbuffer
@@ -28,8 +28,9 @@ from .gpu_session import GpuSession
 from .id_passes import IdPasses
 from .motion import MotionVectors
 from .near_field import compensate_from_image
-from .result import pass_channels
+from .result import BACKDROP, MATTE, PASS_FILL, pass_channels
 from .reuse import KeptProducts
+from .shadow_catcher import catcher_triangles
 from .shadow_hints import render_hints, takes_hints
 from .shadow_maps import KeptAtlases, ShadowAtlases
 from .stages import indirect_per_pixel
@@ -49,6 +50,7 @@ class FrameGpu:
     shapes: SceneBuffers | None
     maps: FrameMaps
     clear: ClearView | None = None  # the clear triangles, for the camera's view through them
+    catchers: moderngl.Texture | None = None  # shadow catchers' triangles (combined.py)
 
 
 @dataclass
@@ -344,13 +346,21 @@ class ComposeStage(TileStage):
                 work.background = background(scene.world, frame.camera, aa, tile.x0, tile.y0,
                                              *tile.size)
             holdouts = bool(frame.geometry.holdout.any())
-            combined = combined_pass(self.gpu.ctx, self.gpu.programs,
-                                     work.direct.color_attachments, work.indirect_light,
-                                     work.soft_light, work.gbuffer.textures, work.background,
-                                     aa, work.transmittance, holdouts)
+            light = (work.direct.color_attachments, work.indirect_light, work.soft_light,
+                     work.gbuffer.textures, work.background, aa, work.transmittance, holdouts)
+            combined = combined_pass(self.gpu.ctx, self.gpu.programs, *light)
             h, w = combined.shape[:2]
             x0, y0 = tile.x0 // aa, tile.y0 // aa
-            frame.output["Combined"][y0:y0 + h, x0:x0 + w] = combined
+            region = slice(y0, y0 + h), slice(x0, x0 + w)
+            frame.output["Combined"][region] = combined
+            if MATTE in frame.output:  # shadow_catcher.py
+                frame.output[MATTE][region] = combined if data.catchers is None else \
+                    combined_pass(self.gpu.ctx, self.gpu.programs, *light,
+                                  catchers=data.catchers)
+            if BACKDROP in frame.output:
+                backdrop = work.background
+                frame.output[BACKDROP][region] = backdrop[:3] if backdrop.ndim == 1 \
+                    else downsample(backdrop, aa)
             others = frame.plan.passes - {"Combined"}
             if others & COMPOSED_PASSES:
                 through = None if work.transmittance is None else \
@@ -395,8 +405,9 @@ class RenderImage(Stage):
         camera, settings, ctx = frame.camera, frame.settings, self.gpu.ctx
         aa = settings.antialiasing
         tiles = tiles_of(camera.width * aa, camera.height * aa, aa)
-        frame.output = {name: np.zeros((camera.height, camera.width, pass_channels(name)),
-                                       np.float32) for name in sorted(frame.plan.passes)}
+        frame.output = {name: np.full((camera.height, camera.width, pass_channels(name)),
+                                      PASS_FILL.get(name, 0.0), np.float32)
+                        for name in sorted(frame.plan.passes)}
         kept = KeptAtlases(self.kept.shadow_atlases, self.kept.versions.shape)
         frame.steps, frame.steps_done = len(tiles) * max(1, len(frame.light_passes)), 0
         with GpuScope() as scope:
@@ -411,7 +422,10 @@ class RenderImage(Stage):
                                     bool(geometry.diffuse_hidden.any()))
             maps = FrameMaps(atlases, frame.ism_maps, frame.centre, frame.radius,
                              reuse_atlas=len(frame.light_passes) == 1)
-            data = FrameGpu(scene, shapes, maps, clear)
+            catchers = catcher_triangles(frame.scene, geometry)
+            data = FrameGpu(scene, shapes, maps, clear, None if catchers is None or scene is None
+                            else scope.own(table_texture(ctx, catchers.astype(np.int32)[:, None],
+                                                         1, "i4")))
             if frame.traces_rays:
                 self.gpu.tracer.bind()
             try:

@@ -18,7 +18,8 @@ from ..scene.model import Camera, Scene
 from ..settings import Settings
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, NO_SPOT, LightSamples
 from .id_passes import family_of
-from .result import ON_DEMAND_PASSES, PASS_CHANNELS
+from .result import BACKDROP, INTERNAL_PASSES, MATTE, ON_DEMAND_PASSES, PASS_CHANNELS
+from .shadow_catcher import has_shadow_catchers
 
 Bounds = tuple[np.ndarray, np.ndarray]  # (lo, hi) corners of an axis-aligned box
 
@@ -102,8 +103,11 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
         read |= {"Depth"}  # depth of field blurs by it (depth_of_field.py)
     if scene.motion is not None and scene.motion.blur:
         read |= {"Depth", "Vector"}  # motion blur smears by them (motion_blur.py)
+    if has_shadow_catchers(scene):  # their compositing's (shadow_catcher.py)
+        read |= {MATTE} if scene.film_transparent else {MATTE, BACKDROP}
     asked = wanted if passes is None else frozenset(passes)
-    plan = FramePlan(passes=wanted | read, borrowed=frozenset(read - asked))
+    plan = FramePlan(passes=wanted | read,
+                     borrowed=frozenset(read - asked - set(INTERNAL_PASSES)))
     reason = no_indirect_reason(scene, geometry, settings)  # off: bounces = 0, no surfaces
     if reason:
         plan.indirect = False

@@ -26,8 +26,9 @@ from .gpu_session import GpuSession
 from .image import RenderImage
 from .motion_blur import MotionBlur
 from .progressive import PassReport, merge_stats, render_passes
-from .result import Frame, Stats
+from .result import MATTE, Frame, Stats
 from .reuse import KeptProducts
+from .shadow_catcher import SHADOW_CATCHER_PASS, catchers_alone, composite
 from .stages import (
     CheckInput,
     DropBorrowed,
@@ -80,6 +81,7 @@ class Renderer:
         self.kept = KeptProducts()
         self._automatic = ChooseParameters(self.gpu, self.kept, self.render)
         self._last_pass = (-1, 0)  # the index of the last pass rendered and its last path + 1
+        self._catchers: Renderer | None = None  # renders scenes' shadow catchers alone
         self.stages: list[Stage] = [
             CheckInput(self.gpu), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
@@ -103,27 +105,55 @@ class Renderer:
         render = self._render_panorama if scene.camera is not None \
             and scene.camera.panorama is not None else self._render_view
         make_current(self.gpu.ctx)  # Blender 5's compositor makes its own current here
-        image, stats, paths = render(scene, settings, report, check, passes, pass_index,
-                                     first_path)
-        self._last_pass = (pass_index, first_path + paths)
+        image, stats, used = render(scene, settings, report, check, passes, pass_index,
+                                    first_path)
+        self._last_pass = (pass_index, first_path + used.vpl_count)
+        if MATTE in image.passes:
+            self._composite_catchers(image, stats, scene, used, report, check,
+                                     passes is not None and SHADOW_CATCHER_PASS in passes,
+                                     pass_index, first_path)
         return image, stats
+
+    def _composite_catchers(self, image: Frame, stats: Stats, scene: Scene, settings: Settings,
+                            progress: ProgressCallback, cancelled: CancelCallback,
+                            as_matte: bool, pass_index: int, first_path: int) -> None:
+        """Shadow catchers as Cycles composites them (shadow_catcher.py): the catchers alone
+        rendered with the settings the scene's frame used, by a renderer of their own (its
+        reuse between frames is theirs)."""
+        if self._catchers is None:
+            self._catchers = Renderer(self.gpu.ctx, share_programs_of=self)
+        helper = self._catchers
+        render = helper._render_panorama if scene.camera is not None \
+            and scene.camera.panorama is not None else helper._render_view
+
+        def alone_progress(fraction: float, message: str) -> None:
+            progress(fraction, f"Shadow catchers alone | {message}")
+
+        with stats.timed("shadow catchers alone"):
+            alone, alone_stats, _ = render(catchers_alone(scene),
+                                           replace(settings, auto_parameters="off"),
+                                           alone_progress, cancelled, frozenset({"Combined"}),
+                                           pass_index, first_path)
+        composite(image.passes, alone.passes, scene.film_transparent, as_matte)
+        stats.warnings.extend(w for w in alone_stats.warnings if w not in stats.warnings)
 
     def _render_view(self, scene: Scene, settings: Settings, progress: ProgressCallback,
                      cancelled: CancelCallback, passes: frozenset[str] | None, pass_index: int,
-                     first_path: int) -> tuple[Frame, Stats, int]:
-        """One view through the stages: its frame, stats and light paths traced."""
+                     first_path: int) -> tuple[Frame, Stats, Settings]:
+        """One view through the stages: its frame, stats and the settings it used (the
+        automatic mode's choice)."""
         frame = FrameState(scene, settings, passes, Stats(warnings=list(scene.warnings)),
                            progress, cancelled, pass_index=pass_index, first_path=first_path)
         with single_threaded_blas():  # no spinning BLAS thread takes a core from the driver
             for stage in self.stages:
                 frame.check_cancelled()  # Esc in Blender: also between the long stages
                 stage.run(frame)
-        return (Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats,
-                frame.settings.vpl_count)
+        return Frame(frame.camera.width, frame.camera.height, frame.output), frame.stats, \
+            frame.settings
 
     def _render_panorama(self, scene: Scene, settings: Settings, progress: ProgressCallback,
                          cancelled: CancelCallback, passes: frozenset[str] | None,
-                         pass_index: int, first_path: int) -> tuple[Frame, Stats, int]:
+                         pass_index: int, first_path: int) -> tuple[Frame, Stats, Settings]:
         """A panoramic camera's frame from the cube faces its image looks through
         (panorama.py), each with the same light paths; camera guidance is off, since it would
         keep other VPLs for each face (seams)."""
@@ -138,12 +168,12 @@ class Renderer:
         size = panorama.face_size(camera.panorama, camera.width, camera.height)
         views = panorama.face_cameras(camera, size, needed)
         face_settings = replace(settings, vpl_guidance="off")
-        faces, total, paths = {}, Stats(), 0
+        faces, total, used = {}, Stats(), face_settings
         for n, (k, view) in enumerate(zip(needed, views, strict=True)):
             def face_progress(fraction: float, message: str, n: int = n) -> None:
                 progress((n + fraction) / len(needed), f"View {n + 1}/{len(needed)} | {message}")
 
-            frame, stats, paths = self._render_view(replace(scene, camera=view), face_settings,
+            frame, stats, used = self._render_view(replace(scene, camera=view), face_settings,
                                                     face_progress, cancelled, passes,
                                                     pass_index, first_path)
             faces[k] = frame.passes
@@ -151,7 +181,7 @@ class Renderer:
         total.counts["views"] = len(needed)
         total.notes.append(f"panorama from {len(needed)} views of {views[0].width} px")
         image = panorama.resample(faces, size, rays)
-        return Frame(camera.width, camera.height, image), total, paths
+        return Frame(camera.width, camera.height, image), total, used
 
     def render_progressive(self, scene: Scene, settings: Settings,
                            progress: ProgressCallback | None = None,
@@ -183,12 +213,17 @@ class Renderer:
     def release(self) -> None:
         """Release every GPU object (the context stays the caller's)."""
         make_current(self.gpu.ctx)
+        if self._catchers is not None:  # first: it shares this renderer's programs
+            self._catchers.release()
+            self._catchers = None
         self.gpu.release()
         self.forget_frames()
 
     def forget_frames(self) -> None:
         """Drop everything reused between frames; the next frame starts afresh."""
         self.kept.forget(anchors=True)
+        if self._catchers is not None:
+            self._catchers.forget_frames()
 
     @property
     def ctx(self) -> moderngl.Context:

@@ -13,7 +13,7 @@ PASS_CHANNELS = {
     "Combined": 4, "Depth": 1, "Normal": 3, "DiffDir": 3, "DiffInd": 3, "DiffCol": 3,
     "GlossDir": 3, "GlossInd": 3, "GlossCol": 3, "Emit": 3, "Mist": 1, "Position": 3,
     "Denoising Normal": 3, "Denoising Albedo": 3, "Denoising Depth": 1, "IndexOB": 1,
-    "IndexMA": 1, "Vector": 4, "AO": 3, "Env": 3,
+    "IndexMA": 1, "Vector": 4, "AO": 3, "Env": 3, "Shadow Catcher": 3,
     **{f"{family}{k:02d}": 4 for family in ("CryptoObject", "CryptoMaterial", "CryptoAsset")
        for k in range(3)},
 }
@@ -26,9 +26,21 @@ ON_DEMAND_PASSES = frozenset({"AO"})
 "every pass" (a render's default, or with the planner off)."""
 
 
+MATTE = "_Matte"
+BACKDROP = "_Backdrop"
+INTERNAL_PASSES = {MATTE: 4, BACKDROP: 3}
+"""Passes a frame of a scene with shadow catchers makes for their compositing, never handed
+out (shadow_catcher.py): Combined with the catchers as holes, and the background each pixel
+sees."""
+
+PASS_FILL = {"Shadow Catcher": 1.0}
+"""What a pass holds where nothing writes it (others: 0): no catcher, no shadow."""
+
+
 def pass_channels(name: str) -> int:
-    """The channel count of a pass (PASS_CHANNELS; 4 for each Cryptomatte pass)."""
-    return PASS_CHANNELS.get(name, 4)
+    """The channel count of a pass (PASS_CHANNELS, INTERNAL_PASSES; 4 for each Cryptomatte
+    pass)."""
+    return PASS_CHANNELS.get(name) or INTERNAL_PASSES.get(name, 4)
 
 
 @dataclass

@@ -15,22 +15,27 @@ def combined_pass(ctx: moderngl.Context, programs: ProgramCache,
                   direct: Sequence[moderngl.Texture], indirect: Sequence[moderngl.Texture],
                   soft: Sequence[moderngl.Texture], gbuffer: Mapping[str, moderngl.Texture],
                   background: np.ndarray | None, factor: int,
-                  transmittance: moderngl.Texture | None = None, holdouts: bool = False
-                  ) -> np.ndarray:
+                  transmittance: moderngl.Texture | None = None, holdouts: bool = False,
+                  catchers: moderngl.Texture | None = None) -> np.ndarray:
     """(h, w, 4) float32 Combined of a tile of ``factor``² supersamples per pixel. ``direct``,
     ``indirect`` and ``soft`` (may be empty): light textures, diffuse then glossy where the
     g-buffer has glossy layers; ``background``: a colour (3,), one per supersample
     (h·factor, w·factor, 3), or None for a transparent film; ``transmittance``: per
     supersample, the light clear surfaces let through to the camera (gpu/clear_view.py);
-    ``holdouts``: the scene has holdouts (marked in the g-buffer's geometric.w)."""
+    ``holdouts``: the scene has holdouts (marked in the g-buffer's geometric.w);
+    ``catchers``: a table of the triangles of shadow catchers (1) and others (0), whose
+    supersamples are then holes too (the matte, frame/shadow_catcher.py)."""
     glossy = len(direct) > 1
     defines: dict[str, object] = {}
     units: dict[str, moderngl.Texture] = {
         "u_direct": direct[0], "u_indirect": indirect[0], "u_albedo": gbuffer["albedo"],
         "u_emission": gbuffer["emission"], "u_normal": gbuffer["normal"]}
-    if holdouts:
+    if holdouts or catchers is not None:
         defines["HOLDOUTS"] = 1
         units["u_geometric"] = gbuffer["geometric"]
+    if catchers is not None:
+        defines["CATCHERS"] = 1
+        units["u_catchers"] = catchers
     if soft:
         defines["SOFT"] = 1
         units["u_soft"] = soft[0]

@@ -18,7 +18,7 @@ CUTOUT_TEXTURE_UNITS = 9, 10  # the image textures for the cutouts of shadow map
 TABLE_WIDTH = 4096  # texels per line of both tables
 
 
-def _table_texture(ctx: moderngl.Context, values: np.ndarray, components: int, dtype: str
+def table_texture(ctx: moderngl.Context, values: np.ndarray, components: int, dtype: str
                    ) -> moderngl.Texture:
     """``values`` (n, components) as a texture of TABLE_WIDTH-texel lines (entry i at
     (i % width, i // width)); ValueError when it exceeds the GPU's texture size."""
@@ -46,9 +46,9 @@ class SceneBuffers:
             rows = geometry.triangle_material.astype(np.int32, copy=False)[:, None]
             if geometry.receiver_set is not None:  # light linking (light_linking_lib.glsl)
                 rows = np.concatenate([rows, geometry.receiver_set[:, None]], axis=1)
-            self.triangle_material = self._own(_table_texture(ctx, rows, rows.shape[1], "i4"))
+            self.triangle_material = self._own(table_texture(ctx, rows, rows.shape[1], "i4"))
             table = geometry.materials.reshape(-1, 4)  # seven RGBA texels a row
-            self.materials = self._own(_table_texture(ctx, table, 4, "f4"))
+            self.materials = self._own(table_texture(ctx, table, 4, "f4"))
             self.uv = None if geometry.uv is None else self._own(ctx.buffer(geometry.uv))
             self.textures = tuple(self._own(t) for t in upload_textures(ctx, geometry.textures)) \
                 if geometry.has_textures else None

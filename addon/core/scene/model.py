@@ -185,7 +185,9 @@ class Instance:
     surfaces nor shades them from others' reflected light, and is seen, lit and casts
     shadows. ``identity`` names its object for the ID passes (id_passes.py). Light linking:
     an emitter lights it where bit ``receiver_set`` of the emitter's receivers is set (a
-    light's ``Light.receivers``, an emissive object's ``emission_receivers``)."""
+    light's ``Light.receivers``, an emissive object's ``emission_receivers``). A
+    ``shadow_catcher`` (Cycles' Shadow Catcher) is composited as Cycles does: the shadows and
+    light the other objects cast on it, over the backdrop (frame/shadow_catcher.py)."""
 
     mesh: Mesh
     matrix: Matrix4
@@ -197,6 +199,7 @@ class Instance:
     identity: Identity = NO_IDENTITY
     receiver_set: int = 0
     emission_receivers: int = EVERY_RECEIVER_SET
+    shadow_catcher: bool = False
     motion: tuple[Matrix4, Matrix4] | None = None  # its matrix at Scene.motion's two times
 
     @property
