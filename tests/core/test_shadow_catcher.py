@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from addon.core.frame.result import BACKDROP, MATTE
-from addon.core.frame.shadow_catcher import catchers_alone, composite, shadow_ratio
+from addon.core.frame.shadow_catcher import (
+    alone_bounces,
+    catchers_alone,
+    composite,
+    in_one_plane,
+    shadow_ratio,
+)
 from addon.core.scene.model import Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
 from tests.core.builders import floor_scene, light, pixel_centres, quad, rotation_x, translation
@@ -120,3 +126,18 @@ def test_the_catchers_alone_keep_the_lights_and_the_world():
     assert [i.shadow_catcher for i in alone.instances] == [True]
     assert alone.lights == scene.lights and alone.world is scene.world
     assert alone.camera is scene.camera and len(scene.instances) == 2
+
+
+def test_catchers_in_one_plane_are_rendered_alone_without_bounces():
+    """A ground plane cannot light itself: its frame alone needs no bounces; a plane and a
+    wall (or points off the plane by more than float rounding) keep them."""
+    scene = catcher_scene(False)
+    assert alone_bounces(scene, 3) == 0
+    scene.instances.append(Instance(quad(1, 1), rotation_x(np.radians(90)) @ translation(0, 0, 2),
+                                    [Material("wall")], shadow_catcher=True))
+    assert alone_bounces(scene, 3) == 3
+    points = np.random.default_rng(1).uniform(-5, 5, (5000, 3)).astype(np.float32)
+    points[:, 2] = 0.25
+    assert in_one_plane(points)
+    points[4321, 2] += 1e-3
+    assert not in_one_plane(points) and not in_one_plane(points[:2])

@@ -28,7 +28,7 @@ from .motion_blur import MotionBlur
 from .progressive import PassReport, merge_stats, render_passes
 from .result import MATTE, Frame, Stats
 from .reuse import KeptProducts
-from .shadow_catcher import SHADOW_CATCHER_PASS, catchers_alone, composite
+from .shadow_catcher import SHADOW_CATCHER_PASS, alone_bounces, catchers_alone, composite
 from .stages import (
     CheckInput,
     DropBorrowed,
@@ -118,8 +118,8 @@ class Renderer:
                             progress: ProgressCallback, cancelled: CancelCallback,
                             as_matte: bool, pass_index: int, first_path: int) -> None:
         """Shadow catchers as Cycles composites them (shadow_catcher.py): the catchers alone
-        rendered with the settings the scene's frame used, by a renderer of their own (its
-        reuse between frames is theirs)."""
+        rendered with the settings the scene's frame used (no bounces where they lie in one
+        plane), by a renderer of their own (its reuse between frames is theirs)."""
         if self._catchers is None:
             self._catchers = Renderer(self.gpu.ctx, share_programs_of=self)
         helper = self._catchers
@@ -127,11 +127,13 @@ class Renderer:
             and scene.camera.panorama is not None else helper._render_view
 
         def alone_progress(fraction: float, message: str) -> None:
-            progress(fraction, f"Shadow catchers alone | {message}")
+            progress(fraction, "Shadow catchers alone" + (f" | {message}" if message else ""))
 
         with stats.timed("shadow catchers alone"):
+            bounces = alone_bounces(scene, settings.bounces)
             alone, alone_stats, _ = render(catchers_alone(scene),
-                                           replace(settings, auto_parameters="off"),
+                                           replace(settings, auto_parameters="off",
+                                                   bounces=bounces),
                                            alone_progress, cancelled, frozenset({"Combined"}),
                                            pass_index, first_path)
         composite(image.passes, alone.passes, scene.film_transparent, as_matte)

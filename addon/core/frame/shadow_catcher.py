@@ -19,12 +19,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..scene.geometry import WorldGeometry
+from ..scene.geometry import WorldGeometry, transform_points
 from ..scene.model import Scene
 from .result import BACKDROP, MATTE
 
 SHADOW_CATCHER_PASS = "Shadow Catcher"
 MIN_COVERAGE = 1e-4  # a pixel's catcher coverage below this has no catcher light to divide
+PLANE_TOLERANCE = 1e-5  # of the points' extent: float32 rounding of flat geometry
+PLANE_PROBE = 1024  # points tested first, spread over the list (most meshes fail there)
 
 
 def has_shadow_catchers(scene: Scene) -> bool:
@@ -46,6 +48,31 @@ def catchers_alone(scene: Scene) -> Scene:
     """The scene with only its shadow catchers (its lights and world kept)."""
     return replace(scene, instances=[i for i in scene.instances if i.shadow_catcher],
                    warnings=[])
+
+
+def in_one_plane(points: np.ndarray) -> bool:
+    """Whether the points (V, 3) all lie in one plane, to PLANE_TOLERANCE of their extent
+    (PLANE_PROBE of them tested first); False for fewer than 3 or no extent."""
+    if len(points) < 3:
+        return False
+    step = max(1, len(points) // PLANE_PROBE)
+    for chosen in (points[::step], points):
+        offsets = chosen.astype(np.float64) - chosen.mean(axis=0, dtype=np.float64)
+        extent = float(np.abs(offsets).max())
+        if not 0.0 < extent < np.inf:
+            return False
+        normal = np.linalg.svd(offsets.T @ offsets)[2][-1]  # the direction of least spread
+        if np.abs(offsets @ normal).max() > PLANE_TOLERANCE * extent:
+            return False
+    return True
+
+
+def alone_bounces(scene: Scene, bounces: int) -> int:
+    """The bounces the catchers-alone render needs: none where they all lie in one plane (a
+    ground plane, the usual catcher, cannot light itself), else ``bounces``."""
+    points = [transform_points(i.matrix, i.mesh.positions) for i in scene.instances
+              if i.shadow_catcher]
+    return 0 if points and in_one_plane(np.concatenate(points)) else bounces
 
 
 def _catcher_light(passes: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
