@@ -51,7 +51,7 @@ from .core.scene.model import (
 from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
-from .export_light_linking import has_shadow_linking, scene_light_linking
+from .export_light_linking import scene_light_linking
 from .export_lights import export_light, is_portal
 from .export_motion import (
     InstanceKey,
@@ -1009,12 +1009,10 @@ UNRENDERED = {
     "POINTCLOUD": "point clouds are not rendered: {}",
     "VOLUME": "volume objects are not rendered: {}",
     "HAIR": "hair particles are not rendered, on {}",
-    "SHADOW_LINKING": "shadow linking is not rendered (every object casts the shadows of "
-                      "these emitters' light): {}",
 }
 """What Cycles renders and VPL GI does not, by kind: Blender's object types, HAIR for a
-mesh's hair particle systems, SHADOW_LINKING for objects with it (keys
-of ``export_scene``'s skipped objects); each a warning naming them."""
+mesh's hair particle systems (keys of ``export_scene``'s skipped objects); each a warning
+naming them."""
 
 
 def has_particle_hair(obj: bpy.types.Object) -> bool:
@@ -1064,8 +1062,6 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         obj = inst.object
         kind = obj.type
         if kind == "LIGHT":
-            if has_shadow_linking(obj):
-                skipped.setdefault("SHADOW_LINKING", set()).add(obj.name)
             matrix = _matrix(inst.matrix_world)
             problem, = transform_problems(matrix[None])
             if problem:
@@ -1075,6 +1071,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             else:
                 result.lights.append(export_light(obj, matrix, result.warnings))
                 result.lights[-1].receivers = linking.receivers_of(obj)
+                result.lights[-1].blockers = linking.blockers_of(obj)
             continue
         if kind not in RENDERED_OBJECT_TYPES or not inst.show_self:
             if kind in UNRENDERED and inst.show_self:
@@ -1085,13 +1082,12 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         if entry is None:
             if has_particle_hair(obj):
                 skipped.setdefault("HAIR", set()).add(obj.name)
-            if has_shadow_linking(obj):  # an emitter's light
-                skipped.setdefault("SHADOW_LINKING", set()).add(obj.name)
             known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
                      state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
                      bool(getattr(obj, "visible_diffuse", True)), state.identity(obj),
                      linking.receiver_set(obj), linking.receivers_of(obj),
-                     bool(getattr(obj, "is_shadow_catcher", False))) \
+                     bool(getattr(obj, "is_shadow_catcher", False)),
+                     linking.blocker_set(obj), linking.blockers_of(obj)) \
                 if state.include(obj) else None
             entry = placements[memo] = (known, bool(known and known[0].triangle_count))
         elif entry[0]:

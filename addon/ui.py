@@ -144,6 +144,9 @@ class OBJECT_PT_vpl_gi_light_linking(_EnginePanel, bpy.types.Panel):
     bl_label = "Light Linking"
     bl_context = "object"
     bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+    collection = "receiver_collection"
+    link_operator = "object.light_linking_receivers_link"
+    new_operator = "object.light_linking_receiver_collection_new"
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -153,16 +156,24 @@ class OBJECT_PT_vpl_gi_light_linking(_EnginePanel, bpy.types.Panel):
     def draw(self, context: bpy.types.Context) -> None:
         layout = _split(self.layout)
         linking = context.object.light_linking
-        layout.column().template_ID(linking, "receiver_collection",
-                                    new="object.light_linking_receiver_collection_new")
-        if linking.receiver_collection is None:
+        layout.column().template_ID(linking, self.collection, new=self.new_operator)
+        if getattr(linking, self.collection) is None:
             return
         row = layout.row()
-        row.column().template_light_linking_collection(row, linking, "receiver_collection")
+        row.column().template_light_linking_collection(row, linking, self.collection)
         column = row.column(align=True)
-        column.operator("object.light_linking_receivers_link", icon="ADD",
-                        text="").link_state = "INCLUDE"
+        column.operator(self.link_operator, icon="ADD", text="").link_state = "INCLUDE"
         column.operator("object.light_linking_unlink_from_collection", icon="REMOVE", text="")
+
+
+class OBJECT_PT_vpl_gi_shadow_linking(OBJECT_PT_vpl_gi_light_linking):
+    """Object Properties > Shadow Linking, as Light Linking: the blocker collection whose
+    objects cast an emitter's shadows."""
+
+    bl_label = "Shadow Linking"
+    collection = "blocker_collection"
+    link_operator = "object.light_linking_blockers_link"
+    new_operator = "object.light_linking_blocker_collection_new"
 
 
 def _panel_id(section: str | None) -> str:
@@ -186,7 +197,7 @@ OWN_PANELS = (RENDER_PT_vpl_gi_motion_blur, VIEWLAYER_PT_vpl_gi_passes)
 def _version_panels() -> tuple[type, ...]:
     """Panels drawn for this engine where this Blender version's own are another engine's."""
     return () if hasattr(bpy.types, "OBJECT_PT_light_linking") \
-        else (OBJECT_PT_vpl_gi_light_linking,)
+        else (OBJECT_PT_vpl_gi_light_linking, OBJECT_PT_vpl_gi_shadow_linking)
 
 
 _registered: list[type] = []

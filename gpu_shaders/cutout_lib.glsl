@@ -1,10 +1,12 @@
 // For the fragment shaders of draws from shadow_vert.glsl (shadow maps, RSMs): the triangle
-// index (with SHADOWLESS, DIFFUSE_HIDDEN, CUTOUTS or TRIANGLES) and cutout_kept(), whether
+// index (with SHADOWLESS, DIFFUSE_HIDDEN, CUTOUTS, TRIANGLES or SHADOW_LINKING) and
+// cutout_kept(), whether
 // this fragment keeps its surface: with CUTOUTS (some material is a cutout) with probability
 // its coverage (coverage_lib.glsl; TEXTURED: its image textures are bound), else always.
 #ifndef CUTOUT_LIB_GLSL
 #define CUTOUT_LIB_GLSL
-#if defined(SHADOWLESS) || defined(DIFFUSE_HIDDEN) || defined(CUTOUTS) || defined(TRIANGLES)
+#if defined(SHADOWLESS) || defined(DIFFUSE_HIDDEN) || defined(CUTOUTS) || defined(TRIANGLES) \
+    || defined(SHADOW_LINKING)
 #include "materials_lib.glsl"
 flat in int v_triangle;
 #endif

@@ -13,7 +13,8 @@
 // light). With VPL_GLOSSY, VPLs at glossy surfaces also emit through their lobe (lights_lib).
 // With LIGHT_LINKING the draw's samples light only the surfaces of some receiver sets
 // (light_linking_lib.glsl): elsewhere, and at bias compensation's hits elsewhere, they add
-// nothing.
+// nothing. With RT_SHADOW_LINKING (ray-traced samples whose shadows some objects do not
+// cast) the rays pass the triangles of the blocker sets u_blockers lacks (raytrace_lib.glsl).
 #include "lights_lib.glsl"
 #include "interleave_lib.glsl"
 #ifdef LIGHT_LINKING
@@ -152,10 +153,17 @@ vec3 compensation(vec3 world, vec3 normal, vec3 geometric) {
 }
 #endif
 
+#ifdef RT_SHADOW_LINKING
+uniform uvec2 u_blockers;  // the draw's samples' blocker sets (LightSamples.blockers)
+#endif
+
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec4 normal = texelFetch(u_normal, px, 0);
     if (normal.w == 0.0) discard;
+#ifdef RT_SHADOW_LINKING
+    rt_blockers = u_blockers;
+#endif
     vec3 world = texelFetch(u_position, px, 0).xyz;
     vec4 geometric_texel = texelFetch(u_geometric, px, 0);  // w: the triangle + 1
     vec3 geometric = geometric_texel.xyz;

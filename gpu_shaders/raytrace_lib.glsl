@@ -38,7 +38,8 @@ struct RtNode {
 // Otherwise `clear` holds flags: a shadowless triangle (RT_SHADOWLESS: an object whose Shadow
 // ray visibility is off) is opaque to every ray but shadow rays (RT_SHADOW), a diffuse-hidden
 // one (RT_DIFFUSE_HIDDEN: Diffuse ray visibility off) to every ray but diffuse bounces
-// (RT_DIFFUSE); a cutout (RT_CUTOUT) has its row of rt_cutouts in `ior`'s bits.
+// (RT_DIFFUSE); a cutout (RT_CUTOUT) has its row of rt_cutouts in `ior`'s bits; bits
+// RT_BLOCKER_SHIFT on hold its shadow-linking blocker set (RT_SHADOW_LINKING).
 struct RtTriangle {
     vec3 v0;
     int id;
@@ -161,7 +162,20 @@ vec3 rt_clear_transmittance(RtTriangle tri, vec3 dir) {
 #define RT_SHADOWLESS 1u  // RtTriangle.clear flag of a shadowless triangle
 #define RT_CUTOUT 2u  // RtTriangle.clear flag of a cutout triangle
 #define RT_DIFFUSE_HIDDEN 4u  // RtTriangle.clear flag of a diffuse-hidden triangle
-#define RT_FLAGS 255u  // RtTriangle.clear values up to this hold flags, not a colour
+#define RT_BLOCKER_SHIFT 8u  // RtTriangle.clear's flags: the blocker set from this bit on
+#define RT_FLAGS 65535u  // RtTriangle.clear values up to this hold flags, not a colour
+
+#ifdef RT_SHADOW_LINKING
+// Shadow linking: the blocker sets (Instance.blocker_set: bits 0-31, 32-63) whose triangles
+// the rays traced now stop, those that cast the shadows of the emitter they come from
+// (LightSamples.blockers); set it before tracing, all bits for the rays of no emitter.
+uvec2 rt_blockers = uvec2(0xFFFFFFFFu);
+
+bool rt_blocks(uint code) {
+    uint set = code <= RT_FLAGS ? (code >> RT_BLOCKER_SHIFT) & 63u : 0u;
+    return (((set < 32u ? rt_blockers.x : rt_blockers.y) >> (set & 31u)) & 1u) != 0u;
+}
+#endif
 
 // Nearest-child-first stack traversal of the opaque triangles. RT_ANY returns at the first hit
 // in range; RT_TRANSMIT multiplies `transmittance` by every clear triangle in range and by
@@ -210,6 +224,9 @@ bool rt_trace(vec3 origin, vec3 dir, float t_min, float t_max, int flags, out fl
                 vec2 uv_hit;
                 if (rt_hit_triangle(ray, rt_triangles[i], t_min, t, t_hit, uv_hit)) {
                     uint code = rt_triangles[i].clear;
+#ifdef RT_SHADOW_LINKING
+                    if (!rt_blocks(code)) continue;
+#endif
                     if (code != 0u) {  // rare: checked on hits only
                         if (code <= RT_FLAGS) {
                             if ((code & passed) != 0u) continue;

@@ -331,22 +331,28 @@ def test_motion_blur_panel_draws_the_shutter_the_render_reads(blender):
     render.use_motion_blur = False
 
 
-def test_light_linking_panel_shows_for_this_engine(blender):
-    """Object Properties > Light Linking (rendered: test_light_linking.py): Blender's own
-    panel where it serves any engine (4.5 on), this engine's where it is Cycles' (4.2)."""
+@pytest.mark.parametrize(("panel", "collection", "link"), [
+    ("light_linking", "receiver_collection", "receivers"),
+    ("shadow_linking", "blocker_collection", "blockers")])
+def test_light_and_shadow_linking_panels_show_for_this_engine(blender, panel, collection,
+                                                              link):
+    """Object Properties > Light Linking and Shadow Linking (rendered: test_light_linking.py,
+    test_shadow_linking.py): Blender's own panels where they serve any engine (4.5 on), this
+    engine's where they are Cycles' (4.2)."""
     from types import SimpleNamespace
 
-    from addon.ui import OBJECT_PT_vpl_gi_light_linking
+    from addon import ui
 
     bpy = blender
     bpy.context.scene.render.engine = "VPL_GI"
-    if hasattr(bpy.types, "OBJECT_PT_light_linking"):  # under OBJECT_PT_shading
+    ours = f"OBJECT_PT_vpl_gi_{panel}"
+    if hasattr(bpy.types, f"OBJECT_PT_{panel}"):  # under OBJECT_PT_shading
         assert "VPL_GI" in bpy.types.OBJECT_PT_shading.COMPAT_ENGINES
-        assert not hasattr(bpy.types, "OBJECT_PT_vpl_gi_light_linking")
+        assert not hasattr(bpy.types, ours)
         return
-    assert hasattr(bpy.types, "OBJECT_PT_vpl_gi_light_linking")
+    assert hasattr(bpy.types, ours)
     lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
-    lamp.light_linking.receiver_collection = bpy.data.collections.new("Lit")
+    setattr(lamp.light_linking, collection, bpy.data.collections.new("Linked"))
     calls: list[str] = []
 
     class Recorder:
@@ -367,8 +373,11 @@ def test_light_linking_panel_shows_for_this_engine(blender):
             calls.append(idname)
             return SimpleNamespace(link_state="")
 
-    OBJECT_PT_vpl_gi_light_linking.draw(SimpleNamespace(layout=Recorder()),
-                                        SimpleNamespace(object=lamp))
-    assert calls == ["receiver_collection", "entries of receiver_collection",
-                     "object.light_linking_receivers_link",
+    drawn = getattr(ui, ours)
+    drawn.draw(SimpleNamespace(layout=Recorder(), collection=drawn.collection,
+                               new_operator=drawn.new_operator,
+                               link_operator=drawn.link_operator),
+               SimpleNamespace(object=lamp))
+    assert calls == [collection, f"entries of {collection}",
+                     f"object.light_linking_{link}_link",
                      "object.light_linking_unlink_from_collection"]

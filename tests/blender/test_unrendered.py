@@ -1,7 +1,7 @@
-"""What Cycles renders and VPL GI does not (volumes, hair, point clouds, shadow linking,
-a Principled BSDF's coat, sheen, subsurface, anisotropy and thin
-film) is named in one warning each, and an object with only a Volume shader lets light
-through as in Cycles instead of rendering as a black surface."""
+"""What Cycles renders and VPL GI does not (volumes, hair, point clouds, a Principled BSDF's
+coat, sheen, subsurface, anisotropy and thin film) is named in one warning each, and an object
+with only a Volume shader lets light through as in Cycles instead of rendering as a black
+surface."""
 
 from __future__ import annotations
 
@@ -95,7 +95,7 @@ def test_hair_point_clouds_volumes_and_a_world_volume_are_named(blender):
     assert "world 'Misty': its Volume shader (fog) is not rendered" in warnings
 
 
-def test_shadow_linking_is_named_and_shadow_catchers_and_light_linking_are_not(blender):
+def test_shadow_catchers_and_light_and_shadow_linking_are_not_named(blender):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     floor = add_primitive("plane", shader_material("Grey", "ShaderNodeBsdfDiffuse"), size=4)
@@ -105,15 +105,13 @@ def test_shadow_linking_is_named_and_shadow_catchers_and_light_linking_are_not(b
     lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
     scene.collection.objects.link(lamp)
     lamp.light_linking.receiver_collection = bpy.data.collections.new("Lit")
+    lamp.light_linking.blocker_collection = bpy.data.collections.new("Blockers")
     warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
     assert not any("depth of field" in w for w in warnings)
     assert not any("motion blur" in w for w in warnings)  # rendered (test_motion.py)
-    assert not any("linking" in w for w in warnings)  # rendered (test_light_linking.py)
+    assert not any("linking" in w for w in warnings)  # rendered (test_light_linking.py,
+    # test_shadow_linking.py)
     assert not any("catcher" in w for w in warnings)  # rendered (test_shadow_catcher.py)
-    lamp.light_linking.blocker_collection = bpy.data.collections.new("Blockers")
-    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
-    assert "shadow linking is not rendered (every object casts the shadows of these " \
-        "emitters' light): 'Lamp'" in warnings
 
 
 def test_principled_layers_left_out_are_named_once_per_material(blender):

@@ -149,7 +149,8 @@ def traced_vpls(renderer, scene: Scene, settings: Settings) -> VPLs:
     ``settings.incremental`` Incremental Instant Radiosity's first frame."""
     geometry = flatten_instances(scene, [])
     centre, radius = bounding_sphere(geometry.positions)
-    renderer.tracer.upload(geometry.positions.reshape(-1, 3, 3))
+    renderer.tracer.upload(geometry.positions.reshape(-1, 3, 3),
+                           blocker_set=geometry.blocker_set)
     if settings.incremental:
         return IncrementalVPLs().update(scene, geometry, settings, renderer.tracer, centre,
                                         radius, shape_version=0,

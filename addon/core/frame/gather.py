@@ -95,8 +95,8 @@ def area_shapes_texture(ctx: moderngl.Context, shapes: AreaShapes) -> moderngl.T
 
 
 def receiver_words(receivers: int) -> tuple[int, int]:
-    """A draw's receiver sets (LightSamples.receivers) as the uvec2 light_linking_lib.glsl
-    reads: bits 0-31, 32-63."""
+    """A draw's receiver or blocker sets (LightSamples.receivers, .blockers) as the uvec2
+    light_linking_lib.glsl and raytrace_lib.glsl read: bits 0-31, 32-63."""
     return receivers & 0xFFFFFFFF, receivers >> 32
 
 
@@ -163,6 +163,8 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
             uniforms.update(profile_uniforms)
         if s.linked and scene is not None:  # light linking: draws of one emitter's receivers
             defines.update(LIGHT_LINKING=1)
+        if s.shadow_linked and ("EXACT_VISIBILITY" in defines or compensation is not None):
+            defines.update(RT_SHADOW_LINKING=1)  # shadow linking: draws of one's blockers
         if clear_atlas is not None:
             defines.update(CLEAR_SHADOWS=1)
             clear_atlas.use(CLEAR_ATLAS_UNIT)
@@ -211,11 +213,14 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         chunk = samples_per_draw(visibility.rays_per_sample, compensation)
         shape = s.shape if "AREA_SHAPES" in defines else None
         receivers = s.receivers if "LIGHT_LINKING" in defines else None
-        for first, count in draws(len(s), chunk, shape, receivers):
+        blockers = s.blockers if "RT_SHADOW_LINKING" in defines else None
+        for first, count in draws(len(s), chunk, shape, receivers, blockers):
             for shader in shaders:
                 set_uniforms(shader, u_first=first, u_count=count)
                 if receivers is not None:
                     set_uniforms(shader, u_receivers=receiver_words(int(receivers[first])))
+                if blockers is not None:
+                    set_uniforms(shader, u_blockers=receiver_words(int(blockers[first])))
             if hinted is None:
                 vao.render(moderngl.TRIANGLES, vertices=3)
             else:
@@ -265,7 +270,7 @@ class _HintedDraws:
 def draws(count: int, chunk: int, *runs_of: np.ndarray | None) -> list[tuple[int, int]]:
     """(first, count) of the draws of ``count`` samples: at most ``chunk`` each, and each of
     one value of every array of ``runs_of`` given (per sample: its area light, -1 for none;
-    the receiver sets it lights)."""
+    the receiver sets it lights; the blocker sets that cast its shadows)."""
     changes = [np.flatnonzero(np.diff(values)) + 1 for values in runs_of if values is not None]
     bounds = np.unique(np.concatenate([np.zeros(0, int), *changes]))
     runs = zip(np.r_[0, bounds], np.r_[bounds, count], strict=True)

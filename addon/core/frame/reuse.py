@@ -51,10 +51,13 @@ class SceneVersions:
 
     def note(self, geometry: WorldGeometry) -> None:
         """Compare this frame's geometry with the last one's and bump the versions."""
+        blockers = np.zeros(0) if geometry.blocker_set is None else geometry.blocker_set
         shape = (geometry.positions, geometry.clear_triangles, geometry.clear_transmission,
-                 geometry.shadowless, geometry.diffuse_hidden, *geometry.cutout_state())
+                 geometry.shadowless, geometry.diffuse_hidden, *geometry.cutout_state(),
+                 blockers)
         linking = tuple(np.zeros(0) if a is None else a
-                        for a in (geometry.receiver_set, geometry.emission_receivers))
+                        for a in (geometry.receiver_set, geometry.emission_receivers,
+                                  geometry.emission_blockers))
         arrays = (*shape, geometry.albedo, geometry.emission, *_texture_state(geometry),
                   *linking)
         before = self._arrays

@@ -22,8 +22,10 @@ def takes_hints(light_pass: LightPass) -> bool:
     sun's angle samples interleaved one per supersample. Those are hinted by the neighbours'
     other samples, which only samples of nearly one direction can stand for: the world's or
     an area light's, interleaved, would take their neighbours' answer for other directions
-    (through a window, mostly shadowed: a room's sky light 7 % dark)."""
-    if light_pass.indirect or light_pass.visibility.rays_per_sample == 0:
+    (through a window, mostly shadowed: a room's sky light 7 % dark). Shadow-linked samples
+    take none: one hint draw traces all samples alike."""
+    if light_pass.indirect or light_pass.visibility.rays_per_sample == 0 \
+            or light_pass.batch.samples.shadow_linked:
         return False
     if light_pass.interleave > 1:
         return light_pass.spread

@@ -8,12 +8,13 @@ import numpy as np
 
 from ..gpu.clear_view import ClearView
 from ..gpu.gl import ProgramCache, set_uniforms
-from ..gpu.scene_buffers import SceneBuffers
+from ..gpu.scene_buffers import SceneBuffers, table_texture
 from ..gpu.shadow_atlas import TileTable, draw_tiles, tile_table
 from .batches import ATLAS_TEXELS, Batch
 from .gpu_scope import GpuScope
 
 FAR_DEPTH = 3.0e38  # an atlas texel no triangle covers
+TILE_BLOCKERS_UNIT = 5  # the tiles' blocker sets (shadow_vert.glsl; 6-10: the scene's)
 
 
 class KeptAtlases:
@@ -32,7 +33,8 @@ class KeptAtlases:
         s = batch.samples
         return (self.shape_version, batch.resolution, batch.columns, batch.rows,
                 s.position.tobytes(), s.axis.tobytes(), s.kind.tobytes(),
-                s.casts_shadow.tobytes(), batch.first_tile.tobytes(), tuple(centre), radius)
+                s.casts_shadow.tobytes(), batch.first_tile.tobytes(), tuple(centre), radius,
+                None if s.blockers is None else s.blockers.tobytes())
 
     def room_for(self, batch: Batch) -> bool:
         texels = batch.columns * batch.rows * batch.resolution**2
@@ -123,13 +125,25 @@ class ShadowAtlases:
                 defines["SHADOWLESS"] = 1
             if self.diffuse_hidden and s.generation.all():  # VPLs
                 defines["DIFFUSE_HIDDEN"] = 1
+            if s.shadow_linked:  # each tile's sample's blockers (shadow linking)
+                defines["SHADOW_LINKING"] = 1
+                words = s.blockers[table.sample].astype(np.uint64)
+                blockers = table_texture(self.ctx, np.stack(
+                    [words & np.uint64(0xFFFFFFFF), words >> np.uint64(32)],
+                    axis=1).astype(np.uint32), 2, "u4")
+                own(blockers)
+                blockers.use(TILE_BLOCKERS_UNIT)
             program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl", defines)
             vao = self.ctx.vertex_array(program, streams)
             own(vao)
-            if defines:
+            if set(defines) - {"SHADOW_LINKING"}:
                 self.scene.bind_cutouts(program)
+            elif defines:  # the triangles' blocker sets alone
+                self.scene.bind_triangle_rows(program)
             set_uniforms(program, u_tiles=0, u_atlas_tiles=(batch.columns, batch.rows),
                          u_scene_centre=tuple(centre), u_scene_radius=radius)
+            if "SHADOW_LINKING" in defines:
+                set_uniforms(program, u_tile_blockers=TILE_BLOCKERS_UNIT)
             draw_tiles(self.ctx, vao, self.scene.vertex_count, len(table.rows))
         if layer is not None:
             self._draw_clear(layer, depth, table, batch, centre, radius)

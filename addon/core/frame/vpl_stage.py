@@ -87,7 +87,8 @@ def upload_triangles(gpu: GpuSession, kept: KeptProducts, geometry: WorldGeometr
                           clear=geometry.clear_triangles,
                           transmission=geometry.clear_transmission,
                           shadowless=geometry.shadowless, cutouts=_cutouts(geometry),
-                          diffuse_hidden=geometry.diffuse_hidden)
+                          diffuse_hidden=geometry.diffuse_hidden,
+                          blocker_set=geometry.blocker_set)
         except ValueError as exc:  # the scene exceeds the GPU's storage-buffer limit
             raise RenderError(f"ray tracing: {exc}") from None
     kept.keep("bvh", _triangles_key(kept))

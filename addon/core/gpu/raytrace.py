@@ -36,7 +36,8 @@ RT_DIFFUSE = 16  # raytrace_lib.glsl: a diffuse bounce, which diffuse-hidden tri
 SHADOWLESS = 1  # RT_SHADOWLESS: RtTriangle.clear flag of a shadowless triangle
 CUTOUT = 2  # RT_CUTOUT: RtTriangle.clear flag of a cutout triangle
 DIFFUSE_HIDDEN = 4  # RT_DIFFUSE_HIDDEN: RtTriangle.clear flag of a diffuse-hidden triangle
-FLAGS = 255  # RT_FLAGS: RtTriangle.clear values up to this are flags, not a colour
+BLOCKER_SHIFT = 8  # RT_BLOCKER_SHIFT: the blocker set's bits in RtTriangle.clear's flags
+FLAGS = 0xFFFF  # RT_FLAGS: RtTriangle.clear values up to this are flags, not a colour
 
 TRIANGLE_DTYPE = np.dtype([("v0", "<f4", 3), ("id", "<i4"), ("v1", "<f4", 3), ("clear", "<u4"),
                            ("v2", "<f4", 3), ("ior", "<f4")])
@@ -113,7 +114,8 @@ class RayTracer:
                instanced: np.ndarray | tuple = (), clear: np.ndarray | None = None,
                transmission: np.ndarray | None = None,
                shadowless: np.ndarray | None = None, cutouts: Cutouts | None = None,
-               diffuse_hidden: np.ndarray | None = None) -> None:
+               diffuse_hidden: np.ndarray | None = None,
+               blocker_set: np.ndarray | None = None) -> None:
         """Build the BVH of ``triangles`` (T, 3, 3) and upload it; T = 0 is an empty scene.
         ``instanced`` rows (first triangle, instances, triangles each) mark runs of one mesh's
         copies, whose tree is built once (``instanced_bvh``). ``clear`` triangles (C, 3, 3)
@@ -122,7 +124,9 @@ class RayTracer:
         (raytrace_lib.glsl). ``shadowless`` (T,) bool: triangles shadow rays pass (Shadow ray
         visibility off), ``diffuse_hidden`` (T,) bool those diffuse bounces pass (Diffuse
         visibility off). ``cutouts``: triangles rays hit with probability their coverage and
-        shadow rays pass dimmed by it (RT_CUTOUTS). Raises ValueError before building when the
+        shadow rays pass dimmed by it (RT_CUTOUTS). ``blocker_set`` (T,) int: each triangle's
+        shadow-linking blocker set (0-63), which rays of an emitter that set does not cast
+        shadows of pass (RT_SHADOW_LINKING). Raises ValueError before building when the
         triangles cannot fit a storage buffer."""
         triangles = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
         clear = np.zeros((0, 3, 3), np.float32) if clear is None else clear
@@ -130,11 +134,14 @@ class RayTracer:
                    ((shadowless, SHADOWLESS), (diffuse_hidden, DIFFUSE_HIDDEN))
                    if mask is not None and np.any(mask)]
         cutouts = None if cutouts is None or len(cutouts.triangle) == 0 else cutouts
+        linked = blocker_set is not None and bool(np.any(blocker_set))
         codes = None
-        if len(clear) or flagged or cutouts is not None:
+        if len(clear) or flagged or cutouts is not None or linked:
             codes = np.zeros((len(triangles) + len(clear), 2), np.uint32)
         for mask, flag in flagged:
             codes[:len(triangles)][mask, 0] |= flag
+        if linked:
+            codes[:len(triangles), 0] |= np.asarray(blocker_set, np.uint32) << BLOCKER_SHIFT
         if cutouts is not None:
             codes[cutouts.triangle, 0] |= CUTOUT
             codes[cutouts.triangle, 1] = np.arange(len(cutouts.triangle), dtype=np.uint32)
@@ -176,8 +183,8 @@ class RayTracer:
                    cutouts: Cutouts | None = None) -> None:
         """Upload a BVH from ``build_bvh``, replacing the scene; ``clear`` (T, 2) uint32 per
         original triangle: its packed colour and its IOR's bits, or (0 for an opaque one) its
-        flags (SHADOWLESS for one shadow rays pass, DIFFUSE_HIDDEN, CUTOUT) and its row of
-        ``cutouts``."""
+        flags (SHADOWLESS for one shadow rays pass, DIFFUSE_HIDDEN, CUTOUT, its blocker set
+        shifted by BLOCKER_SHIFT) and its row of ``cutouts``."""
         # raytrace_lib.glsl's RtNode (lo, a, hi, b) and RtTriangle (TRIANGLE_DTYPE) as float32
         # rows, the int fields as their bits, the vertices moved as 12-byte records (a
         # structured array filled field by field took 3× the time)

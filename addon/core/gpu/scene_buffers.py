@@ -1,6 +1,7 @@
 """A WorldGeometry on the GPU: its position and normal buffers, its material table and each
-triangle's row (as textures read by gpu_shaders/materials_lib.glsl; with light linking each
-triangle's receiver set beside its row), and its UVs and image textures when textured."""
+triangle's row (as textures read by gpu_shaders/materials_lib.glsl; with light or shadow
+linking each triangle's receiver set beside its row, and with shadow linking its blocker set
+after that), and its UVs and image textures when textured."""
 
 from __future__ import annotations
 
@@ -44,8 +45,13 @@ class SceneBuffers:
             self.positions = self._own(ctx.buffer(geometry.positions))
             self.normals = self._own(ctx.buffer(geometry.normals))
             rows = geometry.triangle_material.astype(np.int32, copy=False)[:, None]
-            if geometry.receiver_set is not None:  # light linking (light_linking_lib.glsl)
-                rows = np.concatenate([rows, geometry.receiver_set[:, None]], axis=1)
+            sets = [geometry.receiver_set, geometry.blocker_set]  # light_linking_lib.glsl,
+            # shadow_frag.glsl
+            if sets[1] is not None:
+                sets[0] = np.zeros(len(rows), np.int32) if sets[0] is None else sets[0]
+            for column in sets:
+                if column is not None:
+                    rows = np.concatenate([rows, column[:, None]], axis=1)
             self.triangle_material = self._own(table_texture(ctx, rows, rows.shape[1], "i4"))
             table = geometry.materials.reshape(-1, 4)  # seven RGBA texels a row
             self.materials = self._own(table_texture(ctx, table, 4, "f4"))

@@ -37,6 +37,7 @@ DIFFUSE_HIDDEN = 23  # 1 in the rows of instances diffuse bounces pass (cutout_l
 NORMAL_MAP = 24  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
+NO_LINKING = (0, EVERY_RECEIVER_SET, 0, EVERY_RECEIVER_SET)  # Instance.linking's defaults
 
 
 @dataclass
@@ -81,6 +82,12 @@ class WorldGeometry:
     row_emission_receivers: np.ndarray | None = None
     """Per row of ``materials``: the receiver sets its emission lights (uint64;
     Instance.emission_receivers); None where every row's lights all."""
+    row_blocker_set: np.ndarray | None = None
+    """Per row of ``materials``: its instances' shadow-linking blocker set (int32;
+    Instance.blocker_set); None where every row is in set 0."""
+    row_emission_blockers: np.ndarray | None = None
+    """Per row of ``materials``: the blocker sets that cast its emission's shadows (uint64;
+    Instance.emission_blockers); None where every row's are all."""
     deform: np.ndarray | None = None
     """Per vertex: how far it moves (in its instance's object space) by Scene.motion's two
     times, (2, V, 3) float32 (Mesh.deform); None where no mesh deforms."""
@@ -124,6 +131,19 @@ class WorldGeometry:
         """The receiver sets each triangle's emission lights (T,) uint64, or None: all."""
         return None if self.row_emission_receivers is None \
             else self.row_emission_receivers[self.triangle_material]
+
+    @cached_property
+    def blocker_set(self) -> np.ndarray | None:
+        """Each triangle's shadow-linking blocker set (T,) int32, or None: all in set 0."""
+        return None if self.row_blocker_set is None \
+            else self.row_blocker_set[self.triangle_material]
+
+    @cached_property
+    def emission_blockers(self) -> np.ndarray | None:
+        """The blocker sets that cast each triangle's emission's shadows (T,) uint64, or
+        None: all."""
+        return None if self.row_emission_blockers is None \
+            else self.row_emission_blockers[self.triangle_material]
 
     @cached_property
     def deforming(self) -> np.ndarray | None:
@@ -405,19 +425,20 @@ class _MaterialTable:
         self.transmission: list[tuple[float, ...]] = []  # per row: colour and Fresnel IOR
         self.clear_names: set[str] = set()
         self.materials: list[Material] = []  # per row
-        self.receiver_set: list[int] = []  # per row: Instance.receiver_set
-        self.emission_receivers: list[int] = []  # per row: Instance.emission_receivers
+        self.linking_rows: list[tuple[int, int, int, int]] = []  # per row: Instance's
+        # receiver_set, emission_receivers, blocker_set, emission_blockers
         self.blocks: list[np.ndarray] = []
         self._first: dict[tuple[int, ...], int] = {}
         self.row_count = 0
 
     def block(self, materials: list[Material], flags: tuple[bool, bool, bool, bool],
-              linking: tuple[int, int] = (0, EVERY_RECEIVER_SET)) -> tuple[int, int]:
+              linking: tuple[int, int, int, int] = NO_LINKING) -> tuple[int, int]:
         """The first row and row count of a material list's block (added on first use) for
         instances of ``flags`` (Instance.flags): the rows of instances the camera does not see
         are marked (column HIDDEN), those of holdouts (HOLDOUT) and those that cast no shadow
         (SHADOWLESS) and those diffuse bounces pass (DIFFUSE_HIDDEN). ``linking``: the
-        instances' receiver set and emission receivers (Instance)."""
+        instances' receiver set, emission receivers, blocker set and emission blockers
+        (Instance.linking)."""
         key = (*(id(m) for m in materials), *flags, *linking)
         if key not in self._first:
             self._first[key] = self.row_count
@@ -429,8 +450,7 @@ class _MaterialTable:
             rows[:, DIFFUSE_HIDDEN] = 0.0 if visible_to_diffuse else 1.0
             self.blocks.append(rows)
             self.materials.extend(materials)
-            self.receiver_set.extend([linking[0]] * len(materials))
-            self.emission_receivers.extend([linking[1]] * len(materials))
+            self.linking_rows.extend([linking] * len(materials))
             self.clear.extend(m.is_clear for m in materials)
             self.transmission.extend(_transmission_row(m) for m in materials)
             self.clear_names.update(m.name for m in materials if m.is_clear)
@@ -443,13 +463,18 @@ class _MaterialTable:
             return np.zeros((1, MATERIAL_COLUMNS), np.float32)
         return np.concatenate(self.blocks)
 
-    def linking(self) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Per row: the receiver set and the emission's receivers, each None where all rows
-        have the default (no light linking)."""
-        sets = np.array(self.receiver_set, np.int32)
-        receivers = np.array(self.emission_receivers, np.uint64)
-        return (sets if sets.any() else None,
-                receivers if (receivers != np.uint64(EVERY_RECEIVER_SET)).any() else None)
+    def linking(self) -> dict[str, np.ndarray | None]:
+        """WorldGeometry's row_* linking fields: per row the receiver set, the emission's
+        receivers, the blocker set and the emission's blockers, each None where all rows
+        have the default (no light or shadow linking)."""
+        columns = list(zip(*self.linking_rows, strict=True)) or [()] * 4
+        found = {}
+        for name, column, default in zip(
+                ("row_receiver_set", "row_emission_receivers", "row_blocker_set",
+                 "row_emission_blockers"), columns, NO_LINKING, strict=True):
+            values = np.array(column, np.int32 if name.endswith("_set") else np.uint64)
+            found[name] = values if (values != values.dtype.type(default)).any() else None
+        return found
 
 
 def _apply(rows: np.ndarray, maps: np.ndarray) -> np.ndarray:
@@ -584,7 +609,7 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
         group = found.get(id(inst.mesh))
         if group is None:
             group = found[id(inst.mesh)] = _Group(inst.mesh)
-        linking = inst.receiver_set, inst.emission_receivers
+        linking = inst.linking
         key = (id(inst.materials), *inst.flags, *linking)
         rows = blocks.get(key)
         if rows is None:
@@ -656,7 +681,7 @@ def flatten_instances(scene: Scene, warnings: list[str], notes: list[str] | None
     return WorldGeometry(positions, normals, triangle_material, table.rows(),
                          uv if textures else None, textures, instanced, clear_triangles,
                          clear_transmission, triangle_instance, table.materials,
-                         *table.linking(), deform)
+                         deform=deform, **table.linking())
 
 
 def bounding_sphere(positions: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None

@@ -185,7 +185,9 @@ class Instance:
     surfaces nor shades them from others' reflected light, and is seen, lit and casts
     shadows. ``identity`` names its object for the ID passes (id_passes.py). Light linking:
     an emitter lights it where bit ``receiver_set`` of the emitter's receivers is set (a
-    light's ``Light.receivers``, an emissive object's ``emission_receivers``). A
+    light's ``Light.receivers``, an emissive object's ``emission_receivers``); shadow
+    linking: it casts an emitter's shadows where bit ``blocker_set`` of the emitter's
+    blockers is set (``Light.blockers``, ``emission_blockers``). A
     ``shadow_catcher`` (Cycles' Shadow Catcher) is composited as Cycles does: the shadows and
     light the other objects cast on it, over the backdrop (frame/shadow_catcher.py)."""
 
@@ -200,7 +202,16 @@ class Instance:
     receiver_set: int = 0
     emission_receivers: int = EVERY_RECEIVER_SET
     shadow_catcher: bool = False
+    blocker_set: int = 0
+    emission_blockers: int = EVERY_RECEIVER_SET
     motion: tuple[Matrix4, Matrix4] | None = None  # its matrix at Scene.motion's two times
+
+    @property
+    def linking(self) -> tuple[int, int, int, int]:
+        """Its light and shadow linking: (receiver_set, emission_receivers, blocker_set,
+        emission_blockers)."""
+        return (self.receiver_set, self.emission_receivers, self.blocker_set,
+                self.emission_blockers)
 
     @property
     def flags(self) -> tuple[bool, bool, bool, bool]:
@@ -251,6 +262,8 @@ class Light:
     # towards directions in ``frame`` (point, spot and area lights)
     receivers: int = EVERY_RECEIVER_SET  # light linking: the receiver sets it lights
     # (Instance.receiver_set)
+    blockers: int = EVERY_RECEIVER_SET  # shadow linking: the blocker sets that cast its
+    # shadows (Instance.blocker_set)
 
     @property
     def area_size(self) -> tuple[float, float]:

@@ -60,6 +60,7 @@ from .vpl import (
     VPLs,
     environment_emitters,
     light_emitter,
+    light_hits,
     lit_hits,
     propagate,
     start_paths,
@@ -227,9 +228,9 @@ class IncrementalVPLs:
         visible = np.zeros(len(anchors), bool)
         if check.any():
             rows = np.flatnonzero(check)
-            found = tracer.intersect(origin[rows], unit(towards[rows]), epsilon, np.inf,
-                                     shadow=True)
-            visible[rows] = found.distance >= distance[rows] * (1 - 1e-4) - 2 * epsilon
+            ray, reach, _, _ = light_hits(tracer, geometry, origin[rows], unit(towards[rows]),
+                                          epsilon, domain.light.blockers, every_surface=False)
+            visible[rows[ray]] = reach >= distance[rows[ray]] * (1 - 1e-4) - 2 * epsilon
         valid = check & visible
         retrace = ~anchors.hit | retrace_all
         self.stats.invalid += int((anchors.hit & ~valid & ~retrace).sum())
@@ -251,7 +252,8 @@ class IncrementalVPLs:
         # unit flux: what the hits get is their path's transmittance
         found = trace_hits(tracer, geometry, origin, direction, np.ones((n, 3)),
                            np.arange(n), epsilon, from_light=True,
-                           soft_radius=soft_falloff_radius(domain.light))
+                           soft_radius=soft_falloff_radius(domain.light),
+                           blockers=domain.light.blockers, every_surface=False)
         hit = np.zeros(n, bool)
         hit[found.rank] = True
         position, normal, albedo = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
@@ -338,7 +340,8 @@ class IncrementalVPLs:
         u = scrambled_halton(count, START_DIMENSIONS, seed + 7)[slots]
         paths = start_paths(emitters, u)
         found = trace_hits(tracer, geometry, paths.origin, paths.direction, paths.flux,
-                           np.arange(len(slots)), epsilon, from_light=True)
+                           np.arange(len(slots)), epsilon, from_light=True,
+                           blockers=paths.blockers)
         if self.stats.reset or not np.array_equal(slots, self._environment_slots):
             self._environment_slots, self._environment_ids = slots, self._ids(len(slots))
         found = found.kept(lit_hits(found.triangle, paths.receivers[found.rank], geometry))

@@ -59,6 +59,8 @@ class LightSamples:
     profiles: LightProfiles | None = None  # the IES-profiled lights (per light, not sample)
     receivers: np.ndarray | None = None  # (n,) uint64 light linking: the receiver sets
     # (Instance.receiver_set) the sample's emitter lights; None: every sample lights all
+    blockers: np.ndarray | None = None  # (n,) uint64 shadow linking: the blocker sets
+    # (Instance.blocker_set) that cast the sample's shadows; None: every object casts all
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -109,6 +111,13 @@ class LightSamples:
         """Whether some sample lights only some receiver sets (light linking)."""
         return self.receivers is not None \
             and bool(np.any(self.receivers != np.uint64(EVERY_RECEIVER_SET)))
+
+    @property
+    def shadow_linked(self) -> bool:
+        """Whether some sample's shadows are cast by some blocker sets only (shadow
+        linking)."""
+        return self.blockers is not None \
+            and bool(np.any(self.blockers != np.uint64(EVERY_RECEIVER_SET)))
 
     @property
     def has_profiles(self) -> bool:
@@ -204,7 +213,7 @@ class _Builder:
     def add(self, *, position, axis, kind, intensity, shadow, resolution,
             spot_cos=NO_SPOT, spot_smooth=0.0, soft=False, spread=(0.0, 0.0),
             broad=False, shape=-1, soft_radius=0.0, profile=-1,
-            receivers=EVERY_RECEIVER_SET) -> None:
+            receivers=EVERY_RECEIVER_SET, blockers=EVERY_RECEIVER_SET) -> None:
         position = np.atleast_2d(position)
         n = len(position)
         self.rows.append({
@@ -224,12 +233,15 @@ class _Builder:
             "soft_radius": np.full(n, soft_radius),
             "profile": np.full(n, profile),
             "receivers": np.broadcast_to(np.asarray(receivers, np.uint64), (n,)),
+            "blockers": np.broadcast_to(np.asarray(blockers, np.uint64), (n,)),
         })
 
-    def link(self, first_row: int, receivers: int) -> None:
-        """The receiver sets of the samples added from row ``first_row`` on (light linking)."""
+    def link(self, first_row: int, light: Light) -> None:
+        """The light's receiver and blocker sets on the samples added from row ``first_row``
+        on (light and shadow linking)."""
         for row in self.rows[first_row:]:
-            row["receivers"] = np.full(len(row["kind"]), receivers, np.uint64)
+            row["receivers"] = np.full(len(row["kind"]), light.receivers, np.uint64)
+            row["blockers"] = np.full(len(row["kind"]), light.blockers, np.uint64)
 
     def build(self) -> LightSamples:
         if not self.rows:
@@ -243,6 +255,8 @@ class _Builder:
             samples.profiles = LightProfiles.build(self.profiled)
         if not samples.linked:
             samples.receivers = None
+        if not samples.shadow_linked:
+            samples.blockers = None
         if self.outlines:
             samples.shapes = AreaShapes.build(self.outlines, list(np.bincount(
                 samples.shape[samples.shape >= 0], minlength=len(self.outlines))))
@@ -403,10 +417,11 @@ def _add_emission(b: _Builder, geometry: WorldGeometry, s: Settings,
     points = t[:, 0] + u[:, :1] * (t[:, 1] - t[:, 0]) + u[:, 1:] * (t[:, 2] - t[:, 0])
     probability = power[pick] / power.sum()
     intensity = emission[emitting][pick] * (area[pick] / (n * probability))[:, None]
-    receivers = geometry.emission_receivers
+    receivers, blockers = geometry.emission_receivers, geometry.emission_blockers
     b.add(position=points, axis=unit(cross[pick]), kind=KIND_COSINE2,
           intensity=intensity, shadow=True, resolution=s.sample_shadow_resolution, soft=True,
-          receivers=EVERY_RECEIVER_SET if receivers is None else receivers[emitting][pick])
+          receivers=EVERY_RECEIVER_SET if receivers is None else receivers[emitting][pick],
+          blockers=EVERY_RECEIVER_SET if blockers is None else blockers[emitting][pick])
 
 
 def light_problem(light: Light) -> str | None:
@@ -441,7 +456,7 @@ def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Setting
         if include_dark or (light.power != 0 and any(c != 0 for c in light.color)):
             first_row = len(b.rows)
             _add_light(b, light, settings, rng)
-            b.link(first_row, light.receivers)
+            b.link(first_row, light)
     if include_dark or np.any(scene.world.radiance > 0):
         _add_world(b, scene, settings, rng)
     _add_emission(b, geometry, settings, rng)

@@ -113,14 +113,16 @@ class VPLs:
 @dataclass
 class _Paths:
     """A batch of rays leaving emitters: origins, unit directions and carried flux, the
-    Soft Falloff radius of a path's light (at its origin; 0 for none) and the receiver sets
-    its emitter lights (light linking: Light.receivers; per path or one for all)."""
+    Soft Falloff radius of a path's light (at its origin; 0 for none), the receiver sets
+    its emitter lights (light linking: Light.receivers) and the blocker sets that cast its
+    shadows (shadow linking: Light.blockers), per path or one for all."""
 
     origin: np.ndarray
     direction: np.ndarray
     flux: np.ndarray
     soft_radius: float | np.ndarray = 0.0
     receivers: int | np.ndarray = EVERY_RECEIVER_SET
+    blockers: int | np.ndarray = EVERY_RECEIVER_SET
 
 
 def _frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -159,22 +161,64 @@ def average_reflectance(geometry: WorldGeometry) -> float:
 
 
 class _Emitter:
-    """One source of light paths: its flux (for allocation), a sampler of start rays and the
-    receiver sets it lights (light linking; its paths' own where they carry them)."""
+    """One source of light paths: its flux (for allocation), a sampler of start rays, the
+    receiver sets it lights and the blocker sets that cast its shadows (light and shadow
+    linking; its paths' own where they carry them)."""
 
-    def __init__(self, flux: np.ndarray, sample, receivers: int = EVERY_RECEIVER_SET) -> None:
+    def __init__(self, flux: np.ndarray, sample) -> None:
         self.flux = np.asarray(flux, dtype=np.float64)
         self.power = float(self.flux @ LUMINANCE)
         self.sample = sample  # (u (n, 5) in [0,1)) -> (_Paths with flux per unit path)
-        self.receivers = receivers
+        self.receivers = EVERY_RECEIVER_SET
+        self.blockers = EVERY_RECEIVER_SET
 
 
 def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
     """A light's emitter of light paths (None for one that emits none)."""
     emitter = _light_emitter(light, centre, radius)
     if emitter is not None:
-        emitter.receivers = light.receivers
+        emitter.receivers, emitter.blockers = light.receivers, light.blockers
     return emitter
+
+
+PASS_LIMIT = 16  # objects a light path passes (shadow linking) before its first hit, at most
+
+
+def light_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
+               direction: np.ndarray, t_min: float, blockers: int | np.ndarray,
+               every_surface: bool = True
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where light leaving its emitter arrives (Cycles' shadow rays: objects whose Shadow
+    visibility is off let it through): each ray's first hit, or with shadow linking (the
+    emitter's ``blockers``, per ray or one) every surface up to the first whose blocker set
+    is in them, since the others cast no shadow of it yet receive its light
+    (``every_surface``; else that blocker alone). As (ray, distance, triangle, light let
+    through by clear surfaces on the way (·, 3)), one entry per ray and hit; a miss has
+    distance inf and triangle -1."""
+    hits = tracer.intersect(origin, direction, t_min, np.inf, shadow=True)
+    current = (np.arange(len(origin)), hits.distance.copy(), hits.triangle.copy(),
+               hits.transmittance.astype(np.float64))
+    blockers = np.broadcast_to(np.asarray(blockers, np.uint64), current[0].shape)
+    if geometry.blocker_set is None or not np.any(blockers != np.uint64(EVERY_RECEIVER_SET)):
+        return current
+    found = []
+    for _ in range(PASS_LIMIT):
+        ray, distance, triangle, through = current
+        hit = np.flatnonzero(triangle >= 0)
+        bit = geometry.blocker_set[triangle[hit]].astype(np.uint64)
+        passing = hit[((blockers[ray[hit]] >> bit) & np.uint64(1)) == 0]
+        if len(passing) == 0:
+            break
+        stays = np.ones(len(ray), bool)
+        stays[passing] = every_surface
+        found.append(tuple(a[stays] for a in current))
+        rays = ray[passing]
+        again = tracer.intersect(origin[rays], direction[rays], distance[passing], np.inf,
+                                 shadow=True)
+        current = (rays, again.distance, again.triangle,
+                   through[passing] * again.transmittance)
+    found.append(current)
+    return tuple(np.concatenate(parts) for parts in zip(*found, strict=True))
 
 
 def lit_hits(triangle: np.ndarray, receivers: int | np.ndarray, geometry: WorldGeometry
@@ -339,8 +383,9 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
         return None
     cdf = np.cumsum(power) / power.sum()
     normal = unit(cross)
-    linked = geometry.emission_receivers
+    linked, shadow_linked = geometry.emission_receivers, geometry.emission_blockers
     receivers = None if linked is None else linked[emitting]
+    blockers = None if shadow_linked is None else shadow_linked[emitting]
 
     def sample(u: np.ndarray) -> _Paths:
         pick = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), len(cdf) - 1)
@@ -354,7 +399,8 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
         direction = cosine_directions(normal[pick] * side[:, None], v)
         probability = power[pick] / power.sum()
         return _Paths(origin, direction, flux[pick] / probability[:, None],
-                      receivers=EVERY_RECEIVER_SET if receivers is None else receivers[pick])
+                      receivers=EVERY_RECEIVER_SET if receivers is None else receivers[pick],
+                      blockers=EVERY_RECEIVER_SET if blockers is None else blockers[pick])
     return _Emitter(flux.sum(axis=0), sample)
 
 
@@ -386,6 +432,7 @@ def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
     origin, direction, flux = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     soft_radius = np.zeros(n)
     receivers = np.full(n, EVERY_RECEIVER_SET, np.uint64)
+    blockers = np.full(n, EVERY_RECEIVER_SET, np.uint64)
     for index, emitter in enumerate(emitters):
         rows = np.flatnonzero(choice == index)
         if len(rows):
@@ -395,7 +442,8 @@ def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
             soft_radius[rows] = paths.soft_radius
             receivers[rows] = paths.receivers if np.ndim(paths.receivers) \
                 else emitter.receivers
-    return _Paths(origin, direction, flux, soft_radius, receivers)
+            blockers[rows] = paths.blockers if np.ndim(paths.blockers) else emitter.blockers
+    return _Paths(origin, direction, flux, soft_radius, receivers, blockers)
 
 
 @dataclass
@@ -423,31 +471,41 @@ class SurfaceHits:
 
 def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
            direction: np.ndarray, flux: np.ndarray, rank: np.ndarray, epsilon: float,
-           from_light: bool = False, soft_radius: float | np.ndarray = 0.0) -> SurfaceHits:
+           from_light: bool = False, soft_radius: float | np.ndarray = 0.0,
+           blockers: int | np.ndarray = EVERY_RECEIVER_SET, every_surface: bool = True
+           ) -> SurfaceHits:
     """The surfaces the rays hit (misses dropped), normals turned towards the ray, the flux
     dimmed by the clear surfaces crossed on the way; the base colour is looked up once per hit
     (the path albedo and the lobes derive from it). Rays ``from_light`` are its light's direct
     path (Cycles' shadow rays): objects whose Shadow visibility is off let them through, and
     those whose Diffuse visibility is off end them (no diffuse bounce sees their light); the
-    others are diffuse bounces, which the latter let through. A light's Soft Falloff of
-    ``soft_radius`` (per ray, or one for all) dims its light at the hits (``soft_falloff``)."""
-    hits = tracer.intersect(origin, direction, epsilon, np.inf, shadow=from_light,
-                            diffuse=not from_light)
-    hit = hits.triangle >= 0
+    others are diffuse bounces, which the latter let through. Shadow linking: light passes the
+    objects that cast no shadow of its emitter (``blockers``, per ray or one), which still
+    receive it (``light_hits``: a hit each, ``every_surface``). A light's Soft Falloff of
+    ``soft_radius`` (per ray, or one for all) dims its light at the hits
+    (``soft_falloff``)."""
+    if from_light:
+        ray, distance, triangle, through = light_hits(tracer, geometry, origin, direction,
+                                                      epsilon, blockers, every_surface)
+    else:
+        hits = tracer.intersect(origin, direction, epsilon, np.inf, diffuse=True)
+        ray, distance, triangle, through = (np.arange(len(origin)), hits.distance,
+                                            hits.triangle, hits.transmittance)
+    hit = triangle >= 0
     if from_light and geometry.diffuse_hidden.any():
-        hit[hit] = ~geometry.diffuse_hidden[hits.triangle[hit]]
-    tri = hits.triangle[hit]
-    position = origin[hit] + direction[hit] * hits.distance[hit, None].astype(np.float64)
+        hit[hit] = ~geometry.diffuse_hidden[triangle[hit]]
+    tri, ray = triangle[hit], ray[hit]
+    position = origin[ray] + direction[ray] * distance[hit, None].astype(np.float64)
     t = geometry.positions.reshape(-1, 3, 3)[tri].astype(np.float64)
     normal = unit(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]))
-    normal *= np.where((normal * direction[hit]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
+    normal *= np.where((normal * direction[ray]).sum(axis=1) > 0, -1.0, 1.0)[:, None]
     base = geometry.base_at(tri, position)
-    kept = hits.transmittance[hit]
+    kept = through[hit]
     if np.any(soft_radius):
-        kept = kept * soft_falloff(np.square(hits.distance[hit].astype(np.float64)),
-                                   np.broadcast_to(soft_radius, hit.shape)[hit])[:, None]
+        kept = kept * soft_falloff(np.square(distance[hit].astype(np.float64)),
+                                   np.broadcast_to(soft_radius, origin.shape[:1])[ray])[:, None]
     return SurfaceHits(position, normal, geometry.path_albedo(tri, base),
-                       flux[hit] * kept, rank[hit], tri, direction[hit], base)
+                       flux[ray] * kept, rank[ray], tri, direction[ray], base)
 
 
 def _lobes(hits: SurfaceHits, geometry: WorldGeometry
@@ -544,6 +602,6 @@ def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tra
     alive = np.flatnonzero(np.any(paths.flux != 0, axis=1))
     first = trace_hits(tracer, geometry, paths.origin[alive], paths.direction[alive],
                        paths.flux[alive], alive, 1e-5 * radius, from_light=True,
-                       soft_radius=paths.soft_radius[alive])
+                       soft_radius=paths.soft_radius[alive], blockers=paths.blockers[alive])
     first = first.kept(lit_hits(first.triangle, paths.receivers[first.rank], geometry))
     return propagate(first, n, u[:, START_DIMENSIONS:], settings, tracer, geometry, radius)
