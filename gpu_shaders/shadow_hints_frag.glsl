@@ -6,7 +6,7 @@
 // pixel's centre supersample. Bit 31 (HINT_KNOWN) marks pixels that hold hints: surface
 // pixels, and with interleaving those whose centre supersample gathers a sample, unless some
 // sample is seen through a clear surface (neither lit nor shadowed: every supersample there
-// traces its rays).
+// traces its rays). With RT_SHADOW_LINKING all samples share the blocker sets u_blockers.
 #include "lights_lib.glsl"
 #include "interleave_lib.glsl"
 
@@ -16,6 +16,9 @@ uniform sampler2D u_geometric;
 uniform int u_count;   // samples in the batch
 
 layout(location = 0) out uint out_hints;
+#ifdef RT_SHADOW_LINKING
+uniform uvec2 u_blockers;  // the samples' blocker sets, one for all (shadow_hints.py)
+#endif
 
 // Neither all lit (1) nor all shadowed (0): light through a clear surface.
 bool partly_lit(vec3 v) {
@@ -25,6 +28,9 @@ bool partly_lit(vec3 v) {
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     out_hints = 0u;
+#ifdef RT_SHADOW_LINKING
+    rt_blockers = u_blockers;
+#endif
     if (texelFetch(u_normal, px, 0).w == 0.0) return;
     vec3 world = texelFetch(u_position, px, 0).xyz;
     vec3 geometric = texelFetch(u_geometric, px, 0).xyz;

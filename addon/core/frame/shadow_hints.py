@@ -9,7 +9,7 @@ import moderngl
 import numpy as np
 
 from ..gpu.gl import ProgramCache, set_uniforms
-from .gather import RAY_OFFSET, LightPass, light_table_texture
+from .gather import RAY_OFFSET, LightPass, light_table_texture, receiver_words
 from .gbuffer import GBuffer
 from .gpu_scope import GpuScope
 
@@ -23,9 +23,10 @@ def takes_hints(light_pass: LightPass) -> bool:
     other samples, which only samples of nearly one direction can stand for: the world's or
     an area light's, interleaved, would take their neighbours' answer for other directions
     (through a window, mostly shadowed: a room's sky light 7 % dark). Shadow-linked samples
-    take none: one hint draw traces all samples alike."""
+    take them where the pass's samples share their blockers (one hint draw traces all)."""
+    blockers = light_pass.batch.samples.blockers
     if light_pass.indirect or light_pass.visibility.rays_per_sample == 0 \
-            or light_pass.batch.samples.shadow_linked:
+            or (blockers is not None and len(np.unique(blockers)) > 1):
         return False
     if light_pass.interleave > 1:
         return light_pass.spread
@@ -45,12 +46,17 @@ def render_hints(ctx: moderngl.Context, programs: ProgramCache, light_pass: Ligh
         for unit, name in enumerate(("position", "normal", "geometric")):
             pixels.textures[name].use(unit)
         table.use(3)
-        program = programs.get("fullscreen_vert.glsl", "shadow_hints_frag.glsl",
-                               {**light_pass.visibility.defines, "SHADOW_HINTS": 1},
+        samples = light_pass.batch.samples
+        defines = {**light_pass.visibility.defines, "SHADOW_HINTS": 1}
+        if samples.shadow_linked:  # one blocker mask for all (takes_hints)
+            defines["RT_SHADOW_LINKING"] = 1
+        program = programs.get("fullscreen_vert.glsl", "shadow_hints_frag.glsl", defines,
                                version=430)
         set_uniforms(program, u_position=0, u_normal=1, u_geometric=2, u_light_table=3,
-                     u_count=len(light_pass.batch.samples), u_hint_factor=factor,
+                     u_count=len(samples), u_hint_factor=factor,
                      u_interleave=light_pass.interleave, u_ray_offset=RAY_OFFSET * radius)
+        if samples.shadow_linked:
+            set_uniforms(program, u_blockers=receiver_words(int(samples.blockers[0])))
         fbo = local.own(ctx.framebuffer([hints]))
         fbo.use()
         ctx.disable(moderngl.BLEND)
