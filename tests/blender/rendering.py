@@ -107,6 +107,25 @@ def assert_near_cycles(label: str, ours: np.ndarray, reference: np.ndarray,
     assert without_error > factor * error
 
 
+def assert_near_where(label: str, ours: np.ndarray, reference: np.ndarray,
+                      without: np.ndarray, region: np.ndarray, bounds: tuple[float, float],
+                      without_label: str, share: float = 0.02) -> None:
+    """Print and check ``ours`` against Cycles' ``reference`` (RGB): finite, energy and
+    relRMSE within ``bounds``; and where the feature under test changes the image
+    (``region``, over ``share`` of the pixels) ``ours`` off on average by a third or less of
+    what the render ``without`` it (``without_label``) is, relative to the reference's mean."""
+    rgb = reference[..., :3]
+    energy, error = against(ours[..., :3], rgb)
+    off, ignored = (float(np.abs(image[..., :3] - rgb)[region].mean() / rgb.mean())
+                    for image in (ours, without))
+    print(f"{label} vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; where it changes the "
+          f"image ({region.mean():.3f} of pixels) {off:.4f} of the mean off, {without_label} "
+          f"{ignored:.4f} (relRMSE {against(without[..., :3], rgb)[1]:.4f})")
+    assert np.isfinite(ours).all()
+    assert abs(energy) < bounds[0] and error < bounds[1]
+    assert region.mean() > share and ignored > 3 * off
+
+
 def plain_world(scene: bpy.types.Scene, colour: tuple[float, float, float]) -> None:
     """A new world of one colour, through its Background node (no deprecated use_nodes)."""
     scene.world = bpy.data.worlds.new("Plain")

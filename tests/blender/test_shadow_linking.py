@@ -10,7 +10,7 @@ import numpy as np
 
 from addon.core.scene.model import EVERY_RECEIVER_SET
 from addon.export import export_scene
-from tests.blender.rendering import against, cycles_and_ours, render_linear
+from tests.blender.rendering import assert_near_where, cycles_and_ours, render_linear
 from tests.blender.test_light_linking import linked_stage, receivers, unlink
 
 
@@ -46,18 +46,10 @@ def test_shadow_linked_emitters_are_shadowed_by_their_blockers_as_in_cycles(blen
     reference, ours = cycles_and_ours(scene, tmp_path, 256, 1)
     unlink_shadows(scene)
     unlinked = render_linear(scene, "VPL_GI", tmp_path / "unlinked.exr")
-    energy, error = against(ours, reference)
     rgb = reference[..., :3]
     changed = np.abs(unlinked[..., :3] - rgb).mean(axis=-1) > 0.1 * rgb.mean()
-    off, ignored = (float(np.abs(image[..., :3] - rgb)[changed].mean() / rgb.mean())
-                    for image in (ours, unlinked))
-    print(f"shadow linking vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; where it "
-          f"changes the light ({changed.mean():.3f} of pixels) {off:.4f} of the mean off, "
-          f"every object casting every shadow {ignored:.4f}, relRMSE "
-          f"{against(unlinked, reference)[1]:.4f}")
-    assert np.isfinite(ours).all()
-    assert abs(energy) < 0.03 and error < 0.08
-    assert changed.mean() > 0.02 and ignored > 3 * off
+    assert_near_where("shadow linking", ours, reference, unlinked, changed, (0.03, 0.08),
+                      "every object casting every shadow")
 
 
 def test_blocker_sets_are_exported(blender):

@@ -120,30 +120,30 @@ class WorldGeometry:
         params = self.materials[row, SPECULAR:CUTOUT]
         return np.clip(principled.path_albedo(base.astype(np.float64), params), 0.0, MAX_ALBEDO)
 
+    def _per_triangle_row(self, rows: np.ndarray | None) -> np.ndarray | None:
+        """A per-row array read at each triangle's row, or None where ``rows`` is."""
+        return None if rows is None else rows[self.triangle_material]
+
     @cached_property
     def receiver_set(self) -> np.ndarray | None:
         """Each triangle's light-linking receiver set (T,) int32, or None: all in set 0."""
-        return None if self.row_receiver_set is None \
-            else self.row_receiver_set[self.triangle_material]
+        return self._per_triangle_row(self.row_receiver_set)
 
     @cached_property
     def emission_receivers(self) -> np.ndarray | None:
         """The receiver sets each triangle's emission lights (T,) uint64, or None: all."""
-        return None if self.row_emission_receivers is None \
-            else self.row_emission_receivers[self.triangle_material]
+        return self._per_triangle_row(self.row_emission_receivers)
 
     @cached_property
     def blocker_set(self) -> np.ndarray | None:
         """Each triangle's shadow-linking blocker set (T,) int32, or None: all in set 0."""
-        return None if self.row_blocker_set is None \
-            else self.row_blocker_set[self.triangle_material]
+        return self._per_triangle_row(self.row_blocker_set)
 
     @cached_property
     def emission_blockers(self) -> np.ndarray | None:
         """The blocker sets that cast each triangle's emission's shadows (T,) uint64, or
         None: all."""
-        return None if self.row_emission_blockers is None \
-            else self.row_emission_blockers[self.triangle_material]
+        return self._per_triangle_row(self.row_emission_blockers)
 
     @cached_property
     def deforming(self) -> np.ndarray | None:
