@@ -56,6 +56,7 @@ from .export_lights import export_light, is_portal
 from .export_motion import (
     InstanceKey,
     SampledMotion,
+    at_home,
     deformed_mesh,
     instance_key,
     placed_motion,
@@ -1110,6 +1111,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             result.warnings.append(f"object '{name}' {problem} and was skipped")
         else:
             if motion is not None:
+                mesh, matrix = at_home(motion, keys[index], mesh, matrix)
                 mesh = deformed_mesh(motion, keys[index], mesh)
             result.instances.append(Instance(mesh, matrix, materials, *flags))
             if motion is not None:
@@ -1126,7 +1128,9 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         result.ao_distance = ao_distance(scene_eval.world.light_settings.distance)
     if motion is not None:
         result.motion = motion.span
-        if result.camera is not None and all(v is not None for v in motion.views):
+        if result.camera is not None and motion.home_view is not None:
+            result.camera = replace(result.camera, view_matrix=motion.home_view)
+        elif result.camera is not None and all(v is not None for v in motion.views):
             result.camera = replace(result.camera, motion_views=motion.views)
     return result
 

@@ -48,6 +48,13 @@ class SampledMotion:
     positions: tuple[dict[InstanceKey, np.ndarray], dict[InstanceKey, np.ndarray]] = \
         field(default_factory=lambda: ({}, {}))
     """The vertex positions (object space) of deforming meshes at the two times."""
+    home: dict[InstanceKey, np.ndarray] = field(default_factory=dict)
+    """Where the render is moved off the frame (a pass's part of the shutter): the world
+    matrices at the frame of the instances whose motion blur is off, which stay there."""
+    home_positions: dict[InstanceKey, np.ndarray] = field(default_factory=dict)
+    """Likewise the vertex positions of deforming meshes whose Deformation is off."""
+    home_view: np.ndarray | None = None
+    """Likewise the camera's view where its motion blur is off."""
 
 
 def _set_time(engine: bpy.types.RenderEngine, time: float) -> None:
@@ -59,7 +66,9 @@ def sample_motion(engine: bpy.types.RenderEngine, depsgraph: bpy.types.Depsgraph
                   span: MotionSpan) -> SampledMotion:
     """Move the render to ``span``'s two times, read every instance's matrix and the camera's
     view there, and leave it at the rendered time (``span.centre`` from the frame: the
-    caller goes back to the frame after exporting)."""
+    caller goes back to the frame after exporting). With motion blur, objects (and a camera)
+    whose Motion Blur (or Deformation) toggle is off are left still (``blurs``); the Vector
+    pass moves them all, as Cycles' does."""
     scene = depsgraph.scene
     rendered = scene.frame_current + float(scene.frame_subframe) + span.centre
     matrices, views, shapes = [], [], []
@@ -70,20 +79,66 @@ def sample_motion(engine: bpy.types.RenderEngine, depsgraph: bpy.types.Depsgraph
             placed, shaped = {}, {}
             for inst in depsgraph.object_instances:
                 obj = inst.object
-                if obj.type not in RENDERED_OBJECT_TYPES:
+                if obj.type not in RENDERED_OBJECT_TYPES or \
+                        (span.blur and not blurs(inst, "use_motion_blur")):
                     continue
                 key = instance_key(inst)
                 placed[key] = np.array(inst.matrix_world, np.float64)
-                if obj.type == "MESH" and _deforms(obj, scene, deforms):
+                if obj.type == "MESH" and _deforms(obj, scene, deforms) and \
+                        (not span.blur or blurs(inst, "use_deform_motion")):
                     shaped[key] = positions(obj.data)
             matrices.append(placed)
             shapes.append(shaped)
             camera = depsgraph.scene_eval.camera
-            views.append(None if camera is None else _view(camera.matrix_world))
+            still = camera is None or (span.blur and not _toggled(camera, "use_motion_blur"))
+            views.append(None if still else _view(camera.matrix_world))
+        home = ({}, {}, None)
+        if span.blur and span.centre:  # rendered off the frame: what stays at the frame
+            _set_time(engine, rendered - span.centre)
+            home = _home(depsgraph, deforms)
     finally:
         _set_time(engine, rendered)
     return SampledMotion(span, (matrices[0], matrices[1]), (views[0], views[1]),
-                         (shapes[0], shapes[1]))
+                         (shapes[0], shapes[1]), *home)
+
+
+def _home(depsgraph: bpy.types.Depsgraph, deforms: dict[int, bool]
+          ) -> tuple[dict[InstanceKey, np.ndarray], dict[InstanceKey, np.ndarray],
+                     np.ndarray | None]:
+    """At the frame (where the caller has moved the render): the matrices of the instances
+    whose motion blur is off, the vertex positions of the deforming meshes whose Deformation
+    is off, and the camera's view where its motion blur is off (SampledMotion.home)."""
+    scene = depsgraph.scene
+    matrices, shapes = {}, {}
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type not in RENDERED_OBJECT_TYPES:
+            continue
+        if not blurs(inst, "use_motion_blur"):
+            matrices[instance_key(inst)] = np.array(inst.matrix_world, np.float64)
+        elif obj.type == "MESH" and _deforms(obj, scene, deforms) \
+                and not blurs(inst, "use_deform_motion"):
+            shapes[instance_key(inst)] = positions(obj.data)
+    camera = depsgraph.scene_eval.camera
+    view = None if camera is None or _toggled(camera, "use_motion_blur") \
+        else _view(camera.matrix_world)
+    return matrices, shapes, view
+
+
+def blurs(instance: bpy.types.DepsgraphObjectInstance, toggle: str) -> bool:
+    """Whether motion blur moves the instance: its object's Cycles toggle (Object Properties
+    > Motion Blur: ``use_motion_blur``, and its Deformation, ``use_deform_motion``) and, for
+    an instance another object makes, that object's too, as Cycles' sync asks; on where
+    Cycles' settings are missing."""
+    owners = [instance.object]
+    if instance.is_instance and instance.parent is not None:
+        owners.append(instance.parent)
+    return all(_toggled(owner, toggle) for owner in owners)
+
+
+def _toggled(obj: bpy.types.Object, toggle: str) -> bool:
+    """An object's Cycles motion-blur toggle (on where Cycles' settings are missing)."""
+    return bool(getattr(getattr(obj.original, "cycles", None), toggle, True))
 
 
 def _deforms(obj: bpy.types.Object, scene: bpy.types.Scene, known: dict[int, bool]) -> bool:
@@ -107,6 +162,16 @@ def deformed_mesh(motion: SampledMotion, key: InstanceKey, mesh: Mesh) -> Mesh:
     if not moved.any():
         return mesh
     return replace(mesh, deform=moved.astype(np.float32))
+
+
+def at_home(motion: SampledMotion, key: InstanceKey, mesh: Mesh, matrix: np.ndarray
+            ) -> tuple[Mesh, np.ndarray]:
+    """The instance's mesh and matrix where its motion blur (or its Deformation) is off: at
+    the frame (SampledMotion.home) where the render is moved off it; as given otherwise."""
+    home = motion.home_positions.get(key)
+    if home is not None and home.shape == mesh.positions.shape:
+        mesh = replace(mesh, positions=home.astype(mesh.positions.dtype))
+    return mesh, motion.home.get(key, matrix)
 
 
 def placed_motion(motion: SampledMotion, key: InstanceKey

@@ -108,6 +108,33 @@ class RENDER_PT_vpl_gi_motion_blur(_RenderPanel, bpy.types.Panel):
         column.label(text="Each pass renders its own part of the shutter (Sampling > Passes)")
 
 
+class OBJECT_PT_vpl_gi_motion_blur(_EnginePanel, bpy.types.Panel):
+    """Object Properties > Motion Blur while this engine is selected: Cycles' per-object
+    toggles, which motion blur honours as Cycles does (Blender's panel is Cycles' own)."""
+
+    bl_label = "Motion Blur"
+    bl_context = "object"
+    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        obj = context.object
+        return super().poll(context) and obj is not None and hasattr(obj, "cycles") \
+            and (obj.type in {"MESH", "CURVE", "SURFACE", "FONT", "META", "CAMERA"}
+                 or (obj.instance_type == "COLLECTION" and obj.instance_collection is not None))
+
+    def draw_header(self, context: bpy.types.Context) -> None:
+        self.layout.active = context.scene.render.use_motion_blur
+        self.layout.prop(context.object.cycles, "use_motion_blur", text="")
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = _split(self.layout)
+        obj = context.object
+        layout.active = context.scene.render.use_motion_blur and obj.cycles.use_motion_blur
+        if obj.type != "CAMERA":
+            layout.column().prop(obj.cycles, "use_deform_motion", text="Deformation")
+
+
 class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
     """View Layer Properties > Passes while this engine is selected: the view-layer toggles of
     the passes it fills (Blender's own Passes panel is EEVEE's and Workbench's), Cycles'
@@ -190,7 +217,8 @@ PANELS: tuple[type, ...] = (RENDER_PT_vpl_gi, *(_section_panel(s) for s in SECTI
 """Registered in this order: every parent before its sub-panels."""
 
 
-OWN_PANELS = (RENDER_PT_vpl_gi_motion_blur, VIEWLAYER_PT_vpl_gi_passes)
+OWN_PANELS = (RENDER_PT_vpl_gi_motion_blur, OBJECT_PT_vpl_gi_motion_blur,
+              VIEWLAYER_PT_vpl_gi_passes)
 """Panels drawn for this engine that are not settings sections."""
 
 

@@ -17,6 +17,7 @@ from tests.blender.rendering import (
     add_camera,
     add_primitive,
     add_sun,
+    against,
     assert_near_cycles,
     configure_cycles,
     cycles_and_ours,
@@ -198,3 +199,28 @@ def test_a_deforming_mesh_moves_and_blurs_as_in_cycles(blender, tmp_path):
     # 9.4 % against its sharp 12.5 % (one pass's blur keeps a moving surface too opaque)
     assert_near_cycles("deformation blur, 1 pass", one_pass, reference, (0.01, 0.065), sharp,
                        "without it", factor=1.15)
+
+
+def test_objects_whose_motion_blur_is_off_stay_sharp(blender, tmp_path):
+    """Object Properties › Motion Blur off on the moving box or the moving camera, or
+    Deformation off on the sheared flag: rendered as without motion blur (Cycles: the same
+    to the bit), also where passes see the scene at other times of the shutter, while
+    leaving them on blurs them (the camera by under a pixel at 48²: passes, not one pass's
+    smear)."""
+    for name, make, toggle, passes in (
+            ("Cube", lambda: blurred_scene("CENTER"), "use_motion_blur", 1),
+            ("Cube", lambda: blurred_scene("START"), "use_motion_blur", 4),
+            ("Camera", lambda: motion_scene(True), "use_motion_blur", 4),
+            ("Flag", deforming_scene, "use_deform_motion", 4)):
+        scene = make()
+        scene.render.use_motion_blur = True
+        scene.vpl_gi.passes = passes
+        blurred = render_linear(scene, "VPL_GI", tmp_path / "blurred.exr")
+        setattr(bpy.data.objects[name].cycles, toggle, False)
+        off = render_linear(scene, "VPL_GI", tmp_path / "off.exr")
+        scene.render.use_motion_blur = False
+        sharp = render_linear(scene, "VPL_GI", tmp_path / "sharp.exr")
+        error, blur = against(off, sharp)[1], against(blurred, sharp)[1]
+        print(f"{name} with {toggle} off, {passes} pass(es): relRMSE {error:.5f} against "
+              f"the sharp frame, blurred {blur:.4f}")
+        assert error < 1e-3 and blur > 0.008

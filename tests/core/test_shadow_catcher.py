@@ -17,6 +17,7 @@ from addon.core.frame.shadow_catcher import (
 )
 from addon.core.scene.model import Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
+from addon.core.viewport_session import Changes, ViewportSession
 from tests.core.builders import floor_scene, light, pixel_centres, quad, rotation_x, translation
 
 SKY = np.array([0.2, 0.3, 0.5])
@@ -141,3 +142,20 @@ def test_catchers_in_one_plane_are_rendered_alone_without_bounces():
     assert in_one_plane(points)
     points[4321, 2] += 1e-3
     assert not in_one_plane(points) and not in_one_plane(points[:2])
+
+
+def test_the_viewport_composites_catchers_as_final_renders_do():
+    """Cycles' viewport shows the approximation too: through a transparent film the floor is
+    a hole whose alpha is the panel's shadow."""
+    session = ViewportSession()
+    try:
+        scene = catcher_scene(True)
+        session.edit(Changes(settings=True), scene=scene, camera=scene.camera,
+                     settings=Settings(bounces=1, vpl_count=128, viewport_passes=1))
+        assert session.wait_idle(300) and session.error is None, session.error
+        image = session.latest().image
+    finally:
+        session.close()
+    _, floor, shadowed, open_floor = regions()
+    assert np.all(image[..., :3][floor] == 0.0)
+    assert image[..., 3][shadowed].mean() > 0.5 and image[..., 3][open_floor].mean() < 0.05
