@@ -73,27 +73,34 @@ def sample_motion(engine: bpy.types.RenderEngine, depsgraph: bpy.types.Depsgraph
     rendered = scene.frame_current + float(scene.frame_subframe) + span.centre
     matrices, views, shapes = [], [], []
     deforms: dict[int, bool] = {}  # by original object pointer
+    held = False  # some object, deformation or camera is held still (its toggle off)
     try:
         for offset in (span.before, span.after):
             _set_time(engine, rendered + offset)
             placed, shaped = {}, {}
             for inst in depsgraph.object_instances:
                 obj = inst.object
-                if obj.type not in RENDERED_OBJECT_TYPES or \
-                        (span.blur and not blurs(inst, "use_motion_blur")):
+                if obj.type not in RENDERED_OBJECT_TYPES:
+                    continue
+                if span.blur and not blurs(inst, "use_motion_blur"):
+                    held = True
                     continue
                 key = instance_key(inst)
                 placed[key] = np.array(inst.matrix_world, np.float64)
-                if obj.type == "MESH" and _deforms(obj, scene, deforms) and \
-                        (not span.blur or blurs(inst, "use_deform_motion")):
-                    shaped[key] = positions(obj.data)
+                if obj.type == "MESH" and _deforms(obj, scene, deforms):
+                    if span.blur and not blurs(inst, "use_deform_motion"):
+                        held = True
+                    else:
+                        shaped[key] = positions(obj.data)
             matrices.append(placed)
             shapes.append(shaped)
             camera = depsgraph.scene_eval.camera
-            still = camera is None or (span.blur and not _toggled(camera, "use_motion_blur"))
-            views.append(None if still else _view(camera.matrix_world))
+            still = span.blur and camera is not None \
+                and not _toggled(camera, "use_motion_blur")
+            held |= still
+            views.append(None if camera is None or still else _view(camera.matrix_world))
         home = ({}, {}, None)
-        if span.blur and span.centre:  # rendered off the frame: what stays at the frame
+        if held and span.centre:  # rendered off the frame: what stays at the frame
             _set_time(engine, rendered - span.centre)
             home = _home(depsgraph, deforms)
     finally:
