@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from addon.core.frame.gather import draws, receiver_words
+from addon.core.frame.gather import draws, mask_words
 from addon.core.scene.geometry import flatten_instances
 from addon.core.scene.model import EVERY_RECEIVER_SET, Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
@@ -131,5 +131,5 @@ def test_draws_hold_one_emitters_receivers_each():
     assert draws(10, 4, None, receivers) == [(0, 3), (3, 4), (7, 1), (8, 2)]
     assert draws(10, 4, np.array([0] * 5 + [1] * 5), receivers) == \
         [(0, 3), (3, 2), (5, 3), (8, 2)]
-    assert receiver_words(int(receivers[9])) == (0, 1 << 8)
-    assert receiver_words(EVERY_RECEIVER_SET) == (0xFFFFFFFF, 0xFFFFFFFF)
+    assert mask_words(int(receivers[9])) == (0, 1 << 8)
+    assert mask_words(EVERY_RECEIVER_SET) == (0xFFFFFFFF, 0xFFFFFFFF)

@@ -94,10 +94,10 @@ def area_shapes_texture(ctx: moderngl.Context, shapes: AreaShapes) -> moderngl.T
     return ctx.texture((AREA_SHAPES_WIDTH, rows), 4, padded.tobytes(), dtype="f4")
 
 
-def receiver_words(receivers: int) -> tuple[int, int]:
+def mask_words(mask: int) -> tuple[int, int]:
     """A draw's receiver or blocker sets (LightSamples.receivers, .blockers) as the uvec2
     light_linking_lib.glsl and raytrace_lib.glsl read: bits 0-31, 32-63."""
-    return receivers & 0xFFFFFFFF, receivers >> 32
+    return mask & 0xFFFFFFFF, mask >> 32
 
 
 def samples_per_draw(rays_per_sample: int, compensation: Compensation | None) -> int:
@@ -218,9 +218,9 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
             for shader in shaders:
                 set_uniforms(shader, u_first=first, u_count=count)
                 if receivers is not None:
-                    set_uniforms(shader, u_receivers=receiver_words(int(receivers[first])))
+                    set_uniforms(shader, u_receivers=mask_words(int(receivers[first])))
                 if blockers is not None:
-                    set_uniforms(shader, u_blockers=receiver_words(int(blockers[first])))
+                    set_uniforms(shader, u_blockers=mask_words(int(blockers[first])))
             if hinted is None:
                 vao.render(moderngl.TRIANGLES, vertices=3)
             else:

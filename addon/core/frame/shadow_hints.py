@@ -9,7 +9,7 @@ import moderngl
 import numpy as np
 
 from ..gpu.gl import ProgramCache, set_uniforms
-from .gather import RAY_OFFSET, LightPass, light_table_texture, receiver_words
+from .gather import RAY_OFFSET, LightPass, light_table_texture, mask_words
 from .gbuffer import GBuffer
 from .gpu_scope import GpuScope
 
@@ -56,7 +56,7 @@ def render_hints(ctx: moderngl.Context, programs: ProgramCache, light_pass: Ligh
                      u_count=len(samples), u_hint_factor=factor,
                      u_interleave=light_pass.interleave, u_ray_offset=RAY_OFFSET * radius)
         if samples.shadow_linked:
-            set_uniforms(program, u_blockers=receiver_words(int(samples.blockers[0])))
+            set_uniforms(program, u_blockers=mask_words(int(samples.blockers[0])))
         fbo = local.own(ctx.framebuffer([hints]))
         fbo.use()
         ctx.disable(moderngl.BLEND)
