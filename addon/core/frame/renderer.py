@@ -102,8 +102,7 @@ class Renderer:
             pass_index * settings.vpl_count  # passes of N paths before it elsewhere (viewport)
         report = progress or (lambda _f, _m: None)
         check = cancelled or (lambda: False)
-        render = self._render_panorama if scene.camera is not None \
-            and scene.camera.panorama is not None else self._render_view
+        render = self._view_renderer(scene)
         make_current(self.gpu.ctx)  # Blender 5's compositor makes its own current here
         image, stats, used = render(scene, settings, report, check, passes, pass_index,
                                     first_path)
@@ -122,9 +121,7 @@ class Renderer:
         plane), by a renderer of their own (its reuse between frames is theirs)."""
         if self._catchers is None:
             self._catchers = Renderer(self.gpu.ctx, share_programs_of=self)
-        helper = self._catchers
-        render = helper._render_panorama if scene.camera is not None \
-            and scene.camera.panorama is not None else helper._render_view
+        render = self._catchers._view_renderer(scene)
 
         def alone_progress(fraction: float, message: str) -> None:
             progress(fraction, "Shadow catchers alone" + (f" | {message}" if message else ""))
@@ -138,6 +135,12 @@ class Renderer:
                                            pass_index, first_path)
         composite(image.passes, alone.passes, scene.film_transparent, as_matte)
         stats.warnings.extend(w for w in alone_stats.warnings if w not in stats.warnings)
+
+    def _view_renderer(self, scene: Scene) -> Callable[..., tuple[Frame, Stats, Settings]]:
+        """How this renderer renders the scene's view: ``_render_panorama`` for a panoramic
+        camera, else ``_render_view``."""
+        panoramic = scene.camera is not None and scene.camera.panorama is not None
+        return self._render_panorama if panoramic else self._render_view
 
     def _render_view(self, scene: Scene, settings: Settings, progress: ProgressCallback,
                      cancelled: CancelCallback, passes: frozenset[str] | None, pass_index: int,

@@ -87,8 +87,13 @@ def shadow_ratio(full: dict[str, np.ndarray], alone: dict[str, np.ndarray]) -> n
     """Per pixel and colour, the catchers' light with the other objects over their light
     without them (h, w, 3); 1 where no catcher is seen or it gets no light alone (Cycles'
     safe_divide_shadow_catcher)."""
-    lit, coverage = _catcher_light(full)
-    unshadowed, alone_coverage = _catcher_light(alone)
+    return _ratio(_catcher_light(full), _catcher_light(alone))
+
+
+def _ratio(full: tuple[np.ndarray, np.ndarray], alone: tuple[np.ndarray, np.ndarray]
+           ) -> np.ndarray:
+    """shadow_ratio of the two renders' (catcher light, coverage)."""
+    (lit, coverage), (unshadowed, alone_coverage) = full, alone
     valid = (coverage >= MIN_COVERAGE) & (alone_coverage >= MIN_COVERAGE) & (unshadowed != 0)
     with np.errstate(over="ignore"):
         ratio = np.where(valid, lit / np.where(valid, unshadowed, 1.0), 1.0)
@@ -101,10 +106,10 @@ def composite(full: dict[str, np.ndarray], alone: dict[str, np.ndarray],
     with shadow catchers, given ``alone`` (the catchers-alone render): its Combined (see the
     module) and, where present, its Shadow Catcher pass; the hidden passes are dropped.
     ``as_matte``: the Shadow Catcher pass was asked for (Combined is the matte)."""
-    ratio = shadow_ratio(full, alone)
+    caught = _catcher_light(full)
+    ratio, coverage = _ratio(caught, _catcher_light(alone)), caught[1]
     combined, matte = full["Combined"], full.pop(MATTE)
     backdrop = full.pop(BACKDROP, None)
-    _, coverage = _catcher_light(full | {MATTE: matte})
     if SHADOW_CATCHER_PASS in full:
         alpha = np.clip(combined[..., 3:4], 0.0, 1.0)  # alpha-over on white, as Cycles
         full[SHADOW_CATCHER_PASS] = ((1.0 - alpha) + alpha * ratio).astype(np.float32)

@@ -11,6 +11,7 @@ from ..gpu.gl import ProgramCache, set_uniforms
 from ..gpu.scene_buffers import SceneBuffers, table_texture
 from ..gpu.shadow_atlas import TileTable, draw_tiles, tile_table
 from .batches import ATLAS_TEXELS, Batch
+from .gather import mask_words
 from .gpu_scope import GpuScope
 
 FAR_DEPTH = 3.0e38  # an atlas texel no triangle covers
@@ -127,10 +128,8 @@ class ShadowAtlases:
                 defines["DIFFUSE_HIDDEN"] = 1
             if s.shadow_linked:  # each tile's sample's blockers (shadow linking)
                 defines["SHADOW_LINKING"] = 1
-                words = s.blockers[table.sample].astype(np.uint64)
-                blockers = table_texture(self.ctx, np.stack(
-                    [words & np.uint64(0xFFFFFFFF), words >> np.uint64(32)],
-                    axis=1).astype(np.uint32), 2, "u4")
+                words = np.array([mask_words(int(m)) for m in s.blockers], np.uint32)
+                blockers = table_texture(self.ctx, words[table.sample], 2, "u4")
                 own(blockers)
                 blockers.use(TILE_BLOCKERS_UNIT)
             program = self.programs.get("shadow_vert.glsl", "shadow_frag.glsl", defines)
