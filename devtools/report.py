@@ -143,14 +143,17 @@ shaders, Cycles kernels, the denoiser's kernels) does not depend on it."""
 
 def cycles_settings(samples: int, bounces: int, seed: int, denoise: bool = False,
                     clear: bool = False) -> dict[str, object]:
-    """Cycles set up like VPL GI: CPU, diffuse bounces only, no adaptive sampling, clamping or
-    light-sampling cut-off, a one-pixel box filter; no denoiser, or with ``denoise``
-    OpenImageDenoise with albedo and normal guides (Blender's defaults, as users render).
+    """Cycles set up like VPL GI: CPU, as many glossy as diffuse bounces (VPL GI's glossy lobes
+    reflect its VPLs' light) without Filter Glossy (a bias of Cycles' own), no transmission,
+    no adaptive sampling, clamping or light-sampling cut-off, a one-pixel box filter; no
+    denoiser, or with ``denoise`` OpenImageDenoise with albedo and normal guides (Blender's
+    defaults, as users render).
     With ``clear`` (a scene with clear or cutout materials, which VPL GI lets light through),
     Blender's default transparent (8) and transmission (12) bounces."""
     settings: dict[str, object] = {
         "device": "CPU", "samples": samples, "seed": seed,
-        "max_bounces": bounces, "diffuse_bounces": bounces, "glossy_bounces": 0,
+        "max_bounces": bounces, "diffuse_bounces": bounces, "glossy_bounces": bounces,
+        "blur_glossy": 0.0,
         "transmission_bounces": 0, "volume_bounces": 0, "transparent_max_bounces": 0,
         "use_denoising": False, "use_adaptive_sampling": False,
         "sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0,
