@@ -386,7 +386,6 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
 
 
 PRINCIPLED_LAYERS_LEFT_OUT = (
-    ("Coat Weight", "Coat is not rendered"),
     ("Sheen Weight", "Sheen is not rendered"),
     ("Subsurface Weight", "Subsurface is rendered as diffuse"),
     ("Anisotropic", "Anisotropic is rendered isotropic"),
@@ -403,6 +402,38 @@ def _warn_layers_left_out(node, name: str, warnings: list[str]) -> None:
                 and (socket.is_linked or float(socket.default_value) > 0.0)]
     if left_out:
         warnings.append(f"material '{name}': {'; '.join(left_out)}")
+
+
+COAT_INPUTS = ("Coat Weight", "Coat Roughness", "Coat IOR")
+
+
+def _principled_coat(node, name: str, warnings: list[str]) -> dict[str, float]:
+    """A Principled BSDF's clear coat as Material fields (none where its weight is 0); one
+    warning for what of it is not rendered: the coat where an input of COAT_INPUTS is
+    linked, its tint where it is not white, its own normal where one is linked."""
+    weight = node.inputs.get("Coat Weight")
+    if weight is None or (not weight.is_linked and float(weight.default_value) <= 0.0):
+        return {}
+    linked = [socket_name for socket_name in COAT_INPUTS if node.inputs[socket_name].is_linked]
+    left_out = []
+    if linked:
+        left_out.append(f"Coat is not rendered (its {', '.join(linked)} linked)")
+    tint = node.inputs.get("Coat Tint")
+    if not linked and tint is not None \
+            and (tint.is_linked or any(float(x) != 1.0 for x in tint.default_value[:3])):
+        left_out.append("Coat Tint is not rendered")
+    normal = node.inputs.get("Coat Normal")
+    if not linked and normal is not None and normal.is_linked:
+        left_out.append("Coat Normal is not rendered (the coat follows the surface's normal)")
+    if left_out:
+        message = f"material '{name}': {'; '.join(left_out)}"
+        if message not in warnings:
+            warnings.append(message)
+    if linked:
+        return {}
+    return {"coat_weight": float(weight.default_value),
+            "coat_roughness": float(node.inputs["Coat Roughness"].default_value),
+            "coat_ior": float(node.inputs["Coat IOR"].default_value)}
 
 
 def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
@@ -474,6 +505,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          ior=float(constant(node, "IOR", 1.5)),
                          specular_ior_level=float(constant(node, "Specular IOR Level", 0.5)),
                          specular_tint=rgb(constant(node, "Specular Tint", (1, 1, 1))),
+                         **_principled_coat(node, name, images.warnings),
                          **_principled_alpha(node, name, images),
                          **_normal_map(node, name, images))
     if node.type == "HOLDOUT":
@@ -524,7 +556,10 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                 (a.transmission, b.transmission))]
         weight = max(wa + wb, 1e-30)
         glossy = a if a.specular_ior_level >= b.specular_ior_level else b
+        coated = a if a.coat_weight >= b.coat_weight else b
         return Material(name, mix[0], mix[1], transmission=mix[2],
+                        coat_weight=(wa * a.coat_weight + wb * b.coat_weight) / weight,
+                        coat_roughness=coated.coat_roughness, coat_ior=coated.coat_ior,
                         transmission_ior=_mixed_ior(a, b),
                         roughness=(wa * a.roughness + wb * b.roughness) / weight,
                         metallic=(wa * a.metallic + wb * b.metallic) / weight,

@@ -10,7 +10,9 @@
 // second draw, with rays, that runs only there (gather.py).
 // With GLOSSY a second target gets the glossy radiance towards the camera, summed over the
 // same samples with the pixel's lobe from the g-buffer (bias compensation adds no glossy
-// light). With VPL_GLOSSY, VPLs at glossy surfaces also emit through their lobe (lights_lib).
+// light). With COAT (some material has a clear coat) the pixel's triangle's coat reflects
+// the same samples through its own lobe. With VPL_GLOSSY, VPLs at glossy surfaces also emit
+// through their lobe (lights_lib).
 // With LIGHT_LINKING the draw's samples light only the surfaces of some receiver sets
 // (light_linking_lib.glsl): elsewhere, and at bias compensation's hits elsewhere, they add
 // nothing. With RT_SHADOW_LINKING (ray-traced samples whose shadows some objects do not
@@ -29,6 +31,9 @@ uniform vec3 u_camera_position;
 uniform vec3 u_camera_forward;
 uniform bool u_orthographic;
 layout(location = 1) out vec4 out_glossy;
+#ifdef COAT
+#include "materials_lib.glsl"
+#endif
 #endif
 
 in vec2 v_uv;
@@ -41,13 +46,18 @@ uniform int u_count;
 
 layout(location = 0) out vec4 out_light;
 
-// The pixel's glossy lobe and view direction (lobe_a.w = alpha is 0 on diffuse pixels).
+// The pixel's glossy lobe, its clear coat's (coat_a.w = alpha is 0 without one) and the view
+// direction (a.w = alpha is 0 on diffuse pixels).
 struct Lobe {
     vec4 a;
     vec4 b;
     vec4 c;
+    vec4 coat_a;
+    vec4 coat_b;
     vec3 view;
 };
+
+const Lobe NO_LOBE = Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
 
 // Sum over this draw's samples; with interleaving (u_interleave = K > 1) each pixel of a K×K
 // pattern takes every K²-th sample and scales by K², so the expectation is unchanged. With a
@@ -107,6 +117,12 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
         if (lobe.a.w > 0.0 && any(greaterThan(e, vec3(0.0)))) {
             vec3 l = s.kind == KIND_DIRECTIONAL ? -s.axis : normalize(s.position - world);
             glossy += e * glossy_brdf(lobe.a, lobe.b, lobe.c, normal, lobe.view, l);
+#ifdef COAT
+            if (lobe.coat_a.w > 0.0) {
+                glossy += e * glossy_brdf(lobe.coat_a, lobe.coat_b, vec4(0.0), normal,
+                                          lobe.view, l);
+            }
+#endif
         }
 #endif
     }
@@ -142,8 +158,7 @@ bool hit_radiance(vec3 origin, vec3 dir, float t, int triangle, out vec3 radianc
     }
 #endif
     radiance = material_of(triangle).albedo.rgb / PI
-               * gather(origin + dir * t, n_y, n_y, u_max_generation,
-                        Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0)), unused);
+               * gather(origin + dir * t, n_y, n_y, u_max_generation, NO_LOBE, unused);
     return true;
 }
 
@@ -167,12 +182,20 @@ void main() {
     vec3 world = texelFetch(u_position, px, 0).xyz;
     vec4 geometric_texel = texelFetch(u_geometric, px, 0);  // w: the triangle + 1
     vec3 geometric = geometric_texel.xyz;
-    Lobe lobe = Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
+    Lobe lobe = NO_LOBE;
 #ifdef GLOSSY
     out_glossy = vec4(0.0);
-    lobe = Lobe(texelFetch(u_lobe_a, px, 0), texelFetch(u_lobe_b, px, 0),
-                texelFetch(u_lobe_c, px, 0),
-                u_orthographic ? -u_camera_forward : normalize(u_camera_position - world));
+    lobe.a = texelFetch(u_lobe_a, px, 0);
+    lobe.b = texelFetch(u_lobe_b, px, 0);
+    lobe.c = texelFetch(u_lobe_c, px, 0);
+    lobe.view = u_orthographic ? -u_camera_forward : normalize(u_camera_position - world);
+#ifdef COAT
+    int triangle = int(geometric_texel.w + 0.5) - 1;
+    if (triangle >= 0 && lobe.a.w > 0.0) {
+        vec4 coat = material_of(triangle).coat;
+        if (coat.x > 0.0) coat_lobe(coat, lobe.coat_a, lobe.coat_b);
+    }
+#endif
 #endif
 #ifdef BIAS_COMPENSATION
     out_light = vec4(compensation(world, normal.xyz, geometric), 0.0);

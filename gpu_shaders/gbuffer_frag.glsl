@@ -6,7 +6,8 @@
 // is not drawn. With TEXTURED the albedo (capped to 1, as base colours are) and the emission
 // come from image textures, and a normal or bump map bends the shading normal. With GLOSSY
 // (some material has a specular layer) the albedo is the diffuse layer's colour (Cycles'
-// DiffCol) and three more layers hold the pixel's glossy lobe (principled_lib.glsl); the
+// DiffCol) and three more layers hold the pixel's glossy lobe below any clear coat
+// (principled_lib.glsl; the gather reads the coat's from the material table); the
 // glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w, emission.w), as OpenGL
 // guarantees only eight colour attachments; the geometric normal's w holds the triangle's
 // index + 1 (-1 on a holdout) for the ID passes. With CUTOUTS (some
@@ -143,7 +144,7 @@ void main() {
 #ifdef GLOSSY
     out_lobe_a = out_lobe_b = out_lobe_c = vec4(0.0);
     if (material.tint.w > 0.0) {
-        albedo *= principled_layers(albedo, material.specular, material.tint,
+        albedo *= principled_layers(albedo, material.specular, material.tint, material.coat,
                                     dot(shading, to_camera), gloss, out_lobe_a, out_lobe_b,
                                     out_lobe_c);
         out_lobe_c.w = gloss.r;

@@ -1,9 +1,9 @@
 // The material table of core/geometry.py and each triangle's row in it, as textures
 // (core/scene_buffers.py; OpenGL 4.1 has no storage buffers): entry i of a table is texel
-// (i % width, i / width). A material row is seven texels: albedo, emission, texture attribute,
-// the specular parameters (roughness, metallic, eta, s_avg), (F0 x tint, glossy flag)
-// (core/scene/principled.py's specular_row), the cutout (coverage_lib.glsl) and the normal map
-// (gbuffer_frag.glsl).
+// (i % width, i / width). A material row is eight texels: albedo, emission, texture attribute,
+// the specular parameters (roughness, metallic, eta, s_avg), (F0 x tint, glossy flag), the
+// clear coat (weight, roughness, eta, 0) (core/scene/principled.py's specular_row), the cutout
+// (coverage_lib.glsl) and the normal map (gbuffer_frag.glsl).
 // Vertex shaders pass the triangle index (gl_VertexID / 3, which instanced draws do not reset).
 #ifndef MATERIALS_LIB_GLSL
 #define MATERIALS_LIB_GLSL
@@ -17,6 +17,7 @@ struct Material {
     vec4 texture;  // albedo layer, emission layer (-1 = none), emission strength
     vec4 specular;
     vec4 tint;
+    vec4 coat;
     vec4 cutout;
     vec4 normal_map;  // layer + 1 (0: none), strength, a bump map's filter width, its distance
 };
@@ -29,10 +30,10 @@ vec4 material_texel(int i) {
 Material material_of(int triangle) {
     int width = textureSize(u_triangle_materials, 0).x;
     int row = texelFetch(u_triangle_materials, ivec2(triangle % width, triangle / width), 0).r;
-    return Material(material_texel(7 * row), material_texel(7 * row + 1),
-                    material_texel(7 * row + 2), material_texel(7 * row + 3),
-                    material_texel(7 * row + 4), material_texel(7 * row + 5),
-                    material_texel(7 * row + 6));
+    return Material(material_texel(8 * row), material_texel(8 * row + 1),
+                    material_texel(8 * row + 2), material_texel(8 * row + 3),
+                    material_texel(8 * row + 4), material_texel(8 * row + 5),
+                    material_texel(8 * row + 6), material_texel(8 * row + 7));
 }
 
 #endif

@@ -47,10 +47,23 @@ vec3 darkening(vec3 f0, float s_avg, float e, float e_avg) {
     return e + fms * (1.0 - e);
 }
 
+// The dielectric lobe's albedo E (F0 + (1 - F0) s_ior), without energy compensation, at
+// roughness rough and cosine mu (a clear coat's: Cycles' plain GGX).
+float dielectric_albedo(float rough, float eta, float mu) {
+    float z = clamp(sqrt(abs((eta - 1.0) / (eta + 1.0))), 0.0, 1.0) * float(S_SIZE - 1);
+    int k = min(int(floor(z)), S_SIZE - 2);
+    float s = mix(table_2d(ROW_S_IOR + k * S_SIZE, rough, mu, S_SIZE),
+                  table_2d(ROW_S_IOR + (k + 1) * S_SIZE, rough, mu, S_SIZE), z - float(k));
+    float f0 = f0_of(eta);
+    return table_2d(ROW_E, rough, mu, E_SIZE) * (f0 + (1.0 - f0) * s);
+}
+
 // Layers of a pixel seen at cosine mu: the diffuse weight (returned), the glossy albedo
-// (Cycles' GlossCol) and the lobe texels. spec = (roughness, metallic, eta, s_avg),
-// tint = (F0 x tint, flag) from the material table.
-float principled_layers(vec3 base, vec4 spec, vec4 tint, float mu, out vec3 gloss,
+// (Cycles' GlossCol, the coat's included) and the lobe texels, all below the clear coat
+// dimmed by (1 - what it reflects). spec = (roughness, metallic, eta, s_avg), tint = (F0 x
+// tint, flag), coat = (weight, roughness, eta, 0) from the material table; the coat's own
+// lobe is coat_lobe's.
+float principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, float mu, out vec3 gloss,
                         out vec4 lobe_a, out vec4 lobe_b, out vec4 lobe_c) {
     float rough = spec.x, metallic = spec.y, eta = spec.z;
     mu = clamp(mu, 1e-3, 1.0);
@@ -81,10 +94,27 @@ float principled_layers(vec3 base, vec4 spec, vec4 tint, float mu, out vec3 glos
         a += k_m * f0;
         c = k_m * (1.0 - f0);
     }
+    if (coat.x > 0.0) {
+        float reflected = coat.x * dielectric_albedo(coat.y, coat.z, mu);
+        float under = clamp(1.0 - reflected, 0.0, 1.0);
+        diffuse *= under;
+        a *= under;
+        b *= under;
+        c *= under;
+        gloss = gloss * under + reflected;
+    }
     lobe_a = vec4(a, rough * rough);
     lobe_b = vec4(b, eta);
     lobe_c = vec4(c, 0.0);
     return diffuse;
+}
+
+// A clear coat's lobe in glossy_brdf's texels (F = weight x the real dielectric Fresnel):
+// lobe a and b; its c is zero.
+void coat_lobe(vec4 coat, out vec4 lobe_a, out vec4 lobe_b) {
+    float f0 = f0_of(coat.z);
+    lobe_a = vec4(vec3(coat.x * f0), coat.y * coat.y);
+    lobe_b = vec4(vec3(coat.x * (1.0 - f0)), coat.z);
 }
 
 float smith_lambda(float alpha2, float cos_n) {

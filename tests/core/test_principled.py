@@ -135,3 +135,43 @@ def test_vpl_glossy_emission_carries_the_glossy_albedo(rough, metallic, mu):
 def test_lambert_rows_have_no_glossy_lobe():
     lambert = principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1))
     assert not principled.lobe_texels(np.ones((3, 3)), lambert, np.full(3, 0.5)).any()
+
+
+@pytest.mark.parametrize("rough, mu", [(0.25, 0.9), (0.25, 0.3), (0.5, 0.6)])
+def test_a_clear_coat_reflects_what_it_takes_from_the_layers_below(rough, mu):
+    """A coat's lobe (principled_lib.glsl's coat_lobe: weight × the real Fresnel) integrates
+    to the albedo by which it dims every layer below (Cycles' layering), so a white material
+    under a coat still reflects at most what arrives, and more at grazing angles."""
+    weight, ior = 0.8, 1.5
+    row = principled.specular_row(0.5, 0.0, 1.5, 0.5, (1, 1, 1), (weight, rough, ior))
+    f0 = float(principled.f0_from_ior(ior))
+    texels = np.zeros((3, 4))
+    texels[0] = weight * f0, weight * f0, weight * f0, rough * rough
+    texels[1] = weight * (1 - f0), weight * (1 - f0), weight * (1 - f0), ior
+    n = 800
+    theta = (np.arange(n) + 0.5) / n * np.pi / 2
+    phi = (np.arange(2 * n) + 0.5) / (2 * n) * 2 * np.pi
+    t, p = (x.ravel() for x in np.meshgrid(theta, phi, indexing="ij"))
+    out = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1)
+    view = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
+    f = glossy_brdf(texels, np.array([0.0, 0.0, 1.0]), out, view)
+    reflected = (f * (np.cos(t) * np.sin(t))[:, None]).sum(0) * (np.pi / 2 / n) * (np.pi / n)
+    albedo = principled.coat_albedo(principled.coat_of(row), np.array([mu]))[0]
+    assert reflected[0] == pytest.approx(albedo, rel=0.01)
+    uncoated = principled.specular_row(0.5, 0.0, 1.5, 0.5, (1, 1, 1))
+    white = np.ones((1, 3))
+    diffuse, gloss = principled.layer_weights(white, *principled.specular_parameters(row),
+                                              np.array([mu]))
+    bare_diffuse, bare_gloss = principled.layer_weights(
+        white, *principled.specular_parameters(uncoated), np.array([mu]))
+    assert diffuse[0] == pytest.approx(bare_diffuse[0] * (1 - albedo))
+    assert gloss[0] == pytest.approx(bare_gloss[0] * (1 - albedo) + albedo)
+    assert diffuse[0] + gloss[0, 0] <= 1 + 1e-6
+
+
+def test_a_coat_alone_makes_a_diffuse_row_glossy():
+    """A coat over a diffuse base (Specular IOR Level 0) still needs the glossy path."""
+    row = principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1), (1.0, 0.03, 1.5))
+    assert row[7] == 1 and row[2] == 1.0
+    assert principled.coat_of(row) == pytest.approx((1.0, principled.MIN_ROUGHNESS, 1.5))
+    assert not principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1), (1.0, 0.3, 1.0)).any()

@@ -183,6 +183,8 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
                 gbuffer.textures[name].use(unit)
                 uniforms[f"u_{name}"] = unit
             uniforms.update(gbuffer.view)
+            if scene is not None and scene.has_coat:
+                defines.update(COAT=1)
         if compensation is not None:
             defines.update(BIAS_COMPENSATION=1, SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
             uniforms.update(u_clamp_distance=compensation.clamp_distance,
@@ -203,6 +205,9 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         if compensation is not None:  # the surfaces rays reach: positions and materials
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
             scene.bind_materials(program)
+        elif "COAT" in defines:  # the pixels' coats
+            for shader in shaders:
+                scene.bind_materials(shader)
         elif "LIGHT_LINKING" in defines:
             for shader in shaders:
                 scene.bind_triangle_rows(shader)

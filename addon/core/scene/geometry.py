@@ -26,15 +26,16 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
-MATERIAL_COLUMNS = 28  # albedo, hidden, emission, holdout, texture attribute, shadowless,
-# specular, cutout, diffuse-hidden, normal map: seven texels
+MATERIAL_COLUMNS = 32  # albedo, hidden, emission, holdout, texture attribute, shadowless,
+# specular (with the coat), cutout, diffuse-hidden, normal map: eight texels
 HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 HOLDOUT = 7  # 1 in the rows of holdout instances (gbuffer_frag.glsl, combined_frag.glsl)
 SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl)
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
-CUTOUT = 20  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
-DIFFUSE_HIDDEN = 23  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
-NORMAL_MAP = 24  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
+COAT = SPECULAR + 8  # the coat's weight in them
+CUTOUT = 24  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
+DIFFUSE_HIDDEN = 27  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
+NORMAL_MAP = 28  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 NO_LINKING = (0, EVERY_RECEIVER_SET, 0, EVERY_RECEIVER_SET)  # Instance.linking's defaults
@@ -50,7 +51,7 @@ class WorldGeometry:
     layer, emission layer — NO_TEXTURE for none — and the strength the emission texture is
     multiplied by) and the Principled BSDF's specular parameters (principled.specular_row),
     the cutout texel (TextureSet.cutout) and the normal map's (TextureSet.normal), laid out
-    as seven RGBA texels
+    as eight RGBA texels
     (gpu_shaders/materials_lib.glsl). Textured materials
     have their textures' average colour as albedo and emission (the per-triangle values light
     sampling and path termination use); ``uv`` (per vertex) is set only when some material has
@@ -157,6 +158,11 @@ class WorldGeometry:
     def has_specular(self) -> bool:
         """Whether some material has a glossy lobe (the shaders' GLOSSY path)."""
         return bool(np.any(self.materials[:, SPECULAR + 7] > 0))
+
+    @property
+    def has_coat(self) -> bool:
+        """Whether some material has a clear coat (the shaders' COAT path)."""
+        return bool(np.any(self.materials[:, COAT] > 0))
 
     @cached_property
     def emission(self) -> np.ndarray:
@@ -267,14 +273,17 @@ class WorldGeometry:
                 albedo[group] = self._path_albedo(albedo[group], row)
         return albedo
 
-    def reflectance_split(self, triangle: np.ndarray, base: np.ndarray,
-                          mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def reflectance_split(self, triangle: np.ndarray, base: np.ndarray, mu: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                     np.ndarray]:
         """What a light path arriving at cosine ``mu`` (m,) keeps at points on triangles whose
         base colour is ``base`` (m, 3): the diffuse reflectance (m, 3) (base colour × the
-        diffuse weight averaged over outgoing directions), the glossy albedo (m, 3) at ``mu``,
-        and the lobe's roughness (m,)."""
+        diffuse weight averaged over outgoing directions), the glossy albedo (m, 3) at ``mu``
+        (the coat's included), the lobe's roughness (m,), and the coat's share of the glossy
+        albedo's luminance (m,) and roughness (m,)."""
         diffuse = base.copy()
         gloss, rough = np.zeros_like(diffuse), np.zeros(len(triangle))
+        coat_share, coat_rough = np.zeros(len(triangle)), np.zeros(len(triangle))
         material = self.triangle_material[triangle]
         for row in np.unique(material):
             params = self.materials[row, SPECULAR:CUTOUT]
@@ -285,7 +294,13 @@ class WorldGeometry:
                 diffuse[group], *principled.specular_parameters(params), mu[group])
             diffuse[group] *= principled.diffuse_average(params)
             rough[group] = params[0]
-        return diffuse, gloss, rough
+            coat = principled.coat_of(params)
+            if coat[0] > 0:
+                reflected = principled.coat_albedo(coat, mu[group])
+                luminance = np.maximum(gloss[group] @ tex.LUMINANCE, 1e-30)
+                coat_share[group] = reflected / luminance
+                coat_rough[group] = coat[1]
+        return diffuse, gloss, rough, np.clip(coat_share, 0.0, 1.0), coat_rough
 
     def lobe_texels(self, triangle: np.ndarray, base: np.ndarray,
                     mu: np.ndarray) -> np.ndarray:
@@ -393,15 +408,20 @@ def _material_rows(materials: list[Material], warnings: list[str],
     rows[:, NORMAL_MAP:NORMAL_MAP + 4] = [textures.normal(m) for m in materials]
     for row, m in enumerate(materials):
         values = np.array([m.roughness, m.metallic, m.ior, m.specular_ior_level,
-                           *m.specular_tint], np.float64)
+                           *m.specular_tint, m.coat_weight, m.coat_roughness, m.coat_ior],
+                          np.float64)
         if not np.isfinite(values).all():
             message = f"material '{m.name}': specular values are not finite: rendered diffuse"
             if message not in warnings:
                 warnings.append(message)
             continue
-        rows[row, SPECULAR:CUTOUT] = principled.specular_row(m.roughness, m.metallic, m.ior,
-                                                       m.specular_ior_level, m.specular_tint)
-        if rows[row, SPECULAR + 7] > 0 and m.roughness < principled.MIN_ROUGHNESS:
+        rows[row, SPECULAR:CUTOUT] = principled.specular_row(
+            m.roughness, m.metallic, m.ior, m.specular_ior_level, m.specular_tint,
+            (m.coat_weight, m.coat_roughness, m.coat_ior))
+        below_coat = rows[row, SPECULAR + 7] > 0 \
+            and (rows[row, SPECULAR + 2] != 1.0 or rows[row, SPECULAR + 1] > 0)
+        if (below_coat and m.roughness < principled.MIN_ROUGHNESS) \
+                or (rows[row, COAT] > 0 and m.coat_roughness < principled.MIN_ROUGHNESS):
             clamped.add(m.name)
     return rows
 

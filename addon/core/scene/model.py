@@ -64,10 +64,12 @@ class Material:
     With ``base_color_texture`` the texture is the base colour (``base_color`` is unused);
     with ``emission_texture`` the emitted radiance is the texture times ``emission`` (the
     strength per channel). Roughness, metallic, IOR, specular IOR level and specular tint are
-    the Principled BSDF's inputs; with level 0 and metallic 0 (the defaults here, as for a
-    Diffuse BSDF) the material is pure Lambert. ``transmission`` is the colour of the light
-    it lets straight through (Transparent, Glass and Refraction BSDFs, a Principled BSDF's
-    Alpha and Transmission); a material that does nothing else is clear (``is_clear``).
+    the Principled BSDF's inputs; with level 0, metallic 0 and no coat (the defaults here, as
+    for a Diffuse BSDF) the material is pure Lambert. A coat (``coat_weight`` above 0) is a
+    dielectric GGX layer of its own roughness and IOR over the others. ``transmission`` is
+    the colour of the light it lets straight through (Transparent, Glass and Refraction
+    BSDFs, a Principled BSDF's Alpha and Transmission); a material that does nothing else is
+    clear (``is_clear``).
 
     A cutout (a leaf, a fence: ``is_cutout``) is there in part: ``alpha`` of it, times, with
     ``coverage_texture``, that texture's alpha (``coverage_mode`` COVERAGE_ALPHA) or its
@@ -86,6 +88,9 @@ class Material:
     ior: float = 1.5
     specular_ior_level: float = 0.0
     specular_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    coat_weight: float = 0.0  # the Principled BSDF's clear coat over every other layer
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
     base_color_texture: Texture | None = None
     emission_texture: Texture | None = None
     transmission: tuple[float, float, float] = (0.0, 0.0, 0.0)

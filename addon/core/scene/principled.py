@@ -7,7 +7,10 @@
 - both with multiple-scattering energy compensation (Kulla & Conty: the lobe scaled by
   (1 + Fms (1 − E)/E) for the single-scattering albedo E and the Fresnel's cosine average);
 - a diffuse base of weight (1 − metallic)(1 − max over channels of the dielectric lobe's
-  albedo), the energy-conserving layering.
+  albedo), the energy-conserving layering;
+- over all of them a clear coat: a dielectric GGX lobe of weight ``coat`` with its own
+  roughness and IOR (real Fresnel, no energy compensation, as Cycles' plain GGX), which
+  dims every layer below by (1 − coat × its albedo at the view).
 
 The albedos come from tables of the GGX lobe, computed here by stratified sampling of visible
 normals (Heitz 2018), as Cycles precomputes its own (``ggx_E``, ``ggx_Eavg``,
@@ -185,12 +188,24 @@ def fresnel_cosine_average(eta: float) -> float:
     return float((fresnel_dielectric(mu, eta) * mu * w).sum())
 
 
+def coat_albedo(coat: Coat, mu: np.ndarray) -> np.ndarray:
+    """What a clear coat reflects (n,) of light arriving at cosines ``mu`` (n,): its weight
+    times its lobe's albedo, E (F0 + (1 − F0) s_ior) (0 without a coat)."""
+    weight, rough, eta = coat
+    if weight <= 0:
+        return np.zeros(len(mu))
+    z = np.sqrt(np.abs((eta - 1.0) / (eta + 1.0)))
+    e, _, s_ior, _ = lookup(np.full(len(mu), rough), mu, np.full(len(mu), z))
+    f0 = float(f0_from_ior(eta))
+    return weight * e * (f0 + (1.0 - f0) * s_ior)
+
+
 def layer_weights(base: np.ndarray, rough: float, metallic: float, eta: float,
-                  f0: np.ndarray, s_avg: float, mu: np.ndarray
+                  f0: np.ndarray, s_avg: float, coat: Coat, mu: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """The diffuse weight (n,) and the glossy albedo (Cycles' GlossCol) (n, 3) of base colours
-    (n, 3) seen at cosines ``mu`` (n,), for a material's specular parameters (see
-    ``specular_row``). The shader computes the same per pixel."""
+    """The diffuse weight (n,) and the glossy albedo (Cycles' GlossCol, the coat's included)
+    (n, 3) of base colours (n, 3) seen at cosines ``mu`` (n,), for a material's specular
+    parameters (see ``specular_row``). The shader computes the same per pixel."""
     z = np.sqrt(np.abs((eta - 1.0) / (eta + 1.0)))
     e, e_avg, s_ior, s5 = (x[:, None] for x in lookup(np.full(len(mu), rough), mu,
                                                       np.full(len(mu), z)))
@@ -204,6 +219,10 @@ def layer_weights(base: np.ndarray, rough: float, metallic: float, eta: float,
         metal_f0 = np.clip(base, 0.0, 1.0)
         darkening = _darkening(metal_f0, 1.0 / 21.0, e, e_avg)
         gloss += metallic * darkening * (metal_f0 + (1.0 - metal_f0) * s5)
+    if coat[0] > 0:
+        reflected = coat_albedo(coat, mu)
+        under = np.clip(1.0 - reflected, 0.0, 1.0)
+        diffuse, gloss = diffuse * under, gloss * under[:, None] + reflected[:, None]
     return diffuse, gloss
 
 
@@ -226,15 +245,25 @@ def path_albedo(base: np.ndarray, row: np.ndarray) -> np.ndarray:
     return (per.reshape(n, len(mu), 3) * weight[None, :, None]).sum(axis=1)
 
 
-SPECULAR_COLUMNS = 8  # two RGBA texels: (roughness, metallic, eta, s_avg), (tint F0 rgb, flag)
+SPECULAR_COLUMNS = 12  # three RGBA texels: (roughness, metallic, eta, s_avg),
+# (tint F0 rgb, flag), (coat weight, coat roughness, coat eta, 0)
+Coat = tuple[float, float, float]
+"""A clear coat's weight, roughness (clamped) and IOR."""
+NO_COAT: Coat = (0.0, MIN_ROUGHNESS, 1.5)
 
 
 def specular_row(roughness: float, metallic: float, ior: float, level: float,
-                 tint: tuple[float, float, float]) -> np.ndarray:
+                 tint: tuple[float, float, float], coat: Coat = NO_COAT) -> np.ndarray:
     """A material's specular texels: clamped roughness, metallic, the Fresnel's IOR (level
-    applied, as Cycles does), its remapped cosine average, F0 × tint (saturated) and a flag
-    (1 when there is any glossy lobe; 0 keeps the pure-Lambert path)."""
+    applied, as Cycles does), its remapped cosine average, F0 × tint (saturated), a flag
+    (1 when there is any glossy lobe; 0 keeps the pure-Lambert path) and the clear coat's
+    weight (in [0, 1]), clamped roughness and IOR (at least 1, as Cycles takes it)."""
     row = np.zeros(SPECULAR_COLUMNS, np.float32)
+    coat_weight, coat_rough, coat_ior = (float(x) for x in coat)
+    coat_weight, coat_ior = float(np.clip(coat_weight, 0.0, 1.0)), max(coat_ior, 1.0)
+    if coat_weight > 0 and coat_ior > 1.0:
+        row[8:11] = (coat_weight, max(float(np.clip(coat_rough, 0.0, 1.0)), MIN_ROUGHNESS),
+                     coat_ior)
     ior = max(float(ior), 1e-5)
     level = max(float(level), 0.0)
     metallic = float(np.clip(metallic, 0.0, 1.0))
@@ -248,22 +277,32 @@ def specular_row(roughness: float, metallic: float, ior: float, level: float,
     if f0 <= 0.0:
         eta = 1.0
     dielectric = eta != 1.0 and metallic < 1.0
+    rough = max(float(np.clip(roughness, 0.0, 1.0)), MIN_ROUGHNESS)
     if not dielectric and metallic <= 0.0:
+        if row[8] > 0:  # a coat alone over a diffuse base
+            row[:4] = rough, metallic, 1.0, 0.0
+            row[7] = 1.0
         return row
     real_f0 = float(f0_from_ior(eta))
     s_avg = float(np.clip((fresnel_cosine_average(eta) - real_f0) / max(1.0 - real_f0, 1e-12),
                           0.0, 1.0)) if dielectric else 0.0
-    rough = max(float(np.clip(roughness, 0.0, 1.0)), MIN_ROUGHNESS)
     row[:4] = rough, metallic, eta if dielectric else 1.0, s_avg
     row[4:7] = np.clip(f0 * np.maximum(np.asarray(tint, float), 0.0), 0.0, 1.0)
     row[7] = 1.0
     return row
 
 
-def specular_parameters(row: np.ndarray) -> tuple[float, float, float, np.ndarray, float]:
-    """(roughness, metallic, eta, F0 × tint, s_avg) of a specular row, for ``layer_weights``."""
+def specular_parameters(row: np.ndarray
+                        ) -> tuple[float, float, float, np.ndarray, float, Coat]:
+    """(roughness, metallic, eta, F0 × tint, s_avg, coat) of a specular row, for
+    ``layer_weights``."""
     return float(row[0]), float(row[1]), float(row[2]), np.asarray(row[4:7], float), \
-        float(row[3])
+        float(row[3]), coat_of(row)
+
+
+def coat_of(row: np.ndarray) -> Coat:
+    """The clear coat (weight, roughness, IOR) of a specular row."""
+    return float(row[8]), float(row[9]), float(row[10])
 
 
 def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarray,
@@ -316,8 +355,9 @@ LOBE_TEXELS = 3  # (A rgb, alpha), (B rgb, eta), (C rgb, 0): principled_lib.glsl
 def lobe_texels(base: np.ndarray, row: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """The glossy lobe's texels (n, 3, 4) of base colours (n, 3) at cosines ``mu`` (n,), as
     principled_layers in principled_lib.glsl computes them for a pixel (glossy_brdf reads
-    them); all zero for a row without a glossy lobe."""
-    rough, metallic, eta, f0, s_avg = specular_parameters(row)
+    them), dimmed by the coat above it (whose own lobe is not in them); all zero for a row
+    without a glossy lobe."""
+    rough, metallic, eta, f0, s_avg, coat = specular_parameters(row)
     out = np.zeros((len(mu), LOBE_TEXELS, 4))
     if row[7] <= 0:
         return out
@@ -335,5 +375,8 @@ def lobe_texels(base: np.ndarray, row: np.ndarray, mu: np.ndarray) -> np.ndarray
         k_m = metallic * _darkening(metal_f0, 1.0 / 21.0, e, e_avg) / e
         out[:, 0, :3] += k_m * metal_f0
         out[:, 2, :3] = k_m * (1.0 - metal_f0)
+    if coat[0] > 0:
+        out[:, :, :3] *= np.clip(1.0 - coat_albedo(coat, np.clip(mu, 1e-3, 1.0)), 0.0,
+                                 1.0)[:, None, None]
     out[:, 0, 3], out[:, 1, 3] = rough * rough, eta
     return out

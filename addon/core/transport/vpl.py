@@ -509,22 +509,24 @@ def trace_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
 
 
 def _lobes(hits: SurfaceHits, geometry: WorldGeometry
-           ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray | None]:
+           ) -> tuple[np.ndarray, np.ndarray | None, tuple[np.ndarray, ...], np.ndarray | None]:
     """What a VPL at the hits emits diffusely (reflectance (m, 3)), the glossy albedo (m, 3)
-    and roughness (m,) of the paths' glossy continuation, and the VPLs' glossy emission
-    (VPLs.glossy, (m, 4, 4)) (both None where no material is glossy or the incoming direction
-    or base colour is not known: the path albedo is then all diffuse)."""
+    of the paths' glossy continuation and its lobes (roughness (m,), the coat's share of it
+    (m,) and the coat's roughness (m,)), and the VPLs' glossy emission (VPLs.glossy,
+    (m, 4, 4); a coat's own reflection is not in it) (both None where no material is glossy
+    or the incoming direction or base colour is not known: the path albedo is then all
+    diffuse)."""
     if hits.incoming is None or hits.triangle is None or hits.base is None \
             or not geometry.has_specular:
-        return hits.albedo, None, np.zeros(len(hits.rank)), None
+        return hits.albedo, None, (np.zeros(len(hits.rank)),) * 3, None
     mu = np.clip(-(hits.incoming * hits.normal).sum(axis=1), 0.0, 1.0)
-    diffuse, gloss, rough = geometry.reflectance_split(hits.triangle, hits.base, mu)
+    diffuse, gloss, *lobes = geometry.reflectance_split(hits.triangle, hits.base, mu)
     emission = np.zeros((len(mu), 4, 4))
     emission[:, :3] = geometry.lobe_texels(hits.triangle, hits.base, mu)
     emission[:, :3, :3] *= hits.flux[:, None, :]
     emission[:, 3, :3] = -hits.incoming
     emission[emission[:, 0, 3] <= 0] = 0.0
-    return diffuse, gloss, rough, emission
+    return diffuse, gloss, tuple(lobes), emission
 
 
 def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: Settings,
@@ -539,7 +541,7 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
     hits, survivors = first, count
     out: list[VPLs] = []
     for generation in range(1, settings.bounces + 1):
-        diffuse, gloss, rough, emission = _lobes(hits, geometry)
+        diffuse, gloss, (rough, coat_share, coat_rough), emission = _lobes(hits, geometry)
         out.append(VPLs(hits.position, hits.normal, hits.flux * diffuse / np.pi,
                         np.full(len(hits.rank), generation), hits.rank, glossy=emission))
         if generation == settings.bounces or len(hits.rank) == 0:
@@ -560,10 +562,13 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
         if gloss is not None:  # a diffuse or a glossy reflection, by their luminance
             total = np.maximum((diffuse + gloss) @ LUMINANCE, 1e-30)
             p_gloss = np.clip(gloss @ LUMINANCE / total, 0.0, 1.0)
-            glossy = lobe_choice[hits.rank, generation] < p_gloss
-            if glossy.any():
+            choice = lobe_choice[hits.rank, generation]
+            glossy = choice < p_gloss
+            if glossy.any():  # the coat's lobe or the one below, by their shares
+                on_coat = choice[glossy] < p_gloss[glossy] * coat_share[glossy]
                 direction[glossy] = principled.sample_reflection(
-                    hits.normal[glossy], hits.incoming[glossy], rough[glossy], samples[glossy])
+                    hits.normal[glossy], hits.incoming[glossy],
+                    np.where(on_coat, coat_rough[glossy], rough[glossy]), samples[glossy])
             lobe = np.where(glossy[:, None], gloss / np.maximum(p_gloss, 1e-12)[:, None],
                             diffuse / np.maximum(1.0 - p_gloss, 1e-12)[:, None])
             flux = hits.flux * lobe * weight[:, None]
