@@ -407,10 +407,11 @@ def _warn_layers_left_out(node, name: str, warnings: list[str]) -> None:
 COAT_INPUTS = ("Coat Weight", "Coat Roughness", "Coat IOR")
 
 
-def _principled_coat(node, name: str, warnings: list[str]) -> dict[str, float]:
+def _principled_coat(node, name: str, warnings: list[str]) -> dict[str, object]:
     """A Principled BSDF's clear coat as Material fields (none where its weight is 0); one
     warning for what of it is not rendered: the coat where an input of COAT_INPUTS is
-    linked, its tint where it is not white, its own normal where one is linked."""
+    linked, its tint where that is linked (white instead), its own normal where one is
+    linked."""
     weight = node.inputs.get("Coat Weight")
     if weight is None or (not weight.is_linked and float(weight.default_value) <= 0.0):
         return {}
@@ -419,9 +420,10 @@ def _principled_coat(node, name: str, warnings: list[str]) -> dict[str, float]:
     if linked:
         left_out.append(f"Coat is not rendered (its {', '.join(linked)} linked)")
     tint = node.inputs.get("Coat Tint")
-    if not linked and tint is not None \
-            and (tint.is_linked or any(float(x) != 1.0 for x in tint.default_value[:3])):
-        left_out.append("Coat Tint is not rendered")
+    tinted = tint is not None and not tint.is_linked
+    if not linked and tint is not None and tint.is_linked:
+        left_out.append(f"Coat Tint is not rendered (linked to "
+                        f"'{tint.links[0].from_node.bl_label}')")
     normal = node.inputs.get("Coat Normal")
     if not linked and normal is not None and normal.is_linked:
         left_out.append("Coat Normal is not rendered (the coat follows the surface's normal)")
@@ -433,7 +435,8 @@ def _principled_coat(node, name: str, warnings: list[str]) -> dict[str, float]:
         return {}
     return {"coat_weight": float(weight.default_value),
             "coat_roughness": float(node.inputs["Coat Roughness"].default_value),
-            "coat_ior": float(node.inputs["Coat IOR"].default_value)}
+            "coat_ior": float(node.inputs["Coat IOR"].default_value),
+            "coat_tint": rgb(tint.default_value) if tinted else (1.0, 1.0, 1.0)}
 
 
 def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
@@ -560,6 +563,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         return Material(name, mix[0], mix[1], transmission=mix[2],
                         coat_weight=(wa * a.coat_weight + wb * b.coat_weight) / weight,
                         coat_roughness=coated.coat_roughness, coat_ior=coated.coat_ior,
+                        coat_tint=coated.coat_tint,
                         transmission_ior=_mixed_ior(a, b),
                         roughness=(wa * a.roughness + wb * b.roughness) / weight,
                         metallic=(wa * a.metallic + wb * b.metallic) / weight,

@@ -145,8 +145,8 @@ void main() {
     out_lobe_a = out_lobe_b = out_lobe_c = vec4(0.0);
     if (material.tint.w > 0.0) {
         albedo *= principled_layers(albedo, material.specular, material.tint, material.coat,
-                                    dot(shading, to_camera), gloss, out_lobe_a, out_lobe_b,
-                                    out_lobe_c);
+                                    material.coat_tint, dot(shading, to_camera), gloss,
+                                    out_lobe_a, out_lobe_b, out_lobe_c);
         out_lobe_c.w = gloss.r;
     }
 #endif

@@ -1,7 +1,8 @@
 // The light-sample table (a RGBA32F texture, 5 texels per sample) and the shadow-map lookup.
-// With VPL_GLOSSY the table has 9 texels per sample: texel 4's w flags a VPL at a glossy
-// surface, whose texels 5-8 are its GGX lobe scaled by the incident flux (principled_lib's
-// lobe_a/b/c) and the direction its light came from (transport/vpl.py's VPLs.glossy).
+// With VPL_GLOSSY the table has 10 texels per sample: texel 4's w flags a VPL at a glossy
+// surface, whose texels 5-9 are its GGX lobe scaled by the incident flux (principled_lib's
+// lobe_a/b/c), the direction its light came from with its clear coat's eta, and the coat's
+// weight times the flux with its alpha (transport/vpl.py's VPLs.glossy).
 // A negative texel 4 w, -(k + 1), marks a sample of area light k of the AREA_SHAPES table.
 // Texel 4's z is the spread's normalisation where texel 4's y (its tan) is positive, else the
 // radius of the sample's light's Soft Falloff (transport/lights.py soft_falloff_radius).
@@ -35,6 +36,8 @@ struct LightSample {
     vec4 lobe_b;        // flux x B, eta
     vec4 lobe_c;        // flux x C
     vec3 towards_light; // where the VPL's light came from
+    float coat_eta;     // its clear coat's IOR
+    vec4 coat;          // flux x the coat's weight, its alpha (0: no coat)
 #endif
 };
 
@@ -47,16 +50,18 @@ LightSample light_sample(int index) {
     vec4 t3 = texelFetch(u_light_table, ivec2(3, index), 0);
     vec4 t4 = texelFetch(u_light_table, ivec2(4, index), 0);
 #ifdef VPL_GLOSSY
-    vec4 a = vec4(0.0), b = vec4(0.0), c = vec4(0.0), d = vec4(0.0);
+    vec4 a = vec4(0.0), b = vec4(0.0), c = vec4(0.0), d = vec4(0.0), e = vec4(0.0);
     if (t4.w > 0.0) {
         a = texelFetch(u_light_table, ivec2(5, index), 0);
         b = texelFetch(u_light_table, ivec2(6, index), 0);
         c = texelFetch(u_light_table, ivec2(7, index), 0);
         d = texelFetch(u_light_table, ivec2(8, index), 0);
+        e = texelFetch(u_light_table, ivec2(9, index), 0);
     }
     return LightSample(t0.xyz, int(t0.w) & 3, t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
                        t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1,
-                       t4.y > 0.0 ? 0.0 : t4.z, (int(t0.w) >> 2) - 1, a, b, c, d.xyz);
+                       t4.y > 0.0 ? 0.0 : t4.z, (int(t0.w) >> 2) - 1, a, b, c, d.xyz, d.w,
+                       e);
 #else
     return LightSample(t0.xyz, int(t0.w) & 3, t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
                        t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1,
@@ -192,8 +197,14 @@ vec3 emitted_intensity(LightSample s, vec3 from_light) {
 #ifdef VPL_GLOSSY
     vec3 glossy = vec3(0.0);
     if (s.lobe_a.w > 0.0) {
-        glossy = glossy_brdf(s.lobe_a, s.lobe_b, s.lobe_c, s.axis, from_light, s.towards_light)
-                 * max(dot(from_light, s.axis), 0.0);
+        glossy = glossy_brdf(s.lobe_a, s.lobe_b, s.lobe_c, s.axis, from_light, s.towards_light);
+        if (s.coat.w > 0.0) {
+            float f0 = f0_of(s.coat_eta);
+            glossy += glossy_brdf(vec4(s.coat.rgb * f0, s.coat.w),
+                                  vec4(s.coat.rgb * (1.0 - f0), s.coat_eta), vec4(0.0), s.axis,
+                                  from_light, s.towards_light);
+        }
+        glossy *= max(dot(from_light, s.axis), 0.0);
     }
     return s.intensity * falloff * spot_mask(s, from_light) + glossy;
 #else

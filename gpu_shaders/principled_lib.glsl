@@ -60,11 +60,12 @@ float dielectric_albedo(float rough, float eta, float mu) {
 
 // Layers of a pixel seen at cosine mu: the diffuse weight (returned), the glossy albedo
 // (Cycles' GlossCol, the coat's included) and the lobe texels, all below the clear coat
-// dimmed by (1 - what it reflects). spec = (roughness, metallic, eta, s_avg), tint = (F0 x
-// tint, flag), coat = (weight, roughness, eta, 0) from the material table; the coat's own
-// lobe is coat_lobe's.
-float principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, float mu, out vec3 gloss,
-                        out vec4 lobe_a, out vec4 lobe_b, out vec4 lobe_c) {
+// dimmed by (1 - what it reflects) and its tint (to the power 1 / cos of the view refracted
+// into it, mixed in by its weight, as Cycles). spec = (roughness, metallic, eta, s_avg),
+// tint = (F0 x tint, flag), coat = (weight, roughness, eta, 0), coat_tint = (rgb, 0) from the
+// material table; the coat's own lobe is coat_lobe's.
+vec3 principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, vec4 coat_tint, float mu,
+                       out vec3 gloss, out vec4 lobe_a, out vec4 lobe_b, out vec4 lobe_c) {
     float rough = spec.x, metallic = spec.y, eta = spec.z;
     mu = clamp(mu, 1e-3, 1.0);
     float e = max(table_2d(ROW_E, rough, mu, E_SIZE), 1e-4);
@@ -94,19 +95,21 @@ float principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, float mu, ou
         a += k_m * f0;
         c = k_m * (1.0 - f0);
     }
+    vec3 below = vec3(1.0);
+    float reflected = 0.0;
     if (coat.x > 0.0) {
-        float reflected = coat.x * dielectric_albedo(coat.y, coat.z, mu);
-        float under = clamp(1.0 - reflected, 0.0, 1.0);
-        diffuse *= under;
-        a *= under;
-        b *= under;
-        c *= under;
-        gloss = gloss * under + reflected;
+        reflected = coat.x * dielectric_albedo(coat.y, coat.z, mu);
+        below = vec3(clamp(1.0 - reflected, 0.0, 1.0));
+        if (coat_tint.rgb != vec3(1.0)) {
+            float cos_refracted = sqrt(max(1.0 - (1.0 - mu * mu) / (coat.z * coat.z), 1e-12));
+            below *= 1.0 + coat.x * (pow(coat_tint.rgb, vec3(1.0 / cos_refracted)) - 1.0);
+        }
     }
-    lobe_a = vec4(a, rough * rough);
-    lobe_b = vec4(b, eta);
-    lobe_c = vec4(c, 0.0);
-    return diffuse;
+    lobe_a = vec4(a * below, rough * rough);
+    lobe_b = vec4(b * below, eta);
+    lobe_c = vec4(c * below, 0.0);
+    gloss = gloss * below + reflected;
+    return diffuse * below;
 }
 
 // A clear coat's lobe in glossy_brdf's texels (F = weight x the real dielectric Fresnel):

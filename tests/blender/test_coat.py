@@ -66,13 +66,18 @@ def coated_floor(bpy, level: float):
     return scene
 
 
-@pytest.mark.parametrize("level", [0.5, 0.0])
-def test_coated_floor_in_direct_light(blender, tmp_path, without_coat, level):
+@pytest.mark.parametrize("level, tint", [(0.5, None), (0.0, None), (0.5, (0.9, 0.6, 0.2))])
+def test_coated_floor_in_direct_light(blender, tmp_path, without_coat, level, tint):
+    """Also a tinted coat (an amber varnish), whose tint colours the layers below."""
     scene = coated_floor(blender, level)
+    if tint is not None:
+        bsdf = blender.data.materials["Floor"].node_tree.nodes["Principled BSDF"]
+        bsdf.inputs["Coat Tint"].default_value = (*tint, 1.0)
     configure_cycles(scene, 256, bounces=0)
     settings = scene.vpl_gi
     settings.bounces, settings.antialiasing, settings.light_samples = 0, 2, 64
-    compare(scene, tmp_path, without_coat, (0.01, 0.02, 0.04), f"coated floor, level {level}")
+    compare(scene, tmp_path, without_coat, (0.01, 0.02, 0.04),
+            f"coated floor, level {level}, tint {tint}")
 
 
 def test_coated_floor_with_bounces(blender, tmp_path, without_coat):
@@ -111,8 +116,8 @@ def test_coated_metal_sphere(blender, tmp_path, without_coat):
 
 
 def test_what_of_a_coat_is_not_rendered_is_one_warning(blender):
-    """A coat's weight, roughness or IOR from other nodes leaves the coat out; its tint and
-    its own normal are left out of a coat that is rendered; each a warning naming them."""
+    """A coat's weight, roughness or IOR from other nodes leaves the coat out; a linked tint
+    and its own normal are left out of a coat that is rendered; each a warning naming them."""
     blender.ops.wm.read_factory_settings(use_empty=True)
     material = shader_material("Car", "ShaderNodeBsdfPrincipled")
     coat(material, weight=0.7, roughness=0.1, ior=1.4)
@@ -123,11 +128,17 @@ def test_what_of_a_coat_is_not_rendered_is_one_warning(blender):
         == pytest.approx((0.7, 0.1, 1.4))
     assert not warnings
     bsdf.inputs["Coat Tint"].default_value = (0.8, 0.2, 0.2, 1.0)
-    material.node_tree.links.new(material.node_tree.nodes.new("ShaderNodeNormalMap").outputs[0],
-                                 bsdf.inputs["Coat Normal"])
-    assert export_material(material, warnings).coat_weight == pytest.approx(0.7)
-    assert warnings == ["material 'Car': Coat Tint is not rendered; Coat Normal is not "
-                        "rendered (the coat follows the surface's normal)"]
+    assert export_material(material, warnings).coat_tint == pytest.approx((0.8, 0.2, 0.2))
+    assert not warnings
+    tree = material.node_tree
+    colour = tree.nodes.new("ShaderNodeRGB")  # its label differs between Blender versions
+    tree.links.new(colour.outputs[0], bsdf.inputs["Coat Tint"])
+    tree.links.new(tree.nodes.new("ShaderNodeNormalMap").outputs[0], bsdf.inputs["Coat Normal"])
+    exported = export_material(material, warnings)
+    assert exported.coat_weight == pytest.approx(0.7) and exported.coat_tint == (1.0, 1.0, 1.0)
+    assert warnings == [f"material 'Car': Coat Tint is not rendered (linked to "
+                        f"'{colour.bl_label}'); Coat Normal is not rendered (the coat follows "
+                        f"the surface's normal)"]
     warnings.clear()
     material.node_tree.links.new(material.node_tree.nodes.new("ShaderNodeMath").outputs[0],
                                  bsdf.inputs["Coat Weight"])

@@ -239,24 +239,27 @@ def test_imperfect_shadow_maps_beyond_the_point_sets(renderer):
 
 def test_glossy_vpls_widen_the_light_table_only_when_present():
     """Diffuse-only VPLs keep the 5-texel table (the shaders' Lambert path); glossy ones get
-    texels 5-8 and a flag, kept through subsets, scaling and concatenation."""
+    texels 5-9 and a flag, kept through subsets, scaling and concatenation (which scales the
+    flux texels, not the directions, alphas and IORs)."""
     from addon.core.transport.vpl import VPLs
     n = 3
     diffuse = VPLs(np.zeros((n, 3)), np.tile([0.0, 0.0, 1.0], (n, 1)), np.ones((n, 3)),
                    np.ones(n, int), np.arange(n))
     assert diffuse.as_light_samples(8).table(np.zeros(n), np.ones(n), np.ones(n)).shape == \
         (n, 5, 4)
-    lobe = np.zeros((n, 4, 4))
+    lobe = np.zeros((n, 5, 4))
     lobe[1, 0] = [0.1, 0.2, 0.3, 0.25]
-    lobe[1, 3, :3] = [0.0, 0.0, 1.0]
+    lobe[1, 3] = [0.0, 0.0, 1.0, 1.5]
+    lobe[1, 4] = [0.5, 0.5, 0.5, 0.04]
     glossy = VPLs(diffuse.position, diffuse.normal, np.zeros((n, 3)), diffuse.generation,
                   diffuse.rank, glossy=lobe)
     table = glossy.as_light_samples(8).table(np.zeros(n), np.ones(n), np.ones(n))
-    assert table.shape == (n, 9, 4)
+    assert table.shape == (n, 10, 4)
     assert list(table[:, 4, 3]) == [0, 1, 0] and np.allclose(table[1, 5:], lobe[1])
     both = VPLs.concatenate([diffuse, glossy.scaled(slice(None), 2.0)])
-    assert both.glossy.shape == (2 * n, 4, 4) and not both.glossy[:n].any()
+    assert both.glossy.shape == (2 * n, 5, 4) and not both.glossy[:n].any()
     assert np.allclose(both.glossy[n + 1, 0], [0.2, 0.4, 0.6, 0.25])
-    assert np.allclose(both.glossy[n + 1, 3, :3], [0.0, 0.0, 1.0])
+    assert np.allclose(both.glossy[n + 1, 3], [0.0, 0.0, 1.0, 1.5])
+    assert np.allclose(both.glossy[n + 1, 4], [1.0, 1.0, 1.0, 0.04])
     kept = both.as_light_samples(8).subset(np.array([0, n + 1]))
-    assert kept.glossy.shape == (2, 4, 4) and kept.glossy[1, 0, 3] == 0.25
+    assert kept.glossy.shape == (2, 5, 4) and kept.glossy[1, 0, 3] == 0.25

@@ -60,7 +60,7 @@ def test_white_metal_reflects_everything_and_default_dielectric_conserves_energy
     default = principled.specular_row(0.5, 0.0, 1.5, 0.5, (1, 1, 1))
     diffuse, gloss = principled.layer_weights(np.ones((12, 3)),
                                               *principled.specular_parameters(default), mu)
-    total = diffuse[:, None] + gloss
+    total = diffuse + gloss
     assert (total <= 1 + 1e-6).all() and (gloss > 0.03).all()
 
 
@@ -108,16 +108,24 @@ def glossy_brdf(texels: np.ndarray, normal: np.ndarray, view: np.ndarray,
                                                            * cos_l))[:, None], 0.0)
 
 
-@pytest.mark.parametrize("rough, metallic, mu", [(0.5, 0.0, 0.8), (0.3, 0.0, 0.4),
-                                                 (0.4, 1.0, 0.6), (0.7, 0.5, 0.25)])
-def test_vpl_glossy_emission_carries_the_glossy_albedo(rough, metallic, mu):
-    """A VPL's glossy emission (lobe_texels at the incoming cosine, reflected towards every
-    outgoing direction: f_glossy cos) integrates to the glossy albedo its path continuation
-    carries (layer_weights' GlossCol at the same cosine), so light reflected glossily at a
-    VPL is counted once, with the right power."""
+@pytest.mark.parametrize("rough, metallic, mu, coat", [
+    (0.5, 0.0, 0.8, 0.0), (0.3, 0.0, 0.4, 0.0), (0.4, 1.0, 0.6, 0.0), (0.7, 0.5, 0.25, 0.0),
+    (0.5, 0.0, 0.8, 1.0), (0.4, 1.0, 0.3, 0.6)])
+def test_vpl_glossy_emission_carries_the_glossy_albedo(rough, metallic, mu, coat):
+    """A VPL's glossy emission (lobe_texels at the incoming cosine, and a clear coat's lobe as
+    lights_lib.glsl adds it, reflected towards every outgoing direction: f_glossy cos)
+    integrates to the glossy albedo its path continuation carries (layer_weights' GlossCol at
+    the same cosine, the coat's included), so light reflected glossily at a VPL is counted
+    once, with the right power."""
     base = np.array([[0.9, 0.6, 0.3]])
-    row = principled.specular_row(rough, metallic, 1.5, 0.5, (1, 1, 1))
+    row = principled.specular_row(rough, metallic, 1.5, 0.5, (1, 1, 1),
+                                  principled.Coat(coat, 0.3, 1.5, (0.9, 0.7, 0.5)))
     texels = principled.lobe_texels(base, row, np.array([mu]))[0]
+    if coat:
+        f0 = float(principled.f0_from_ior(1.5))
+        coat_texels = np.zeros((3, 4))
+        coat_texels[0] = coat * f0, coat * f0, coat * f0, 0.3**2
+        coat_texels[1] = coat * (1 - f0), coat * (1 - f0), coat * (1 - f0), 1.5
     _, gloss = principled.layer_weights(base, *principled.specular_parameters(row),
                                         np.array([mu]))
     n = 800
@@ -127,8 +135,11 @@ def test_vpl_glossy_emission_carries_the_glossy_albedo(rough, metallic, mu):
     out = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1)
     light = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
     f = glossy_brdf(texels, np.array([0.0, 0.0, 1.0]), out, light)
+    if coat:
+        f = f + glossy_brdf(coat_texels, np.array([0.0, 0.0, 1.0]), out, light)
     emitted = (f * (np.cos(t) * np.sin(t))[:, None]).sum(0) * (np.pi / 2 / n) * (np.pi / n)
-    print(f"rough {rough} metallic {metallic} mu {mu}: emitted {emitted}, GlossCol {gloss[0]}")
+    print(f"rough {rough} metallic {metallic} mu {mu} coat {coat}: emitted {emitted}, "
+          f"GlossCol {gloss[0]}")
     assert emitted == pytest.approx(gloss[0], rel=0.01)
 
 
@@ -143,7 +154,8 @@ def test_a_clear_coat_reflects_what_it_takes_from_the_layers_below(rough, mu):
     to the albedo by which it dims every layer below (Cycles' layering), so a white material
     under a coat still reflects at most what arrives, and more at grazing angles."""
     weight, ior = 0.8, 1.5
-    row = principled.specular_row(0.5, 0.0, 1.5, 0.5, (1, 1, 1), (weight, rough, ior))
+    row = principled.specular_row(0.5, 0.0, 1.5, 0.5, (1, 1, 1),
+                                  principled.Coat(weight, rough, ior))
     f0 = float(principled.f0_from_ior(ior))
     texels = np.zeros((3, 4))
     texels[0] = weight * f0, weight * f0, weight * f0, rough * rough
@@ -166,12 +178,37 @@ def test_a_clear_coat_reflects_what_it_takes_from_the_layers_below(rough, mu):
         white, *principled.specular_parameters(uncoated), np.array([mu]))
     assert diffuse[0] == pytest.approx(bare_diffuse[0] * (1 - albedo))
     assert gloss[0] == pytest.approx(bare_gloss[0] * (1 - albedo) + albedo)
-    assert diffuse[0] + gloss[0, 0] <= 1 + 1e-6
+    assert (diffuse[0] + gloss[0] <= 1 + 1e-6).all()
+
+
+def test_a_coats_tint_colours_the_layers_below_more_at_grazing_angles():
+    """Cycles' coat tint: the layers below keep tint^(1 / cos of the view refracted into the
+    coat), mixed in by the weight; the coat's own reflection stays white."""
+    weight, tint = 0.5, (1.0, 0.5, 0.25)
+    plain = principled.specular_row(0.5, 0.0, 1.5, 0.5, (1, 1, 1),
+                                    principled.Coat(weight, 0.3, 1.5))
+    tinted = principled.specular_row(0.5, 0.0, 1.5, 0.5, (1, 1, 1),
+                                     principled.Coat(weight, 0.3, 1.5, tint))
+    mu = np.array([1.0, 0.2])
+    white = np.ones((2, 3))
+    diffuse, gloss = principled.layer_weights(white, *principled.specular_parameters(tinted), mu)
+    plain_diffuse, plain_gloss = principled.layer_weights(
+        white, *principled.specular_parameters(plain), mu)
+    cos_refracted = np.sqrt(1 - (1 - mu**2) / 1.5**2)
+    expected = 1 + weight * (np.power(np.array(tint)[None], 1 / cos_refracted[:, None]) - 1)
+    assert diffuse == pytest.approx(plain_diffuse * expected)
+    coat = principled.coat_albedo(principled.coat_of(tinted), mu)[:, None]
+    assert gloss == pytest.approx((plain_gloss - coat) * expected + coat)
+    assert expected[1, 2] < expected[0, 2] < 1  # a longer path through the coat at grazing
 
 
 def test_a_coat_alone_makes_a_diffuse_row_glossy():
     """A coat over a diffuse base (Specular IOR Level 0) still needs the glossy path."""
-    row = principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1), (1.0, 0.03, 1.5))
+    row = principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1),
+                                  principled.Coat(1.0, 0.03, 1.5))
     assert row[7] == 1 and row[2] == 1.0
-    assert principled.coat_of(row) == pytest.approx((1.0, principled.MIN_ROUGHNESS, 1.5))
-    assert not principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1), (1.0, 0.3, 1.0)).any()
+    coat = principled.coat_of(row)
+    assert coat[:3] == pytest.approx((1.0, principled.MIN_ROUGHNESS, 1.5))
+    assert coat.tint == (1.0, 1.0, 1.0)
+    assert not principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1),
+                                       principled.Coat(1.0, 0.3, 1.0)).any()

@@ -26,16 +26,16 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
-MATERIAL_COLUMNS = 32  # albedo, hidden, emission, holdout, texture attribute, shadowless,
-# specular (with the coat), cutout, diffuse-hidden, normal map: eight texels
+MATERIAL_COLUMNS = 36  # albedo, hidden, emission, holdout, texture attribute, shadowless,
+# specular (with the coat), cutout, diffuse-hidden, normal map: nine texels
 HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 HOLDOUT = 7  # 1 in the rows of holdout instances (gbuffer_frag.glsl, combined_frag.glsl)
 SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl)
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
 COAT = SPECULAR + 8  # the coat's weight in them
-CUTOUT = 24  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
-DIFFUSE_HIDDEN = 27  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
-NORMAL_MAP = 28  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
+CUTOUT = 28  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
+DIFFUSE_HIDDEN = 31  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
+NORMAL_MAP = 32  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 NO_LINKING = (0, EVERY_RECEIVER_SET, 0, EVERY_RECEIVER_SET)  # Instance.linking's defaults
@@ -51,7 +51,7 @@ class WorldGeometry:
     layer, emission layer — NO_TEXTURE for none — and the strength the emission texture is
     multiplied by) and the Principled BSDF's specular parameters (principled.specular_row),
     the cutout texel (TextureSet.cutout) and the normal map's (TextureSet.normal), laid out
-    as eight RGBA texels
+    as nine RGBA texels
     (gpu_shaders/materials_lib.glsl). Textured materials
     have their textures' average colour as albedo and emission (the per-triangle values light
     sampling and path termination use); ``uv`` (per vertex) is set only when some material has
@@ -295,12 +295,17 @@ class WorldGeometry:
             diffuse[group] *= principled.diffuse_average(params)
             rough[group] = params[0]
             coat = principled.coat_of(params)
-            if coat[0] > 0:
+            if coat.weight > 0:
                 reflected = principled.coat_albedo(coat, mu[group])
                 luminance = np.maximum(gloss[group] @ tex.LUMINANCE, 1e-30)
                 coat_share[group] = reflected / luminance
-                coat_rough[group] = coat[1]
+                coat_rough[group] = coat.roughness
         return diffuse, gloss, rough, np.clip(coat_share, 0.0, 1.0), coat_rough
+
+    def coats(self, triangle: np.ndarray) -> np.ndarray:
+        """The clear coats (weight, roughness, IOR) (m, 3) of triangles (weight 0: none)."""
+        return self.materials[self.triangle_material[triangle], COAT:COAT + 3].astype(
+            np.float64)
 
     def lobe_texels(self, triangle: np.ndarray, base: np.ndarray,
                     mu: np.ndarray) -> np.ndarray:
@@ -408,7 +413,8 @@ def _material_rows(materials: list[Material], warnings: list[str],
     rows[:, NORMAL_MAP:NORMAL_MAP + 4] = [textures.normal(m) for m in materials]
     for row, m in enumerate(materials):
         values = np.array([m.roughness, m.metallic, m.ior, m.specular_ior_level,
-                           *m.specular_tint, m.coat_weight, m.coat_roughness, m.coat_ior],
+                           *m.specular_tint, m.coat_weight, m.coat_roughness, m.coat_ior,
+                           *m.coat_tint],
                           np.float64)
         if not np.isfinite(values).all():
             message = f"material '{m.name}': specular values are not finite: rendered diffuse"
@@ -417,7 +423,7 @@ def _material_rows(materials: list[Material], warnings: list[str],
             continue
         rows[row, SPECULAR:CUTOUT] = principled.specular_row(
             m.roughness, m.metallic, m.ior, m.specular_ior_level, m.specular_tint,
-            (m.coat_weight, m.coat_roughness, m.coat_ior))
+            principled.Coat(m.coat_weight, m.coat_roughness, m.coat_ior, m.coat_tint))
         below_coat = rows[row, SPECULAR + 7] > 0 \
             and (rows[row, SPECULAR + 2] != 1.0 or rows[row, SPECULAR + 1] > 0)
         if (below_coat and m.roughness < principled.MIN_ROUGHNESS) \

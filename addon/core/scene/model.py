@@ -91,6 +91,7 @@ class Material:
     coat_weight: float = 0.0  # the Principled BSDF's clear coat over every other layer
     coat_roughness: float = 0.03
     coat_ior: float = 1.5
+    coat_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
     base_color_texture: Texture | None = None
     emission_texture: Texture | None = None
     transmission: tuple[float, float, float] = (0.0, 0.0, 0.0)

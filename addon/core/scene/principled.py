@@ -21,6 +21,7 @@ normals (Heitz 2018), as Cycles precomputes its own (``ggx_E``, ``ggx_Eavg``,
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
@@ -30,6 +31,20 @@ SAMPLES = 32  # stratified visible-normal samples per axis and table entry
 MIN_ROUGHNESS = 0.2
 """Glossy lobes narrower than this (Principled Roughness) are rendered at this roughness: light
 samples and VPLs are points, and a narrower lobe turns each into a visible speck."""
+
+
+
+class Coat(NamedTuple):
+    """A clear coat: its weight, roughness (clamped to MIN_ROUGHNESS in a specular row), IOR
+    and tint (the colour light below it keeps at normal incidence, through it and back)."""
+
+    weight: float
+    roughness: float
+    ior: float
+    tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+
+NO_COAT = Coat(0.0, MIN_ROUGHNESS, 1.5)
 
 # Rows of the table texture (width E_SIZE): E by roughness, then E_avg, then s_ior by
 # (IOR, roughness), then s for Schlick's exponent 5 by roughness.
@@ -191,7 +206,7 @@ def fresnel_cosine_average(eta: float) -> float:
 def coat_albedo(coat: Coat, mu: np.ndarray) -> np.ndarray:
     """What a clear coat reflects (n,) of light arriving at cosines ``mu`` (n,): its weight
     times its lobe's albedo, E (F0 + (1 − F0) s_ior) (0 without a coat)."""
-    weight, rough, eta = coat
+    weight, rough, eta = coat.weight, coat.roughness, coat.ior
     if weight <= 0:
         return np.zeros(len(mu))
     z = np.sqrt(np.abs((eta - 1.0) / (eta + 1.0)))
@@ -200,10 +215,23 @@ def coat_albedo(coat: Coat, mu: np.ndarray) -> np.ndarray:
     return weight * e * (f0 + (1.0 - f0) * s_ior)
 
 
+def below_coat(coat: Coat, mu: np.ndarray) -> np.ndarray:
+    """What of the layers below a clear coat is seen at cosines ``mu`` (n,), (n, 3): one minus
+    what the coat reflects, times its tint over the path through it (Cycles: the tint to the
+    power 1 / cos of the refracted view, mixed in by the weight)."""
+    below = np.repeat(np.clip(1.0 - coat_albedo(coat, mu), 0.0, 1.0)[:, None], 3, axis=1)
+    tint = np.maximum(np.asarray(coat.tint, float), 0.0)
+    if coat.weight > 0 and np.any(tint != 1.0):
+        cos_refracted = np.sqrt(np.maximum(1.0 - (1.0 - np.square(mu)) / coat.ior**2, 1e-12))
+        tinted = np.power(tint[None], 1.0 / cos_refracted[:, None])
+        below *= 1.0 + coat.weight * (tinted - 1.0)
+    return below
+
+
 def layer_weights(base: np.ndarray, rough: float, metallic: float, eta: float,
                   f0: np.ndarray, s_avg: float, coat: Coat, mu: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """The diffuse weight (n,) and the glossy albedo (Cycles' GlossCol, the coat's included)
+    """The diffuse weight (n, 3) and the glossy albedo (Cycles' GlossCol, the coat's included)
     (n, 3) of base colours (n, 3) seen at cosines ``mu`` (n,), for a material's specular
     parameters (see ``specular_row``). The shader computes the same per pixel."""
     z = np.sqrt(np.abs((eta - 1.0) / (eta + 1.0)))
@@ -219,10 +247,10 @@ def layer_weights(base: np.ndarray, rough: float, metallic: float, eta: float,
         metal_f0 = np.clip(base, 0.0, 1.0)
         darkening = _darkening(metal_f0, 1.0 / 21.0, e, e_avg)
         gloss += metallic * darkening * (metal_f0 + (1.0 - metal_f0) * s5)
-    if coat[0] > 0:
-        reflected = coat_albedo(coat, mu)
-        under = np.clip(1.0 - reflected, 0.0, 1.0)
-        diffuse, gloss = diffuse * under, gloss * under[:, None] + reflected[:, None]
+    diffuse = np.repeat(diffuse[:, None], 3, axis=1)
+    if coat.weight > 0:
+        below = below_coat(coat, mu)
+        diffuse, gloss = diffuse * below, gloss * below + coat_albedo(coat, mu)[:, None]
     return diffuse, gloss
 
 
@@ -241,15 +269,12 @@ def path_albedo(base: np.ndarray, row: np.ndarray) -> np.ndarray:
     n = len(base)
     repeated = np.repeat(base, len(mu), axis=0)
     diffuse, gloss = layer_weights(repeated, *specular_parameters(row), np.tile(mu, n))
-    per = diffuse[:, None] * repeated + gloss
+    per = diffuse * repeated + gloss
     return (per.reshape(n, len(mu), 3) * weight[None, :, None]).sum(axis=1)
 
 
-SPECULAR_COLUMNS = 12  # three RGBA texels: (roughness, metallic, eta, s_avg),
-# (tint F0 rgb, flag), (coat weight, coat roughness, coat eta, 0)
-Coat = tuple[float, float, float]
-"""A clear coat's weight, roughness (clamped) and IOR."""
-NO_COAT: Coat = (0.0, MIN_ROUGHNESS, 1.5)
+SPECULAR_COLUMNS = 16  # four RGBA texels: (roughness, metallic, eta, s_avg),
+# (tint F0 rgb, flag), (coat weight, coat roughness, coat eta, 0), (coat tint rgb, 0)
 
 
 def specular_row(roughness: float, metallic: float, ior: float, level: float,
@@ -257,13 +282,15 @@ def specular_row(roughness: float, metallic: float, ior: float, level: float,
     """A material's specular texels: clamped roughness, metallic, the Fresnel's IOR (level
     applied, as Cycles does), its remapped cosine average, F0 × tint (saturated), a flag
     (1 when there is any glossy lobe; 0 keeps the pure-Lambert path) and the clear coat's
-    weight (in [0, 1]), clamped roughness and IOR (at least 1, as Cycles takes it)."""
+    weight (in [0, 1]), clamped roughness, IOR (at least 1, as Cycles takes it) and tint (at
+    least 0)."""
     row = np.zeros(SPECULAR_COLUMNS, np.float32)
-    coat_weight, coat_rough, coat_ior = (float(x) for x in coat)
-    coat_weight, coat_ior = float(np.clip(coat_weight, 0.0, 1.0)), max(coat_ior, 1.0)
+    coat_weight = float(np.clip(coat.weight, 0.0, 1.0))
+    coat_ior = max(float(coat.ior), 1.0)
     if coat_weight > 0 and coat_ior > 1.0:
-        row[8:11] = (coat_weight, max(float(np.clip(coat_rough, 0.0, 1.0)), MIN_ROUGHNESS),
-                     coat_ior)
+        row[8:11] = (coat_weight,
+                     max(float(np.clip(coat.roughness, 0.0, 1.0)), MIN_ROUGHNESS), coat_ior)
+        row[12:15] = np.maximum(np.asarray(coat.tint, float), 0.0)
     ior = max(float(ior), 1e-5)
     level = max(float(level), 0.0)
     metallic = float(np.clip(metallic, 0.0, 1.0))
@@ -301,8 +328,9 @@ def specular_parameters(row: np.ndarray
 
 
 def coat_of(row: np.ndarray) -> Coat:
-    """The clear coat (weight, roughness, IOR) of a specular row."""
-    return float(row[8]), float(row[9]), float(row[10])
+    """The clear coat of a specular row."""
+    return Coat(float(row[8]), float(row[9]), float(row[10]),
+                (float(row[12]), float(row[13]), float(row[14])))
 
 
 def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarray,
@@ -341,12 +369,12 @@ def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarra
     return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-30)
 
 
-def diffuse_average(row: np.ndarray) -> float:
-    """The diffuse weight averaged over outgoing cosine-weighted directions (what a diffuse
-    VPL of this material emits per unit base colour): ∫ weight(μ) 2μ dμ."""
+def diffuse_average(row: np.ndarray) -> np.ndarray:
+    """The diffuse weight (3,) averaged over outgoing cosine-weighted directions (what a
+    diffuse VPL of this material emits per unit base colour): ∫ weight(μ) 2μ dμ."""
     mu, weight = COSINE_MU, COSINE_WEIGHT
     diffuse, _ = layer_weights(np.zeros((len(mu), 3)), *specular_parameters(row), mu)
-    return float((diffuse * weight).sum())
+    return (diffuse * weight[:, None]).sum(axis=0)
 
 
 LOBE_TEXELS = 3  # (A rgb, alpha), (B rgb, eta), (C rgb, 0): principled_lib.glsl's lobe_a/b/c
@@ -375,8 +403,7 @@ def lobe_texels(base: np.ndarray, row: np.ndarray, mu: np.ndarray) -> np.ndarray
         k_m = metallic * _darkening(metal_f0, 1.0 / 21.0, e, e_avg) / e
         out[:, 0, :3] += k_m * metal_f0
         out[:, 2, :3] = k_m * (1.0 - metal_f0)
-    if coat[0] > 0:
-        out[:, :, :3] *= np.clip(1.0 - coat_albedo(coat, np.clip(mu, 1e-3, 1.0)), 0.0,
-                                 1.0)[:, None, None]
+    if coat.weight > 0:
+        out[:, :, :3] *= below_coat(coat, np.clip(mu, 1e-3, 1.0))[:, None, :]
     out[:, 0, 3], out[:, 1, 3] = rough * rough, eta
     return out

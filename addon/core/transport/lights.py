@@ -45,7 +45,7 @@ class LightSamples:
     soft: np.ndarray  # (n,) bool one of many samples of a soft light (area, sphere, sun angle,
     # world, emission) rather than a light of its own
     spread: np.ndarray  # (n, 2) area-light spread: tan(half angle), normalisation; 0 = none
-    glossy: np.ndarray | None = None  # (n, 4, 4) VPLs' glossy emission (VPLs.glossy); None
+    glossy: np.ndarray | None = None  # (n, 5, 4) VPLs' glossy emission (VPLs.glossy); None
     # when no sample has one (the table then has no glossy texels)
     broad: np.ndarray | None = None  # (n,) bool a sample of light from everywhere (the
     # world), whose light varies smoothly over surfaces, diffuse and glossy; None: none is
@@ -77,11 +77,11 @@ class LightSamples:
         return np.where(self.casts_shadow, tiles, 0)
 
     def table(self, first_tile: np.ndarray, near: np.ndarray, far: np.ndarray) -> np.ndarray:
-        """The (n, 5, 4) float32 table the shaders read (see lights_lib.glsl); (n, 9, 4) with
+        """The (n, 5, 4) float32 table the shaders read (see lights_lib.glsl); (n, 10, 4) with
         glossy emission (texel 4's w flags the samples that have it)."""
         n = len(self)
         glossy = self.glossy is not None and bool(np.any(self.glossy[:, 0, 3] > 0))
-        t = np.zeros((n, 9 if glossy else 5, 4), dtype=np.float32)
+        t = np.zeros((n, 5 + self.glossy.shape[1] if glossy else 5, 4), dtype=np.float32)
         t[:, 0, :3], t[:, 0, 3] = self.position, self.kind
         if self.profile is not None:  # kind + 4 (profiled light + 1): lights_lib.glsl
             t[:, 0, 3] += 4 * (np.maximum(self.profile, -1) + 1)

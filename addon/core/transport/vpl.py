@@ -54,6 +54,8 @@ from .ray_caster import RayCaster
 from .sequences import scrambled_halton
 
 START_DIMENSIONS = 5  # emitter choice, position (2), direction (2)
+GLOSSY_TEXELS = 5  # a glossy VPL's texels (VPLs.glossy; lights_lib.glsl's VPL_GLOSSY)
+FLUX_TEXELS = [0, 1, 2, 4]  # those of them scaled by the flux
 
 
 @dataclass
@@ -67,9 +69,10 @@ class VPLs:
     rank: np.ndarray  # (n,) int, the rank of the light path that left it
     key: np.ndarray | None = None  # (n,) int64 identity kept while the VPL holds still
     # (Incremental Instant Radiosity); None when VPLs are made afresh every frame
-    glossy: np.ndarray | None = None  # (n, 4, 4) glossy emission: the lobe texels scaled by
-    # the incident flux (Φ A, alpha), (Φ B, eta), (Φ C, 0) and (towards the light, 0); all
-    # zero for a diffuse VPL; None when no VPL is glossy
+    glossy: np.ndarray | None = None  # (n, GLOSSY_TEXELS, 4) glossy emission: the lobe
+    # texels scaled by the incident flux (Φ A, alpha), (Φ B, eta), (Φ C, 0), (towards the
+    # light, the coat's eta) and the clear coat's (Φ × its weight, its alpha); all zero for
+    # a diffuse VPL; None when no VPL is glossy
 
     def __len__(self) -> int:
         return len(self.generation)
@@ -93,7 +96,7 @@ class VPLs:
         glossy = None
         if self.glossy is not None:
             glossy = self.glossy[keep].copy()
-            glossy[:, :3, :3] *= factor[:, None, None]
+            glossy[:, FLUX_TEXELS, :3] *= factor[:, None, None]
         return VPLs(self.position[keep], self.normal[keep],
                     self.intensity[keep] * factor[:, None], self.generation[keep],
                     self.rank[keep], glossy=glossy)
@@ -104,7 +107,7 @@ class VPLs:
         glossy = None
         if any(p.glossy is not None for p in parts):
             glossy = np.concatenate([p.glossy if p.glossy is not None
-                                     else np.zeros((len(p), 4, 4)) for p in parts])
+                                     else np.zeros((len(p), GLOSSY_TEXELS, 4)) for p in parts])
         return cls(*(np.concatenate([getattr(p, f) for p in parts])
                      for f in ("position", "normal", "intensity", "generation", "rank")),
                    glossy=glossy)
@@ -512,19 +515,20 @@ def _lobes(hits: SurfaceHits, geometry: WorldGeometry
            ) -> tuple[np.ndarray, np.ndarray | None, tuple[np.ndarray, ...], np.ndarray | None]:
     """What a VPL at the hits emits diffusely (reflectance (m, 3)), the glossy albedo (m, 3)
     of the paths' glossy continuation and its lobes (roughness (m,), the coat's share of it
-    (m,) and the coat's roughness (m,)), and the VPLs' glossy emission (VPLs.glossy,
-    (m, 4, 4); a coat's own reflection is not in it) (both None where no material is glossy
-    or the incoming direction or base colour is not known: the path albedo is then all
-    diffuse)."""
+    (m,) and the coat's roughness (m,)), and the VPLs' glossy emission (VPLs.glossy, the
+    coats' included) (both None where no material is glossy or the incoming direction or base
+    colour is not known: the path albedo is then all diffuse)."""
     if hits.incoming is None or hits.triangle is None or hits.base is None \
             or not geometry.has_specular:
         return hits.albedo, None, (np.zeros(len(hits.rank)),) * 3, None
     mu = np.clip(-(hits.incoming * hits.normal).sum(axis=1), 0.0, 1.0)
     diffuse, gloss, *lobes = geometry.reflectance_split(hits.triangle, hits.base, mu)
-    emission = np.zeros((len(mu), 4, 4))
+    emission = np.zeros((len(mu), GLOSSY_TEXELS, 4))
     emission[:, :3] = geometry.lobe_texels(hits.triangle, hits.base, mu)
-    emission[:, :3, :3] *= hits.flux[:, None, :]
     emission[:, 3, :3] = -hits.incoming
+    weight, rough, eta = geometry.coats(hits.triangle).T
+    emission[:, 3, 3], emission[:, 4, :3], emission[:, 4, 3] = eta, weight[:, None], rough**2
+    emission[:, FLUX_TEXELS, :3] *= hits.flux[:, None, :]
     emission[emission[:, 0, 3] <= 0] = 0.0
     return diffuse, gloss, tuple(lobes), emission
 
