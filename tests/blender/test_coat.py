@@ -6,15 +6,12 @@ the bounds the real one passes."""
 
 from __future__ import annotations
 
-import math
-
-import numpy as np
 import pytest
 
 from addon.export import export_material
-from tests.blender.rendering import add_camera, configure_cycles, render_linear, shader_material
-from tests.blender.test_cycles_direct import errors
-from tests.blender.test_cycles_principled import SIZE, floor_scene, principled_material
+from tests.blender.rendering import configure_cycles, shader_material
+from tests.blender.test_cycles_principled import compare as compare_with_cycles
+from tests.blender.test_cycles_principled import floor_scene, principled_material, sphere_scene
 
 
 @pytest.fixture
@@ -37,23 +34,8 @@ def coat(material, weight: float = 1.0, roughness: float = 0.25, ior: float = 1.
 
 
 def compare(scene, tmp_path, without_coat, bounds, label: str) -> None:
-    """Render with both engines, check the bounds, and check that leaving the coat out breaks
-    at least one of them."""
-    reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
-    ours = render_linear(scene, "VPL_GI", tmp_path / "vpl_gi.exr")
-    assert np.isfinite(ours).all()
-    measured = errors(ours, reference)
-    without_coat()
-    uncoated = errors(render_linear(scene, "VPL_GI", tmp_path / "uncoated.exr"), reference)
-    print(f"{label}: energy {measured[0]:+.4f} interior relRMSE {measured[1]:.4f} overall "
-          f"relRMSE {measured[2]:.4f}; without the coat: energy {uncoated[0]:+.4f} "
-          f"interior {uncoated[1]:.4f} overall {uncoated[2]:.4f}")
-    energy_bound, interior_bound, overall_bound = bounds
-    assert abs(measured[0]) < energy_bound
-    assert measured[1] < interior_bound
-    assert measured[2] < overall_bound
-    assert abs(uncoated[0]) >= energy_bound or uncoated[1] >= interior_bound \
-        or uncoated[2] >= overall_bound
+    """test_cycles_principled's comparison, leaving the coat out."""
+    compare_with_cycles(scene, tmp_path, without_coat, bounds, label, "the coat")
 
 
 def coated_floor(bpy, level: float):
@@ -96,22 +78,11 @@ def test_coated_floor_with_bounces(blender, tmp_path, without_coat):
 
 def test_coated_metal_sphere(blender, tmp_path, without_coat):
     """A rough gold sphere under a clear coat, a point light and a black world."""
-    blender.ops.wm.read_factory_settings(use_empty=True)
-    scene = blender.context.scene
-    blender.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=64, ring_count=32)
-    blender.ops.object.shade_smooth()
-    metal = principled_material("Metal", (0.9, 0.6, 0.3), 0.6, metallic=1.0)
-    coat(metal, weight=0.8, roughness=0.2, ior=1.6)
-    blender.context.object.data.materials.append(metal)
-    lamp = blender.data.lights.new("Point", "POINT")
-    lamp.energy, lamp.shadow_soft_size = 500.0, 0.0
-    light = blender.data.objects.new("Point", lamp)
-    light.location = (2.0, -3.0, 3.0)
-    scene.collection.objects.link(light)
-    add_camera(scene, SIZE, (0.0, -4.0, 0.0), (math.pi / 2, 0.0, 0.0))
-    configure_cycles(scene, 256, bounces=0)
-    settings = scene.vpl_gi
-    settings.bounces, settings.antialiasing, settings.light_samples = 0, 4, 64
+    def coated_metal():
+        metal = principled_material("Metal", (0.9, 0.6, 0.3), 0.6, metallic=1.0)
+        coat(metal, weight=0.8, roughness=0.2, ior=1.6)
+        return metal
+    scene = sphere_scene(blender, coated_metal)
     compare(scene, tmp_path, without_coat, (0.01, 0.03, 0.03), "coated metal sphere")
 
 

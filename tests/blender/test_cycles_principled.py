@@ -15,6 +15,7 @@ docs/measurements.md (the command there prints them).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import bpy
 import numpy as np
@@ -65,17 +66,18 @@ def without_specular(monkeypatch):
     return remove
 
 
-def compare(scene, tmp_path, without_specular, bounds, label: str) -> None:
-    """Render with both engines, check the bounds, and check that removing the specular layer
-    breaks at least one of them."""
+def compare(scene, tmp_path, without_specular, bounds, label: str,
+            left_out: str = "the specular layer") -> None:
+    """Render with both engines, check the bounds, and check that leaving ``left_out`` out
+    (``without_specular`` does) breaks at least one of them."""
     reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")
     ours = render_linear(scene, "VPL_GI", tmp_path / "vpl_gi.exr")
     assert np.isfinite(ours).all()
     measured = errors(ours, reference)
     without_specular()
-    lambert = errors(render_linear(scene, "VPL_GI", tmp_path / "lambert.exr"), reference)
+    lambert = errors(render_linear(scene, "VPL_GI", tmp_path / "without.exr"), reference)
     print(f"{label}: energy {measured[0]:+.4f} interior relRMSE {measured[1]:.4f} overall "
-          f"relRMSE {measured[2]:.4f}; without the specular layer: energy {lambert[0]:+.4f} "
+          f"relRMSE {measured[2]:.4f}; without {left_out}: energy {lambert[0]:+.4f} "
           f"interior {lambert[1]:.4f} overall {lambert[2]:.4f}")
     energy_bound, interior_bound, overall_bound = bounds
     assert abs(measured[0]) < energy_bound
@@ -155,25 +157,33 @@ def glossy_bsdf(name: str, color: tuple[float, float, float], roughness: float
                            Roughness=roughness)
 
 
-@pytest.mark.parametrize("material", ["principled", "glossy_bsdf"])
-def test_metallic_sphere(blender, tmp_path, without_specular, material):
-    """A Principled BSDF of Metallic 1, and a Glossy BSDF (rendered as one)."""
-    blender.ops.wm.read_factory_settings(use_empty=True)
-    scene = blender.context.scene
-    blender.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=64, ring_count=32)
-    blender.ops.object.shade_smooth()
-    blender.context.object.data.materials.append(
-        principled_material("Metal", (0.9, 0.6, 0.3), 0.4, metallic=1.0)
-        if material == "principled" else glossy_bsdf("Metal", (0.9, 0.6, 0.3), 0.4))
-    lamp = blender.data.lights.new("Point", "POINT")
+def sphere_scene(bpy, material: Callable[[], bpy.types.Material]):
+    """A smooth sphere of the ``material`` it makes (in a new, empty file) under a point
+    light, a black world, direct light only (Cycles 256 samples; VPL GI antialiasing 4, 64
+    light samples)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=64, ring_count=32)
+    bpy.ops.object.shade_smooth()
+    bpy.context.object.data.materials.append(material())
+    lamp = bpy.data.lights.new("Point", "POINT")
     lamp.energy, lamp.shadow_soft_size = 500.0, 0.0
-    light = blender.data.objects.new("Point", lamp)
+    light = bpy.data.objects.new("Point", lamp)
     light.location = (2.0, -3.0, 3.0)
     scene.collection.objects.link(light)
     add_camera(scene, SIZE, (0.0, -4.0, 0.0), (math.pi / 2, 0.0, 0.0))
     configure_cycles(scene, 256, bounces=0)
     settings = scene.vpl_gi
     settings.bounces, settings.antialiasing, settings.light_samples = 0, 4, 64
+    return scene
+
+
+@pytest.mark.parametrize("material", ["principled", "glossy_bsdf"])
+def test_metallic_sphere(blender, tmp_path, without_specular, material):
+    """A Principled BSDF of Metallic 1, and a Glossy BSDF (rendered as one)."""
+    scene = sphere_scene(blender, lambda: principled_material(
+        "Metal", (0.9, 0.6, 0.3), 0.4, metallic=1.0) if material == "principled"
+        else glossy_bsdf("Metal", (0.9, 0.6, 0.3), 0.4))
     # a black world: outside the highlight the image is black, so the overall error counts
     compare(scene, tmp_path, without_specular, (0.01, 0.03, 0.03),
             f"metallic sphere, {material}")
