@@ -9,7 +9,6 @@ their sum.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -25,12 +24,10 @@ def main() -> None:
 
     import bpy
 
-    from addon import register, unregister
+    from devtools.registered import run_registered
     from tests.blender.test_coat import coated_floor
 
-    code = 1
-    register()
-    try:
+    def measure() -> None:
         scene = coated_floor(bpy, 0.5)
         scene.render.engine = "VPL_GI"
         scene.render.resolution_x, scene.render.resolution_y = 640, 360
@@ -50,11 +47,7 @@ def main() -> None:
             print(f"{'coated' if coated else 'uncoated'}: "
                   f"{', '.join(f'{t:.2f}' for t in times)} s; sum {sum(times):.1f} s")
         print(f"coated / uncoated: {sum(seconds[True]) / sum(seconds[False]):.2f}")
-        code = 0
-    finally:
-        unregister()
-        sys.stdout.flush()
-        os._exit(code)  # bpy can hang in its exit handlers
+    run_registered(measure)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ Portals change Cycles' sampling, not its converged image, so the same references
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -40,8 +39,8 @@ def main() -> None:
 
     import bpy
 
-    from addon import register, unregister
     from addon.engine import monitor
+    from devtools.registered import run_registered
     from devtools.report import (
         LADDERS,
         Options,
@@ -52,9 +51,7 @@ def main() -> None:
         render_timed,
     )
 
-    code = 1
-    register()
-    try:
+    def measure() -> None:
         scene = open_scene(BLEND, SIZE)
         options = Options(LADDERS["test"], SIZE, reference_samples=128, cache_dir=args.cache)
         refs = [image for image, *_ in render_references(
@@ -73,11 +70,7 @@ def main() -> None:
             print(f"| {'yes' if portal else 'no'} | {seconds:.1f} | "
                   f"{metrics['relative_rmse_unbiased']:.1%} | "
                   f"{metrics['mean_relative_energy']:+.1%} | {share} % |", flush=True)
-        code = 0
-    finally:
-        unregister()
-        sys.stdout.flush()
-        os._exit(code)  # bpy can hang in its exit handlers
+    run_registered(measure)
 
 
 if __name__ == "__main__":
