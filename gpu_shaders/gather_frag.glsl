@@ -193,7 +193,9 @@ void main() {
     int triangle = int(geometric_texel.w + 0.5) - 1;
     if (triangle >= 0 && lobe.a.w > 0.0) {
         vec4 coat = material_of(triangle).coat;
-        if (coat.x > 0.0) coat_lobe(coat, lobe.coat_a, lobe.coat_b);
+        if (coat.x > 0.0) {
+            coat_lobe(vec3(coat.x), coat.y * coat.y, coat.z, lobe.coat_a, lobe.coat_b);
+        }
     }
 #endif
 #endif

@@ -199,10 +199,10 @@ vec3 emitted_intensity(LightSample s, vec3 from_light) {
     if (s.lobe_a.w > 0.0) {
         glossy = glossy_brdf(s.lobe_a, s.lobe_b, s.lobe_c, s.axis, from_light, s.towards_light);
         if (s.coat.w > 0.0) {
-            float f0 = f0_of(s.coat_eta);
-            glossy += glossy_brdf(vec4(s.coat.rgb * f0, s.coat.w),
-                                  vec4(s.coat.rgb * (1.0 - f0), s.coat_eta), vec4(0.0), s.axis,
-                                  from_light, s.towards_light);
+            vec4 coat_a, coat_b;
+            coat_lobe(s.coat.rgb, s.coat.w, s.coat_eta, coat_a, coat_b);
+            glossy += glossy_brdf(coat_a, coat_b, vec4(0.0), s.axis, from_light,
+                                  s.towards_light);
         }
         glossy *= max(dot(from_light, s.axis), 0.0);
     }

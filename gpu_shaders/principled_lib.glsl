@@ -112,12 +112,13 @@ vec3 principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, vec4 coat_tin
     return diffuse * below;
 }
 
-// A clear coat's lobe in glossy_brdf's texels (F = weight x the real dielectric Fresnel):
-// lobe a and b; its c is zero.
-void coat_lobe(vec4 coat, out vec4 lobe_a, out vec4 lobe_b) {
-    float f0 = f0_of(coat.z);
-    lobe_a = vec4(vec3(coat.x * f0), coat.y * coat.y);
-    lobe_b = vec4(vec3(coat.x * (1.0 - f0)), coat.z);
+// A clear coat's lobe in glossy_brdf's texels (F = weight x the real dielectric Fresnel of
+// eta, the GGX alpha): lobe a and b; its c is zero. The weight is per channel for a VPL's
+// coat (times its flux).
+void coat_lobe(vec3 weight, float alpha, float eta, out vec4 lobe_a, out vec4 lobe_b) {
+    float f0 = f0_of(eta);
+    lobe_a = vec4(weight * f0, alpha);
+    lobe_b = vec4(weight * (1.0 - f0), eta);
 }
 
 float smith_lambda(float alpha2, float cos_n) {

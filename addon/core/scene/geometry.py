@@ -424,9 +424,9 @@ def _material_rows(materials: list[Material], warnings: list[str],
         rows[row, SPECULAR:CUTOUT] = principled.specular_row(
             m.roughness, m.metallic, m.ior, m.specular_ior_level, m.specular_tint,
             principled.Coat(m.coat_weight, m.coat_roughness, m.coat_ior, m.coat_tint))
-        below_coat = rows[row, SPECULAR + 7] > 0 \
+        base_lobe = rows[row, SPECULAR + 7] > 0 \
             and (rows[row, SPECULAR + 2] != 1.0 or rows[row, SPECULAR + 1] > 0)
-        if (below_coat and m.roughness < principled.MIN_ROUGHNESS) \
+        if (base_lobe and m.roughness < principled.MIN_ROUGHNESS) \
                 or (rows[row, COAT] > 0 and m.coat_roughness < principled.MIN_ROUGHNESS):
             clamped.add(m.name)
     return rows

@@ -33,7 +33,6 @@ MIN_ROUGHNESS = 0.2
 samples and VPLs are points, and a narrower lobe turns each into a visible speck."""
 
 
-
 class Coat(NamedTuple):
     """A clear coat: its weight, roughness (clamped to MIN_ROUGHNESS in a specular row), IOR
     and tint (the colour light below it keeps at normal incidence, through it and back)."""
@@ -215,11 +214,12 @@ def coat_albedo(coat: Coat, mu: np.ndarray) -> np.ndarray:
     return weight * e * (f0 + (1.0 - f0) * s_ior)
 
 
-def below_coat(coat: Coat, mu: np.ndarray) -> np.ndarray:
+def below_coat(coat: Coat, mu: np.ndarray, reflected: np.ndarray) -> np.ndarray:
     """What of the layers below a clear coat is seen at cosines ``mu`` (n,), (n, 3): one minus
-    what the coat reflects, times its tint over the path through it (Cycles: the tint to the
-    power 1 / cos of the refracted view, mixed in by the weight)."""
-    below = np.repeat(np.clip(1.0 - coat_albedo(coat, mu), 0.0, 1.0)[:, None], 3, axis=1)
+    what the coat reflects there (``reflected``, its ``coat_albedo``), times its tint over
+    the path through it (Cycles: the tint to the power 1 / cos of the refracted view, mixed
+    in by the weight)."""
+    below = np.repeat(np.clip(1.0 - reflected, 0.0, 1.0)[:, None], 3, axis=1)
     tint = np.maximum(np.asarray(coat.tint, float), 0.0)
     if coat.weight > 0 and np.any(tint != 1.0):
         cos_refracted = np.sqrt(np.maximum(1.0 - (1.0 - np.square(mu)) / coat.ior**2, 1e-12))
@@ -249,8 +249,9 @@ def layer_weights(base: np.ndarray, rough: float, metallic: float, eta: float,
         gloss += metallic * darkening * (metal_f0 + (1.0 - metal_f0) * s5)
     diffuse = np.repeat(diffuse[:, None], 3, axis=1)
     if coat.weight > 0:
-        below = below_coat(coat, mu)
-        diffuse, gloss = diffuse * below, gloss * below + coat_albedo(coat, mu)[:, None]
+        reflected = coat_albedo(coat, mu)
+        below = below_coat(coat, mu, reflected)
+        diffuse, gloss = diffuse * below, gloss * below + reflected[:, None]
     return diffuse, gloss
 
 
@@ -404,6 +405,7 @@ def lobe_texels(base: np.ndarray, row: np.ndarray, mu: np.ndarray) -> np.ndarray
         out[:, 0, :3] += k_m * metal_f0
         out[:, 2, :3] = k_m * (1.0 - metal_f0)
     if coat.weight > 0:
-        out[:, :, :3] *= below_coat(coat, np.clip(mu, 1e-3, 1.0))[:, None, :]
+        mu = np.clip(mu, 1e-3, 1.0)
+        out[:, :, :3] *= below_coat(coat, mu, coat_albedo(coat, mu))[:, None, :]
     out[:, 0, 3], out[:, 1, 3] = rough * rough, eta
     return out
