@@ -50,6 +50,7 @@ from .core.scene.model import (
 )
 from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
+from .export_hair import read_hair
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
 from .export_light_linking import scene_light_linking
 from .export_lights import export_light, is_portal
@@ -967,7 +968,7 @@ class _Export:
             mesh = original.data
             return ("mesh", mesh.name_full), {mesh.name, mesh.name_full, original.name}
         names = {original.name, original.name_full}
-        if obj.type == "MESH":
+        if obj.type in ("MESH", "CURVES"):
             names.add(original.data.name)
         return ("object", original.name_full), names
 
@@ -1000,6 +1001,8 @@ class _Export:
         label = f"mesh '{key[1]}'" if key[0] == "mesh" else f"object '{obj.original.name}'"
         if obj.type == "MESH":
             return _mesh_arrays(obj.data, obj.name, label, faces_expected=True)
+        if obj.type == "CURVES":
+            return read_hair(obj.data, obj.name, label)
         evaluated_mesh = obj.to_mesh()
         if evaluated_mesh is None:
             return _no_mesh(obj.name), []
@@ -1045,7 +1048,6 @@ class _Export:
 
 
 UNRENDERED = {
-    "CURVES": "hair curves are not rendered: {}",
     "POINTCLOUD": "point clouds are not rendered: {}",
     "VOLUME": "volume objects are not rendered: {}",
     "HAIR": "hair particles are not rendered, on {}",

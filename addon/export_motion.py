@@ -12,6 +12,7 @@ import numpy as np
 
 from .blender_read import positions
 from .core.scene.model import RENDERED_OBJECT_TYPES, Mesh, MotionSpan
+from .export_hair import read_hair
 
 POSITION_OFFSET = {"START": 0.0, "CENTER": -0.5, "END": -1.0}
 """Where the shutter opens, in shutters from the frame (Blender's motion blur position)."""
@@ -47,7 +48,8 @@ class SampledMotion:
     views: tuple[np.ndarray | None, np.ndarray | None]
     positions: tuple[dict[InstanceKey, np.ndarray], dict[InstanceKey, np.ndarray]] = \
         field(default_factory=lambda: ({}, {}))
-    """The vertex positions (object space) of deforming meshes at the two times."""
+    """The vertex positions (object space) of deforming meshes (and hair tubes) at the two
+    times."""
     home: dict[InstanceKey, np.ndarray] = field(default_factory=dict)
     """Where the render is moved off the frame (a pass's part of the shutter): the world
     matrices at the frame of the instances whose motion blur is off, which stay there."""
@@ -87,11 +89,11 @@ def sample_motion(engine: bpy.types.RenderEngine, depsgraph: bpy.types.Depsgraph
                     continue
                 key = instance_key(inst)
                 placed[key] = np.array(inst.matrix_world, np.float64)
-                if obj.type == "MESH" and _deforms(obj, scene, deforms):
+                if obj.type in DEFORMED_TYPES and _deforms(obj, scene, deforms):
                     if span.blur and not blurs(inst, "use_deform_motion"):
                         held = True
                     else:
-                        shaped[key] = positions(obj.data)
+                        shaped[key] = _shape(obj)
             matrices.append(placed)
             shapes.append(shaped)
             camera = depsgraph.scene_eval.camera
@@ -123,13 +125,26 @@ def _home(depsgraph: bpy.types.Depsgraph, deforms: dict[int, bool]
             continue
         if not blurs(inst, "use_motion_blur"):
             matrices[instance_key(inst)] = np.array(inst.matrix_world, np.float64)
-        elif obj.type == "MESH" and _deforms(obj, scene, deforms) \
+        elif obj.type in DEFORMED_TYPES and _deforms(obj, scene, deforms) \
                 and not blurs(inst, "use_deform_motion"):
-            shapes[instance_key(inst)] = positions(obj.data)
+            shapes[instance_key(inst)] = _shape(obj)
     camera = depsgraph.scene_eval.camera
     view = None if camera is None or _toggled(camera, "use_motion_blur") \
         else _view(camera.matrix_world)
     return matrices, shapes, view
+
+
+DEFORMED_TYPES = frozenset({"MESH", "CURVES"})
+"""Object types whose deformation blurs (their exported vertices at both times)."""
+
+
+def _shape(obj: bpy.types.Object) -> np.ndarray:
+    """The exported mesh's vertex positions (object space) of a deforming object now: a
+    mesh's vertices, or a hair object's tubes (the same count at both times unless the
+    spline's samples change with the curves' bends: then it stays still)."""
+    if obj.type == "CURVES":
+        return read_hair(obj.data, obj.name, "")[0].positions
+    return positions(obj.data)
 
 
 def blurs(instance: bpy.types.DepsgraphObjectInstance, toggle: str) -> bool:
