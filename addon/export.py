@@ -31,6 +31,7 @@ from .blender_read import (
 from .core.frame.panorama import KINDS as PANORAMA_KINDS
 from .core.frame.state import RenderError
 from .core.scene.environment import mean_radiance
+from .core.scene.hair_fibre import colour_from_absorption, melanin_absorption
 from .core.scene.model import (
     COVERAGE_INVERTED,
     DEFAULT_MATERIAL,
@@ -50,7 +51,7 @@ from .core.scene.model import (
 )
 from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
-from .export_hair import read_hair
+from .export_hair import hair_systems, read_hair, read_particle_hair
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
 from .export_light_linking import scene_light_linking
 from .export_lights import export_light, is_portal
@@ -336,9 +337,34 @@ def _emissive(name: str, base, base_texture, color, color_texture, strength: flo
 AS_DIFFUSE = {
     "BSDF_TRANSLUCENT": "(its light reflected on the lit side, not let through to the other)",
     "SUBSURFACE_SCATTERING": "of its colour (no light scattered under the surface)",
+    "BSDF_HAIR": "of its colour (no highlights along the fibres)",
 }
 """Shaders rendered as a Diffuse BSDF of their Color, with what that leaves out (a leaf's
 translucency, skin's or wax's subsurface scattering): nearer than the viewport colour."""
+
+def _principled_hair(node, name: str, warnings: list[str]) -> Material:
+    """A Principled Hair BSDF as a Diffuse BSDF of the colour a mass of its fibres shows
+    (core/scene/hair_fibre.py): Direct Coloring's colour, or the one its melanin and tint or
+    absorption coefficient give; one warning."""
+    radial = float(constant(node, "Radial Roughness", constant(node, "Roughness", 0.3)))
+    mode = getattr(node, "parametrization", "COLOR")
+    if mode == "MELANIN":
+        absorption = melanin_absorption(float(constant(node, "Melanin", 0.8)),
+                                        float(constant(node, "Melanin Redness", 1.0)),
+                                        rgb(constant(node, "Tint", (1, 1, 1))), radial)
+        colour = colour_from_absorption(absorption, radial)
+    elif mode == "ABSORPTION":
+        colour = colour_from_absorption(
+            rgb(constant(node, "Absorption Coefficient", (0.245, 0.52, 1.365))), radial)
+    else:
+        colour = tuple(float(c) for c in np.clip(rgb(constant(node, "Color", (0.8,) * 3)),
+                                                 0.0, 1.0))
+    message = (f"material '{name}': Principled Hair BSDF rendered as a Diffuse BSDF of the "
+               f"colour of its fibres (no highlights along them, no light through them)")
+    if message not in warnings:
+        warnings.append(message)
+    return Material(name, colour, roughness=1.0)
+
 
 CLEAR_SHADERS = ("BSDF_TRANSPARENT", "BSDF_GLASS", "BSDF_REFRACTION")
 """Shaders that let light straight through (Glass and Refraction: their reflection, Fresnel
@@ -512,6 +538,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          **_principled_coat(node, name, images.warnings),
                          **_principled_alpha(node, name, images),
                          **_normal_map(node, name, images))
+    if node.type == "BSDF_HAIR_PRINCIPLED":
+        return _principled_hair(node, name, images.warnings)
     if node.type == "HOLDOUT":
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, holdout=True)
     if node.type in CLEAR_SHADERS:
@@ -1037,6 +1065,25 @@ class _Export:
             top = top.parent
         return Identity(obj.name, int(obj.pass_index), top.name)
 
+    def hair(self, obj: bpy.types.Object) -> tuple[Mesh, list[Material], str]:
+        """The tubes of the object's hair particles (from this export, the cache, or read
+        now), its materials and name."""
+        original = obj.original
+        key = ("hair", original.name_full)
+        entry = self.used.get(key) or self.cache._entries.get(key)
+        if entry is None:
+            mesh, problems = read_particle_hair(obj, self.depsgraph.mode == "RENDER",
+                                                f"object '{original.name}'")
+            entry = _Entry(mesh, {original.name, original.name_full, original.data.name}, (),
+                           problems)
+            self.cache.stats["meshes_read"] += 1
+        else:
+            self.cache.stats["meshes_reused"] += 1
+        if key not in self.used:
+            self.result.warnings.extend(entry.problems)
+        self.used[key] = entry
+        return entry.mesh, self.materials_of(obj), obj.name
+
     def placed(self, inst, obj: bpy.types.Object) -> tuple[Mesh, list[Material], str]:
         """The instance's mesh and materials (with its object's bake, if any) and name."""
         mesh, materials = self.mesh(inst, obj), self.materials_of(obj)
@@ -1050,17 +1097,9 @@ class _Export:
 UNRENDERED = {
     "POINTCLOUD": "point clouds are not rendered: {}",
     "VOLUME": "volume objects are not rendered: {}",
-    "HAIR": "hair particles are not rendered, on {}",
 }
-"""What Cycles renders and VPL GI does not, by kind: Blender's object types, HAIR for a
-mesh's hair particle systems (keys of ``export_scene``'s skipped objects); each a warning
-naming them."""
-
-
-def has_particle_hair(obj: bpy.types.Object) -> bool:
-    """True if Cycles renders hair particles on the object (a Hair system drawn as Path)."""
-    return any(system.settings.type == "HAIR" and system.settings.render_type == "PATH"
-               for system in getattr(obj, "particle_systems", ()))
+"""What Cycles renders and VPL GI does not, by Blender's object type (keys of
+``export_scene``'s skipped objects); each a warning naming them."""
 
 
 def unrendered_objects(skipped: dict[str, set[str]]) -> list[str]:
@@ -1089,13 +1128,16 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     state = _Export(depsgraph, cache, result)
     linking = scene_light_linking(depsgraph)
     result.warnings.extend(linking.warnings)
+    rendering = depsgraph.mode == "RENDER"  # hair particles' steps and children differ
+    hairy: dict[bpy.types.Object, bool] = {}  # whether an object has hair particles shown
     placed: list[tuple[Mesh, list[Material], str]] = []
     skipped: dict[str, set[str]] = {}  # what VPL GI does not render (UNRENDERED): objects
-    # Per (object, data): its mesh, materials and name, or None when no ray sees it. Keyed by
+    # Per (object, data, "self" or "hair": its particle hair): its mesh, materials and name,
+    # or None when no ray sees it. Keyed by
     # the structs themselves (hashed and compared by pointer: no as_pointer() call each).
     # Each entry also says whether the mesh has triangles (instances of one without are left
     # out): one lookup per instance, scenes may hold many thousands.
-    placements: dict[tuple[bpy.types.Object, bpy.types.ID],
+    placements: dict[tuple[bpy.types.Object, bpy.types.ID, str],
                      tuple[tuple[Mesh, list[Material], str] | None, bool]] = {}
     ordinals: list[int] = []  # of the placed instances in depsgraph.object_instances
     keys: list[InstanceKey] = []  # with motion: theirs (export_motion.instance_key)
@@ -1115,30 +1157,37 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                 result.lights[-1].receivers = linking.receivers_of(obj)
                 result.lights[-1].blockers = linking.blockers_of(obj)
             continue
-        if kind not in RENDERED_OBJECT_TYPES or not inst.show_self:
+        hair = False
+        if kind == "MESH" and inst.show_particles:
+            hair = hairy.get(obj.original)
+            if hair is None:
+                hair = hairy[obj.original] = bool(hair_systems(obj, rendering))
+        if kind not in RENDERED_OBJECT_TYPES or not (inst.show_self or hair):
             if kind in UNRENDERED and inst.show_self:
                 skipped.setdefault(kind, set()).add(obj.name)
             continue
-        memo = (obj.original, obj.data)
-        entry = placements.get(memo)
-        if entry is None:
-            if has_particle_hair(obj):
-                skipped.setdefault("HAIR", set()).add(obj.name)
-            known = (*state.placed(inst, obj), bool(getattr(obj, "visible_camera", True)),
-                     state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
-                     bool(getattr(obj, "visible_diffuse", True)), state.identity(obj),
-                     linking.receiver_set(obj), linking.receivers_of(obj),
-                     bool(getattr(obj, "is_shadow_catcher", False)),
-                     linking.blocker_set(obj), linking.blockers_of(obj)) \
-                if state.include(obj) else None
-            entry = placements[memo] = (known, bool(known and known[0].triangle_count))
-        elif entry[0]:
-            reused += 1
-        if entry[1]:
-            ordinals.append(count - 1)
-            placed.append(entry[0])
-            if motion is not None:
-                keys.append(instance_key(inst))
+        for part, shown in (("self", inst.show_self), ("hair", hair)):
+            if not shown:
+                continue
+            memo = (obj.original, obj.data, part)
+            entry = placements.get(memo)
+            if entry is None:
+                made = state.placed(inst, obj) if part == "self" else state.hair(obj)
+                known = (*made, bool(getattr(obj, "visible_camera", True)),
+                         state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
+                         bool(getattr(obj, "visible_diffuse", True)), state.identity(obj),
+                         linking.receiver_set(obj), linking.receivers_of(obj),
+                         bool(getattr(obj, "is_shadow_catcher", False)),
+                         linking.blocker_set(obj), linking.blockers_of(obj)) \
+                    if state.include(obj) else None
+                entry = placements[memo] = (known, bool(known and known[0].triangle_count))
+            elif entry[0]:
+                reused += 1
+            if entry[1]:
+                ordinals.append(count - 1)
+                placed.append(entry[0])
+                if motion is not None:
+                    keys.append(instance_key(inst))
     cache.stats["meshes_reused"] += reused
     # every instance's world matrix in one foreach_get over the same (deterministic) instance
     # iteration, as RNA stores them (float32, column by column)

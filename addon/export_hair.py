@@ -1,5 +1,5 @@
-"""Hair curves objects (Blender's Curves: hair, fur, grass, Geometry Nodes curves) read as
-the tubes Cycles renders (core/scene/hair.py)."""
+"""Hair read as the tubes Cycles renders (core/scene/hair.py): Curves objects (hair, fur,
+grass, Geometry Nodes curves) and meshes' hair particle systems."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 
 from .blender_read import int_attribute, read_array
-from .core.scene.hair import hair_mesh
+from .core.scene.hair import hair_mesh, particle_radii
 from .core.scene.model import Mesh
 
 DEFAULT_RADIUS = 0.005
@@ -32,3 +32,64 @@ def read_hair(curves: bpy.types.Curves, name: str, label: str) -> tuple[Mesh, li
     problems = [f"{label}: {dropped} of {curve_count} curves have NaN/Inf points or radii "
                 f"and were left out"] if dropped else []
     return mesh, problems
+
+
+def hair_systems(obj: bpy.types.Object, rendering: bool) -> list[bpy.types.ParticleSystem]:
+    """The hair particle systems Cycles renders on an evaluated object: Hair drawn as Path,
+    their modifier on for renders (``rendering``) or the viewport."""
+    shown = "show_render" if rendering else "show_viewport"
+    return [modifier.particle_system for modifier in getattr(obj, "modifiers", ())
+            if modifier.type == "PARTICLE_SYSTEM" and getattr(modifier, shown)
+            and modifier.particle_system.settings.type == "HAIR"
+            and modifier.particle_system.settings.render_type == "PATH"]
+
+
+def read_particle_hair(obj: bpy.types.Object, rendering: bool, label: str
+                       ) -> tuple[Mesh, list[str]]:
+    """The tubes of an evaluated object's hair particles in its object space, as Cycles reads
+    them: children where it has them (and parents only without), each strand's keys from
+    the particle system's paths (render or display steps), radii from the particle settings'
+    root, tip, shape and scale, material from its slot; and what was wrong."""
+    world = np.array(obj.matrix_world, np.float64)
+    if not np.isfinite(world).all() or abs(np.linalg.det(world[:3, :3])) < 1e-30:
+        return _no_hair(obj.name), []
+    to_object = np.linalg.inv(world)
+    slots = max(len(obj.material_slots), 1)
+    strands, radii, materials = [], [], []
+    for system in hair_systems(obj, rendering):
+        settings = system.settings
+        parents, children = len(system.particles), len(system.child_particles)
+        if not rendering:
+            children = int(children * settings.display_percentage / 100)
+        first, count = (parents, children) if settings.child_type != "NONE" and children \
+            else (0, parents + children)
+        keys = 2 ** (settings.render_step if rendering else settings.display_step) + 1
+        if settings.kink == "SPIRAL":
+            keys += settings.kink_extra_steps
+        if count == 0:
+            continue
+        points = np.array([system.co_hair(obj, particle_no=first + strand, step=key)
+                           for strand in range(count) for key in range(keys)],
+                          np.float64).reshape(count, keys, 3)
+        points = points @ to_object[:3, :3].T + to_object[:3, 3]
+        scale = 0.5 * settings.radius_scale
+        strands.append(points)
+        radii.append(particle_radii(points, scale * settings.root_radius,
+                                    scale * settings.tip_radius, settings.shape,
+                                    settings.use_close_tip))
+        materials.append(np.full(count, min(max(settings.material - 1, 0), slots - 1)))
+    if not strands:
+        return _no_hair(obj.name), []
+    lengths = np.concatenate([np.full(len(s), s.shape[1]) for s in strands])
+    mesh, dropped = hair_mesh(obj.name, np.concatenate([s.reshape(-1, 3) for s in strands]),
+                              np.concatenate([r.ravel() for r in radii]),
+                              np.concatenate([[0], np.cumsum(lengths)]),
+                              np.concatenate(materials).astype(np.int32))
+    problems = [f"{label}: {dropped} hair strands have NaN/Inf points and were left out"] \
+        if dropped else []
+    return mesh, problems
+
+
+def _no_hair(name: str) -> Mesh:
+    return hair_mesh(name, np.zeros((0, 3)), np.zeros(0), np.zeros(1, np.int64),
+                     np.zeros(0, np.int32))[0]

@@ -9,7 +9,14 @@ import math
 import numpy as np
 import pytest
 
-from addon.core.scene.hair import CIRCUMRADIUS, TUBE_SIDES, hair_mesh, spline_samples
+from addon.core.scene.hair import (
+    DETAILED_SEGMENTS,
+    THIN_SIDES,
+    TUBE_SIDES,
+    circumradius,
+    hair_mesh,
+    spline_samples,
+)
 
 
 def _areas(mesh) -> np.ndarray:
@@ -24,11 +31,11 @@ def _one(points: np.ndarray, radius: float = 0.01):
 
 
 def test_a_straight_strand_is_a_tube_of_the_round_tubes_area_with_outward_normals():
-    mesh = _one(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 2.0]]))
-    assert mesh.triangle_count == 2 * 2 * TUBE_SIDES  # straight: no extra samples
-    assert _areas(mesh).sum() == pytest.approx(2 * math.pi * 0.01 * 2.0, rel=1e-5)
+    mesh = _one(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.3], [0.0, 0.0, 0.6]]))
+    assert mesh.triangle_count == 2 * 2 * TUBE_SIDES  # straight: a piece between points
+    assert _areas(mesh).sum() == pytest.approx(2 * math.pi * 0.01 * 0.6, rel=1e-5)
     assert np.linalg.norm(mesh.positions[:, :2], axis=1) == pytest.approx(
-        np.full(len(mesh.positions), CIRCUMRADIUS * 0.01), rel=1e-5)
+        np.full(len(mesh.positions), circumradius(TUBE_SIDES) * 0.01), rel=1e-5)
     corners = mesh.corner_positions().reshape(-1, 3, 3)
     facing = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     outward = mesh.corner_normals().reshape(-1, 3, 3).mean(axis=1)
@@ -83,3 +90,15 @@ def test_material_slots_bad_curves_and_tips():
     empty, dropped = hair_mesh("h", np.zeros((0, 3)), np.zeros(0), np.array([0]),
                                np.zeros(0, np.int32))
     assert empty.triangle_count == 0 and dropped == 0
+
+
+def test_fur_of_many_strands_gets_three_sided_tubes():
+    count = DETAILED_SEGMENTS // 2 + 1  # two pieces each: just over the detailed limit
+    roots = np.stack([np.arange(count, dtype=float), np.zeros(count), np.zeros(count)], 1)
+    bend = np.array([[0.0, 0.0, 0.0], [0.0, 0.03, 0.3], [0.0, 0.0, 0.6]])
+    points = (roots[:, None] + bend[None]).reshape(-1, 3)
+    mesh, _ = hair_mesh("fur", points, np.full(len(points), 0.01),
+                        np.arange(0, len(points) + 1, 3), np.zeros(count, np.int32))
+    assert mesh.triangle_count == count * 2 * 2 * THIN_SIDES
+    assert _areas(mesh).sum() == pytest.approx(
+        _areas(_one(bend)).sum() * count, rel=0.02)  # the same area as six sides

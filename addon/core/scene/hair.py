@@ -1,9 +1,15 @@
 """Hair curves as triangles: Cycles renders a curve ("3D Curves") as a round tube of the
 curve's radius along a uniform Catmull-Rom spline through its points (the end points
 repeated), radius interpolated along with the position. VPL GI renders the same spline as a
-tube of ``TUBE_SIDES`` flat sides with the round tube's normals at its edges, whose perimeter
-is the round tube's: the same surface area and, averaged over directions, the same projected
-width (Cauchy's formula), so a head of hair blocks and reflects as much light as Cycles'."""
+tube of flat sides with the round tube's normals at its edges, whose perimeter is the round
+tube's: the same surface area and, averaged over directions, the same projected width
+(Cauchy's formula), so a head of hair blocks and reflects as much light as Cycles'.
+
+Six sides where an object's hair has up to ``DETAILED_SEGMENTS`` spline pieces, three
+beyond (fur of a hundred thousand strands: each strand a pixel or less wide, where the
+sides do not show, and half the triangles). Every point is kept: the ray tracer's boxes
+around long thin triangles overlap so much that merging a strand's straight runs slows rays
+down more than the fewer triangles save (docs/measurements.md, *Hair against Cycles*)."""
 
 from __future__ import annotations
 
@@ -15,12 +21,20 @@ from .model import Mesh
 from .vectors import unit
 
 TUBE_SIDES = 6
-CIRCUMRADIUS = math.pi / (TUBE_SIDES * math.sin(math.pi / TUBE_SIDES))
-"""A tube's corner distance from the curve per unit of curve radius: its perimeter is then
-2π × radius."""
+THIN_SIDES = 3
+DETAILED_SEGMENTS = 65536
+"""The most spline pieces an object's hair is drawn with TUBE_SIDES sides (THIN_SIDES
+beyond)."""
+
 MAX_TURN = math.pi / 8
 """A spline segment is cut into pieces that each turn the curve by at most this (radians)."""
 MAX_PIECES = 16
+
+
+def circumradius(sides: int) -> float:
+    """A tube's corner distance from the curve per unit of curve radius: its perimeter is
+    then 2π × radius."""
+    return math.pi / (sides * math.sin(math.pi / sides))
 
 
 def hair_mesh(name: str, points: np.ndarray, radii: np.ndarray, offsets: np.ndarray,
@@ -44,14 +58,16 @@ def hair_mesh(name: str, points: np.ndarray, radii: np.ndarray, offsets: np.ndar
     offsets = np.concatenate([[0], np.cumsum(counts[keep])])
     control = np.concatenate([points[kept_points], radii[kept_points, None]], axis=1)
     samples, sample_offsets = spline_samples(control, offsets)
+    pieces = len(samples) - (len(sample_offsets) - 1)
     mesh = tube(name, samples[:, :3], samples[:, 3], sample_offsets,
-                np.asarray(slots, np.int32)[keep])
+                np.asarray(slots, np.int32)[keep],
+                TUBE_SIDES if pieces <= DETAILED_SEGMENTS else THIN_SIDES)
     return mesh, int(bad.sum())
 
 
 def spline_samples(control: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points along each curve's uniform Catmull-Rom spline through its ``control`` points
-    (P, k: position and radius), the end points repeated: every control point, and between
+    (P, 4: position and radius), the end points repeated: every control point, and between
     two of them as many more as the curve's turn needs (``MAX_TURN``); with the samples'
     curve offsets."""
     curve = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
@@ -87,26 +103,26 @@ def _angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def tube(name: str, centres: np.ndarray, radii: np.ndarray, offsets: np.ndarray,
-         slots: np.ndarray) -> Mesh:
-    """Tubes of ``TUBE_SIDES`` sides around each curve's ``centres`` (offsets as in
-    hair_mesh), each ring turned along the curve by parallel transport (no twist), with
-    the round tube's normals at the corners; triangles of zero area (at tips of radius 0)
-    left out."""
+         slots: np.ndarray, sides: int = TUBE_SIDES) -> Mesh:
+    """Tubes of ``sides`` sides around each curve's ``centres`` (offsets as in hair_mesh),
+    each ring turned along the curve by parallel transport (no twist), with the round
+    tube's normals at the corners; triangles of zero area (at tips of radius 0) left
+    out."""
     tangents = _tangents(centres, offsets)
     normals, binormals = _frames(tangents, offsets)
-    angle = (np.arange(TUBE_SIDES) + 0.5) * (2 * np.pi / TUBE_SIDES)
+    angle = (np.arange(sides) + 0.5) * (2 * np.pi / sides)
     around = np.cos(angle)[None, :, None] * normals[:, None] \
         + np.sin(angle)[None, :, None] * binormals[:, None]  # (S, sides, 3)
-    corners = centres[:, None] + (CIRCUMRADIUS * radii)[:, None, None] * around
+    corners = centres[:, None] + (circumradius(sides) * radii)[:, None, None] * around
     curve = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
     ring = np.flatnonzero(np.arange(len(centres)) < offsets[1:][curve] - 1)
-    side = np.arange(TUBE_SIDES)
-    here = ring[:, None] * TUBE_SIDES + side[None]
-    turned = ring[:, None] * TUBE_SIDES + (side[None] + 1) % TUBE_SIDES
-    lower = np.stack([here, turned, turned + TUBE_SIDES], axis=-1)
-    upper = np.stack([here, turned + TUBE_SIDES, here + TUBE_SIDES], axis=-1)
+    side = np.arange(sides)
+    here = ring[:, None] * sides + side[None]
+    turned = ring[:, None] * sides + (side[None] + 1) % sides
+    lower = np.stack([here, turned, turned + sides], axis=-1)
+    upper = np.stack([here, turned + sides, here + sides], axis=-1)
     triangles = np.stack([lower, upper], axis=2).reshape(-1, 3)
-    triangle_slots = np.repeat(slots[curve[ring]], 2 * TUBE_SIDES)
+    triangle_slots = np.repeat(slots[curve[ring]], 2 * sides)
     positions = corners.reshape(-1, 3)
     p = positions[triangles]
     area = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
@@ -150,3 +166,20 @@ def _perpendicular(vectors: np.ndarray) -> np.ndarray:
     axis = np.where((np.abs(vectors[:, 0]) < 0.9)[:, None], [[1.0, 0.0, 0.0]],
                     [[0.0, 1.0, 0.0]])
     return unit(np.cross(vectors, axis))
+
+
+def particle_radii(strands: np.ndarray, root: float, tip: float, shape: float,
+                   close_tip: bool) -> np.ndarray:
+    """The radius at each key of hair particles' ``strands`` (n, keys, 3), as Cycles gives
+    it: from ``root`` to ``tip`` along the strand's length, bent by ``shape`` in [-1, 1]
+    (below 0 thicker, above thinner towards the tip), 0 at the last key with
+    ``close_tip``."""
+    steps = np.linalg.norm(np.diff(strands, axis=1), axis=2)
+    along = np.concatenate([np.zeros((len(strands), 1)), np.cumsum(steps, axis=1)], axis=1)
+    total = along[:, -1:]
+    time = np.divide(along, total, out=np.zeros_like(along), where=total > 0)
+    exponent = 1.0 + shape if shape < 0 else 1.0 / max(1.0 - shape, 1e-6)
+    radii = (1.0 - time) ** exponent * (root - tip) + tip
+    if close_tip:
+        radii[:, -1] = 0.0
+    return radii
