@@ -63,6 +63,7 @@ from .export_motion import (
     instance_key,
     placed_motion,
 )
+from .export_points import read_points
 
 RAY_FLAGS = ("visible_camera", "visible_diffuse", "visible_shadow")
 """An object's ray visibility that VPL GI honours (glossy, transmission and volume rays reach
@@ -996,7 +997,7 @@ class _Export:
             mesh = original.data
             return ("mesh", mesh.name_full), {mesh.name, mesh.name_full, original.name}
         names = {original.name, original.name_full}
-        if obj.type in ("MESH", "CURVES"):
+        if obj.type in ("MESH", "CURVES", "POINTCLOUD"):
             names.add(original.data.name)
         return ("object", original.name_full), names
 
@@ -1031,6 +1032,8 @@ class _Export:
             return _mesh_arrays(obj.data, obj.name, label, faces_expected=True)
         if obj.type == "CURVES":
             return read_hair(obj.data, obj.name, label)
+        if obj.type == "POINTCLOUD":
+            return read_points(obj.data, obj.name, label)
         evaluated_mesh = obj.to_mesh()
         if evaluated_mesh is None:
             return _no_mesh(obj.name), []
@@ -1095,7 +1098,6 @@ class _Export:
 
 
 UNRENDERED = {
-    "POINTCLOUD": "point clouds are not rendered: {}",
     "VOLUME": "volume objects are not rendered: {}",
 }
 """What Cycles renders and VPL GI does not, by Blender's object type (keys of

@@ -13,6 +13,7 @@ import numpy as np
 from .blender_read import positions
 from .core.scene.model import RENDERED_OBJECT_TYPES, Mesh, MotionSpan
 from .export_hair import read_hair
+from .export_points import read_points
 
 POSITION_OFFSET = {"START": 0.0, "CENTER": -0.5, "END": -1.0}
 """Where the shutter opens, in shutters from the frame (Blender's motion blur position)."""
@@ -134,16 +135,19 @@ def _home(depsgraph: bpy.types.Depsgraph, deforms: dict[int, bool]
     return matrices, shapes, view
 
 
-DEFORMED_TYPES = frozenset({"MESH", "CURVES"})
+DEFORMED_TYPES = frozenset({"MESH", "CURVES", "POINTCLOUD"})
 """Object types whose deformation blurs (their exported vertices at both times)."""
 
 
 def _shape(obj: bpy.types.Object) -> np.ndarray:
     """The exported mesh's vertex positions (object space) of a deforming object now: a
-    mesh's vertices, or a hair object's tubes (the same count at both times unless the
-    spline's samples change with the curves' bends: then it stays still)."""
+    mesh's vertices, a hair object's tubes (the same count at both times unless the
+    spline's samples change with the curves' bends: then it stays still), a point cloud's
+    spheres."""
     if obj.type == "CURVES":
         return read_hair(obj.data, obj.name, "")[0].positions
+    if obj.type == "POINTCLOUD":
+        return read_points(obj.data, obj.name, "")[0].positions
     return positions(obj.data)
 
 

@@ -1,7 +1,8 @@
-"""Hair rendered as Cycles renders it: a tuft of grass strands (a Curves object) and a fur
-of hair particles with children against Cycles; what the export reads (the radius, Cycles'
-default without one, material slots per curve, a warning for curves that are not finite);
-deforming hair in the Vector pass."""
+"""Hair and point clouds rendered as Cycles renders them: a tuft of grass strands (a Curves
+object), a fur of hair particles with children, grass of a Principled Hair BSDF and a
+Geometry Nodes point cloud against Cycles; what the export reads (the radius, Cycles'
+default without one, material slots per curve, a warning for curves that are not finite,
+hair shaders' colours); deforming hair in the Vector pass."""
 
 from __future__ import annotations
 
@@ -242,3 +243,46 @@ def test_hair_shaders_export_as_the_colour_of_their_fibres(blender):
         "of its fibres (no highlights along them, no light through them)",
         "material 'Fibre': Hair BSDF rendered as a Diffuse BSDF of its colour (no highlights "
         "along the fibres)"]
+
+
+def scattered_points(obj: bpy.types.Object, density: float, radius: float,
+                     material: bpy.types.Material) -> None:
+    """A Geometry Nodes modifier that turns ``obj``'s faces into a point cloud: seeded points
+    of ``density`` per m², of ``radius`` and ``material``."""
+    tree = bpy.data.node_groups.new("Scatter", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes, links = tree.nodes, tree.links
+    scatter = nodes.new("GeometryNodeDistributePointsOnFaces")
+    scatter.inputs["Density"].default_value = density
+    sized = nodes.new("GeometryNodeSetPointRadius")
+    sized.inputs["Radius"].default_value = radius
+    painted = nodes.new("GeometryNodeSetMaterial")
+    painted.inputs["Material"].default_value = material
+    links.new(nodes.new("NodeGroupInput").outputs[0], scatter.inputs["Mesh"])
+    links.new(scatter.outputs["Points"], sized.inputs["Points"])
+    links.new(sized.outputs[0], painted.inputs["Geometry"])
+    links.new(painted.outputs[0], nodes.new("NodeGroupOutput").inputs[0])
+    obj.modifiers.new("Scatter", "NODES").node_group = tree
+
+
+def test_a_point_cloud_against_cycles(blender, tmp_path):
+    """Pebbles: a Geometry Nodes point cloud (200 points a m² on a 1.2 m square, radius
+    3 cm, orange) on a grey floor under a sun of angle 0, one bounce, 96² against Cycles'
+    256 samples. Measured (bpy 4.5): energy +1.0 %, relRMSE 4.2 %; the modifier off (its
+    plane instead) 34.6 %."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
+    add_primitive("plane", grey, size=8)
+    patch = add_primitive("plane", grey, size=1.2, location=(0.0, 0.0, 0.05))
+    scattered_points(patch, 200.0, 0.03, shader_material("Orange", "ShaderNodeBsdfDiffuse",
+                                                         Color=(0.8, 0.4, 0.1, 1)))
+    add_sun(scene, (40, 0, 30))
+    scene.world = bpy.data.worlds.new("Dim")
+    add_camera(scene, SIZE, location=(0, -2.2, 1.3), rotation=(math.radians(62), 0, 0))
+    reference, ours = cycles_and_ours(scene, tmp_path, 256, 1)
+    patch.modifiers["Scatter"].show_render = False
+    without = render_linear(scene, "VPL_GI", tmp_path / "without.exr")
+    assert_near_cycles("point cloud", ours[..., :3], reference[..., :3], (0.02, 0.1),
+                       without[..., :3], "without the points")

@@ -1,5 +1,5 @@
-"""What Cycles renders and VPL GI does not (volumes, point clouds, a Principled BSDF's sheen,
-subsurface, anisotropy and thin film) is named in one warning each, and an object
+"""What Cycles renders and VPL GI does not (volumes, a Principled BSDF's sheen, subsurface,
+anisotropy and thin film) is named in one warning each, and an object
 with only a Volume shader lets light through as in Cycles instead of rendering as a black
 surface."""
 
@@ -71,21 +71,20 @@ def test_sunlight_through_a_volume_only_box_as_in_cycles(blender, tmp_path):
                        opaque[..., :3], "a black roof")
 
 
-def test_point_clouds_volumes_and_a_world_volume_are_named(blender):
+def test_volumes_and_a_world_volume_are_named(blender):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     for index in range(4):
         scene.collection.objects.link(bpy.data.objects.new(
-            f"Dust{index}", bpy.data.pointclouds.new(f"D{index}")))
-    scene.collection.objects.link(bpy.data.objects.new("Smoke", bpy.data.volumes.new("S")))
+            f"Smoke{index}", bpy.data.volumes.new(f"S{index}")))
     scene.world = bpy.data.worlds.new("Misty")
     ensure_nodes(scene.world)
     tree = scene.world.node_tree
     tree.links.new(tree.nodes.new("ShaderNodeVolumeScatter").outputs[0],
                    tree.nodes["World Output"].inputs["Volume"])
     warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
-    assert "point clouds are not rendered: 'Dust0', 'Dust1', 'Dust2' and 1 more" in warnings
-    assert "volume objects are not rendered: 'Smoke'" in warnings
+    assert "volume objects are not rendered: 'Smoke0', 'Smoke1', 'Smoke2' and 1 more" \
+        in warnings
     assert "world 'Misty': its Volume shader (fog) is not rendered" in warnings
 
 

@@ -120,9 +120,10 @@ class Material:
                 and self.base_color_texture is None and self.emission_texture is None)
 
 
-RENDERED_OBJECT_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES"})
-"""Blender object types that are rendered (as Blender names them): their evaluated mesh, or
-for CURVES (hair) the tubes of its curves."""
+RENDERED_OBJECT_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES",
+                                   "POINTCLOUD"})
+"""Blender object types that are rendered (as Blender names them): their evaluated mesh, for
+CURVES (hair) the tubes of its curves, for POINTCLOUD the spheres of its points."""
 DEFAULT_MATERIAL = Material("(no material)")  # an empty slot, or an object without slots
 
 
