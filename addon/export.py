@@ -343,6 +343,7 @@ AS_DIFFUSE = {
 """Shaders rendered as a Diffuse BSDF of their Color, with what that leaves out (a leaf's
 translucency, skin's or wax's subsurface scattering): nearer than the viewport colour."""
 
+
 def _principled_hair(node, name: str, warnings: list[str]) -> Material:
     """A Principled Hair BSDF as a Diffuse BSDF of the colour a mass of its fibres shows
     (core/scene/hair_fibre.py): Direct Coloring's colour, or the one its melanin and tint or
