@@ -58,22 +58,30 @@ def grass(count: int = 400, points: int = 5) -> np.ndarray:
     return roots[:, None] + rise
 
 
+def sunlit_floor(size: int) -> tuple[bpy.types.Scene, bpy.types.Material]:
+    """A new scene: a grey floor (8 m) under a sun of angle 0 (40° from the zenith), a dim
+    world and a camera looking down at the floor's middle (size × size pixels); returns the
+    scene and the grey material."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
+    add_primitive("plane", grey, size=8)
+    add_sun(scene, (40, 0, 30))
+    scene.world = bpy.data.worlds.new("Dim")
+    add_camera(scene, size, location=(0, -2.2, 1.3), rotation=(math.radians(62), 0, 0))
+    return scene, grey
+
+
 def test_a_tuft_of_grass_against_cycles(blender, tmp_path):
     """Green strands (radius 12 → 3 mm) on a grey floor under a sun of angle 0, one bounce,
     96² against Cycles' 256 samples. Measured (bpy 4.5): energy −0.5 %, relRMSE 7.0 % (8-pixel
     blocks: 2.0 %; Cycles against itself, another seed: 1.2 %), most of it each pixel's
-    coverage of strands one or two pixels wide (antialiasing 8: 0.9 points less); four-sided
-    tubes measured 7.9 %; the grass left out 74 %."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    add_primitive("plane", shader_material("Grey", "ShaderNodeBsdfDiffuse",
-                                           Color=(0.7, 0.7, 0.7, 1)), size=8)
-    add_sun(scene, (40, 0, 30))
-    scene.world = bpy.data.worlds.new("Dim")
+    coverage of strands one or two pixels wide (with four-sided tubes antialiasing 8 took
+    0.9 points off); four-sided tubes measured 7.9 %; the grass left out 74 %."""
+    scene, _ = sunlit_floor(SIZE)
     tuft = hair_object("Grass", grass(), np.linspace(0.012, 0.003, 5))
     tuft.data.materials.append(shader_material("Green", "ShaderNodeBsdfDiffuse",
                                                Color=(0.2, 0.6, 0.1, 1)))
-    add_camera(scene, SIZE, location=(0, -2.2, 1.3), rotation=(math.radians(62), 0, 0))
     reference, ours = cycles_and_ours(scene, tmp_path, 256, 1)
     tuft.hide_render = True
     without = render_linear(scene, "VPL_GI", tmp_path / "without.exr")
@@ -102,15 +110,9 @@ def test_principled_hair_against_cycles(blender, tmp_path, parametrization):
     64², 128 samples): Direct Coloring energy −14.5 %, relRMSE 26.3 % (the viewport colour
     41.6 %); Melanin −15.3 %, 24.5 % (68.4 %): an approximation, Cycles' strands paler than
     the colour, their highlights and the light through them left out."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    add_primitive("plane", shader_material("Grey", "ShaderNodeBsdfDiffuse",
-                                           Color=(0.7, 0.7, 0.7, 1)), size=8)
-    add_sun(scene, (40, 0, 30))
-    scene.world = bpy.data.worlds.new("Dim")
+    scene, _ = sunlit_floor(64)
     tuft = hair_object("Grass", grass(2000), np.linspace(0.012, 0.003, 5))
     tuft.data.materials.append(principled_hair(parametrization, (0.5, 0.3, 0.1), 0.3))
-    add_camera(scene, 64, location=(0, -2.2, 1.3), rotation=(math.radians(62), 0, 0))
     configure_cycles(scene, 128, bounces=1)
     scene.cycles.glossy_bounces = scene.cycles.transmission_bounces = 3
     scene.cycles.max_bounces = 8
@@ -130,10 +132,7 @@ def test_hair_particles_against_cycles(blender, tmp_path):
     under a sun of angle 0, one bounce, 96² against Cycles' 256 samples. Measured (bpy 4.5):
     energy −1.5 %, relRMSE 11.6 %: strands of a pixel or less, each pixel's coverage from
     16 supersamples; the hair left out 152 %."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
-    add_primitive("plane", grey, size=8)
+    scene, grey = sunlit_floor(SIZE)
     patch = add_primitive("plane", grey, size=1.2, location=(0.2, 0.0, 0.1))
     patch.rotation_euler = (0.0, 0.0, 0.3)
     patch.data.materials.append(shader_material("Fur", "ShaderNodeBsdfDiffuse",
@@ -145,9 +144,6 @@ def test_hair_particles_against_cycles(blender, tmp_path):
     settings.root_radius, settings.tip_radius, settings.radius_scale = 1.0, 0.2, 0.015
     settings.use_advanced_hair = True
     settings.normal_factor, settings.tangent_factor, settings.factor_random = 1.0, 0.3, 0.3
-    add_sun(scene, (40, 0, 30))
-    scene.world = bpy.data.worlds.new("Dim")
-    add_camera(scene, SIZE, location=(0, -2.2, 1.3), rotation=(math.radians(62), 0, 0))
     reference, ours = cycles_and_ours(scene, tmp_path, 256, 1)
     fur.show_render = False
     without = render_linear(scene, "VPL_GI", tmp_path / "without.exr")
@@ -271,16 +267,10 @@ def test_a_point_cloud_against_cycles(blender, tmp_path):
     3 cm, orange) on a grey floor under a sun of angle 0, one bounce, 96² against Cycles'
     256 samples. Measured (bpy 4.5): energy +1.0 %, relRMSE 4.2 %; the modifier off (its
     plane instead) 34.6 %."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
-    add_primitive("plane", grey, size=8)
+    scene, grey = sunlit_floor(SIZE)
     patch = add_primitive("plane", grey, size=1.2, location=(0.0, 0.0, 0.05))
     scattered_points(patch, 200.0, 0.03, shader_material("Orange", "ShaderNodeBsdfDiffuse",
                                                          Color=(0.8, 0.4, 0.1, 1)))
-    add_sun(scene, (40, 0, 30))
-    scene.world = bpy.data.worlds.new("Dim")
-    add_camera(scene, SIZE, location=(0, -2.2, 1.3), rotation=(math.radians(62), 0, 0))
     reference, ours = cycles_and_ours(scene, tmp_path, 256, 1)
     patch.modifiers["Scatter"].show_render = False
     without = render_linear(scene, "VPL_GI", tmp_path / "without.exr")
