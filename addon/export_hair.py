@@ -18,6 +18,8 @@ def read_hair(curves: bpy.types.Curves, name: str, label: str) -> tuple[Mesh, li
     """The tubes of a Curves datablock's curves, and what was wrong with them (curves with
     points or radii that are not finite are left out, with a warning)."""
     point_count, curve_count = len(curves.points), len(curves.curves)
+    if curve_count == 0 or point_count == 0:
+        return _no_hair(name), []
     points = read_array(curves.attributes["position"].data, "vector", point_count * 3,
                         np.float32).reshape(-1, 3)
     radius = curves.attributes.get("radius")

@@ -160,10 +160,13 @@ def test_radius_slots_and_bad_curves(blender):
     strands.data.materials.append(shader_material("B", "ShaderNodeBsdfDiffuse"))
     index = strands.data.attributes.new("material_index", "INT", "CURVE")
     index.data.foreach_set("value", np.array([0, 1, 1], np.int32))
+    collection = bpy.context.scene.collection  # empty hair and points: nothing, no warning
+    collection.objects.link(bpy.data.objects.new("Bald", bpy.data.hair_curves.new("Bald")))
+    collection.objects.link(bpy.data.objects.new("Dust", bpy.data.pointclouds.new("Dust")))
     scene = export_scene(bpy.context.evaluated_depsgraph_get())
     assert "object 'Strands': 1 of 3 curves have NaN/Inf points or radii and were left out" \
         in scene.warnings
-    assert not any("not rendered" in warning for warning in scene.warnings)
+    assert len(scene.warnings) == 1
     instance, = scene.instances
     mesh = instance.mesh
     assert [m.name for m in instance.materials] == ["A", "B"]
