@@ -58,7 +58,8 @@ def check_scene_size(scene: Scene, settings: Settings, limits: SceneLimits) -> N
     triangles = flattened_triangles(scene)
     what = (f"the scene has {triangles:,} triangles after instancing "
             f"({len(scene.instances):,} instances, flattened into one triangle list)")
-    advice = "use fewer instances or simpler meshes"
+    advice = ("use fewer instances, simpler meshes or fewer hair strands (each strand is a "
+              "tube of triangles; Simplify › Child Particles thins particle hair)")
     memory = limits.memory_bytes
     if memory is not None and triangles * HOST_BYTES_PER_TRIANGLE > MEMORY_SHARE * memory:
         most = int(MEMORY_SHARE * memory) // HOST_BYTES_PER_TRIANGLE
