@@ -144,9 +144,11 @@ void main() {
 #ifdef GLOSSY
     out_lobe_a = out_lobe_b = out_lobe_c = vec4(0.0);
     if (material.tint.w > 0.0) {
+        vec3 below_coat;
         albedo *= principled_layers(albedo, material.specular, material.tint, material.coat,
                                     material.coat_tint, dot(shading, to_camera), gloss,
-                                    out_lobe_a, out_lobe_b, out_lobe_c);
+                                    out_lobe_a, out_lobe_b, out_lobe_c, below_coat);
+        emission *= below_coat;  // Cycles dims emission under a clear coat
         out_lobe_c.w = gloss.r;
     }
 #endif

@@ -63,9 +63,11 @@ float dielectric_albedo(float rough, float eta, float mu) {
 // dimmed by (1 - what it reflects) and its tint (to the power 1 / cos of the view refracted
 // into it, mixed in by its weight, as Cycles). spec = (roughness, metallic, eta, s_avg),
 // tint = (F0 x tint, flag), coat = (weight, roughness, eta, 0), coat_tint = (rgb, 0) from the
-// material table; the coat's own lobe is coat_lobe's.
+// material table; the coat's own lobe is coat_lobe's. below: what of the layers under the
+// coat (and of the emission, as Cycles dims it) is seen through it.
 vec3 principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, vec4 coat_tint, float mu,
-                       out vec3 gloss, out vec4 lobe_a, out vec4 lobe_b, out vec4 lobe_c) {
+                       out vec3 gloss, out vec4 lobe_a, out vec4 lobe_b, out vec4 lobe_c,
+                       out vec3 below) {
     float rough = spec.x, metallic = spec.y, eta = spec.z;
     mu = clamp(mu, 1e-3, 1.0);
     float e = max(table_2d(ROW_E, rough, mu, E_SIZE), 1e-4);
@@ -95,7 +97,7 @@ vec3 principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, vec4 coat_tin
         a += k_m * f0;
         c = k_m * (1.0 - f0);
     }
-    vec3 below = vec3(1.0);
+    below = vec3(1.0);
     float reflected = 0.0;
     if (coat.x > 0.0) {
         reflected = coat.x * dielectric_albedo(coat.y, coat.z, mu);

@@ -86,6 +86,29 @@ def test_coated_metal_sphere(blender, tmp_path, without_coat):
     compare(scene, tmp_path, without_coat, (0.01, 0.03, 0.03), "coated metal sphere")
 
 
+def test_a_coated_emitter_shines_through_its_coat(blender, tmp_path, without_coat):
+    """The glossy floor's wall made to glow (Emission Strength 3) under an amber coat: as in
+    Cycles, the coat dims and tints the emission, at the camera's angle where the camera
+    sees it and on average over directions where it lights the floor (which keeps its
+    power). Measured (bpy 4.5, 1024 emission samples): energy −0.4 %, relRMSE 3.6 % inside,
+    4.2 % overall (the wall itself within 0.1 %; the floor near it, which Cycles lights at
+    grazing angles the coat dims more, a few percent bright); the same wall uncoated
+    measures 1.6 / 5.1 %; the emission undimmed (as before): energy +40.5 %, relRMSE
+    64.9 %."""
+    scene = floor_scene(blender, 0.5)
+    wall = blender.data.materials["Wall"]
+    bsdf = wall.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Emission Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bsdf.inputs["Emission Strength"].default_value = 3.0
+    bsdf.inputs["Coat Tint"].default_value = (0.9, 0.6, 0.2, 1.0)
+    coat(wall, roughness=0.3)
+    configure_cycles(scene, 256, bounces=0)
+    settings = scene.vpl_gi
+    settings.bounces, settings.antialiasing, settings.light_samples = 0, 2, 64
+    settings.emission_samples = 1024
+    compare(scene, tmp_path, without_coat, (0.01, 0.05, 0.06), "coated emitter")
+
+
 def test_what_of_a_coat_is_not_rendered_is_one_warning(blender):
     """A coat's weight, roughness or IOR from other nodes leaves the coat out; a linked tint
     and its own normal are left out of a coat that is rendered; each a warning naming them."""

@@ -172,12 +172,22 @@ class WorldGeometry:
     @cached_property
     def light_emission(self) -> np.ndarray:
         """Each triangle's emitted radiance as a light of the other surfaces (T, 3): its
-        emission times its mean coverage (a cutout emits from the part that is there), none
-        where diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
+        emission times its mean coverage (a cutout emits from the part that is there) and
+        what leaves through its clear coat (principled.emission_below_coat), none where
+        diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
+        emission = self.emission
+        coated = np.flatnonzero((self.materials[:, COAT] > 0)
+                                & (self.materials[:, 4:7].max(axis=1) > 0))
+        if len(coated):
+            table = np.ones((len(self.materials), 3), np.float32)
+            for row in coated:
+                coat = principled.coat_of(self.materials[row, SPECULAR:CUTOUT])
+                table[row] = principled.emission_below_coat(coat)
+            emission = emission * table[self.triangle_material]
         if not (self.cutout.any() or self.diffuse_hidden.any()):
-            return self.emission
+            return emission
         share = np.where(self.diffuse_hidden, 0.0, self.coverage)
-        return (self.emission * share[:, None]).astype(np.float32)
+        return (emission * share[:, None]).astype(np.float32)
 
     @property
     def texture(self) -> np.ndarray | None:

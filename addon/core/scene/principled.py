@@ -378,6 +378,17 @@ def diffuse_average(row: np.ndarray) -> np.ndarray:
     return (diffuse * weight[:, None]).sum(axis=0)
 
 
+def emission_below_coat(coat: Coat) -> np.ndarray:
+    """What of a surface's emission leaves through its clear coat (3,), averaged over
+    cosine-weighted directions: Cycles dims emission under the coat as it dims the layers
+    below (``below_coat`` at the direction it leaves in), so this keeps the emitted power
+    exact; the camera's view is dimmed at its own angle (principled_layers)."""
+    if coat.weight <= 0:
+        return np.ones(3)
+    mu, weight = COSINE_MU, COSINE_WEIGHT
+    return (below_coat(coat, mu, coat_albedo(coat, mu)) * weight[:, None]).sum(axis=0)
+
+
 LOBE_TEXELS = 3  # (A rgb, alpha), (B rgb, eta), (C rgb, 0): principled_lib.glsl's lobe_a/b/c
 
 
