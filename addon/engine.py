@@ -174,15 +174,19 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         render back at its frame; without a span, the frame's scene. Each export reads its
         meshes afresh: a deforming mesh differs at each time."""
         if span is None:
-            return export_scene(depsgraph)
+            return export_scene(depsgraph, cancelled=self._cancelled)
         scene = depsgraph.scene
         frame, subframe = scene.frame_current, scene.frame_subframe
         motion = sample_motion(self, depsgraph, span)
         try:
-            return export_scene(depsgraph, motion=motion)
+            return export_scene(depsgraph, motion=motion, cancelled=self._cancelled)
         finally:
             if span.centre:  # rendered at its part of the shutter
                 self.frame_set(frame, subframe)
+
+    def _cancelled(self) -> bool:
+        """Whether Esc in Blender or the command line's host asked the render to stop."""
+        return monitor.cancel_requested or self.test_break()
 
     def _fail(self, message: str) -> None:
         monitor.last_error = message
@@ -212,9 +216,6 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
             for listener in monitor.progress_listeners:
                 listener(fraction, message)
 
-        def cancelled() -> bool:
-            return monitor.cancel_requested or self.test_break()
-
         full_result = self.get_result()  # Cryptomatte's manifests, as Cycles stamps them
         for key, value in metadata(exported, cryptomatte_families(depsgraph.view_layer),
                                    depsgraph.view_layer.name).items():
@@ -230,8 +231,9 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
                     else f"/{settings.passes}"
                 self.update_stats("", f"VPL GI | Pass {report.index}{planned}{noise}")
 
-        _, stats = shared_renderer().render_progressive(exported, settings, progress, cancelled,
-                                                        passes, on_pass=show, scene_at=scene_at)
+        _, stats = shared_renderer().render_progressive(
+            exported, settings, progress, self._cancelled, passes, on_pass=show,
+            scene_at=scene_at)
         bake.report(stats, exported.notes)
         monitor.last_stats, monitor.last_warnings = stats, list(stats.warnings)
         for note in stats.notes:

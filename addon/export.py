@@ -8,6 +8,7 @@ unit is one metre for light falloff (measured with Cycles 4.5, tests/blender/tes
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import bpy
@@ -957,8 +958,10 @@ def render_size(scene: bpy.types.Scene) -> tuple[int, int]:
 class _Export:
     """State of one export: per-pointer memos (valid for this depsgraph evaluation only)."""
 
-    def __init__(self, depsgraph: bpy.types.Depsgraph, cache: ExportCache, result: Scene):
+    def __init__(self, depsgraph: bpy.types.Depsgraph, cache: ExportCache, result: Scene,
+                 cancelled: Callable[[], bool]):
         self.depsgraph = depsgraph
+        self.cancelled = cancelled
         self.cache = cache
         self.result = result
         self.used: dict[tuple, _Entry] = {}
@@ -1077,7 +1080,7 @@ class _Export:
         entry = self.used.get(key) or self.cache._entries.get(key)
         if entry is None:
             mesh, problems = read_particle_hair(obj, self.depsgraph.mode == "RENDER",
-                                                f"object '{original.name}'")
+                                                f"object '{original.name}'", self.cancelled)
             entry = _Entry(mesh, {original.name, original.name_full, original.data.name}, (),
                            problems)
             self.cache.stats["meshes_read"] += 1
@@ -1116,9 +1119,11 @@ def unrendered_objects(skipped: dict[str, set[str]]) -> list[str]:
 
 
 def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = None,
-                 motion: SampledMotion | None = None) -> Scene:
+                 motion: SampledMotion | None = None,
+                 cancelled: Callable[[], bool] = lambda: False) -> Scene:
     """Everything the renderer needs from the evaluated depsgraph; with ``motion``, each
-    instance's and the camera's placement at its two times too (export_motion.py).
+    instance's and the camera's placement at its two times too (export_motion.py). Raises
+    RenderCancelled where ``cancelled()`` during a long read (hair particles).
 
     With a cache, meshes read by earlier exports are reused unless forgotten (see ExportCache);
     ``cache.stats`` counts the meshes this export read and reused, ``cache.unbaked`` names the
@@ -1128,7 +1133,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     cache = cache if cache is not None else ExportCache()
     cache.stats.update(meshes_read=0, meshes_reused=0)
     cache.unbaked.clear()
-    state = _Export(depsgraph, cache, result)
+    state = _Export(depsgraph, cache, result, cancelled)
     linking = scene_light_linking(depsgraph)
     result.warnings.extend(linking.warnings)
     rendering = depsgraph.mode == "RENDER"  # hair particles' steps and children differ

@@ -3,13 +3,18 @@ grass, Geometry Nodes curves) and meshes' hair particle systems."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import bpy
 import numpy as np
 
 from .blender_read import int_attribute, read_array
+from .core.frame.state import RenderCancelled
 from .core.scene.hair import hair_mesh, particle_radii
 from .core.scene.model import Mesh
 
+CANCEL_STRANDS = 4096
+"""Hair particle strands read between two checks for cancelling."""
 DEFAULT_RADIUS = 0.005
 """Cycles' radius of curves without a radius attribute (measured: a strand 0.01 wide)."""
 
@@ -46,12 +51,15 @@ def hair_systems(obj: bpy.types.Object, rendering: bool) -> list[bpy.types.Parti
             and modifier.particle_system.settings.render_type == "PATH"]
 
 
-def read_particle_hair(obj: bpy.types.Object, rendering: bool, label: str
+def read_particle_hair(obj: bpy.types.Object, rendering: bool, label: str,
+                       cancelled: Callable[[], bool] = lambda: False
                        ) -> tuple[Mesh, list[str]]:
     """The tubes of an evaluated object's hair particles in its object space, as Cycles reads
     them: children where it has them (and parents only without), each strand's keys from
     the particle system's paths (render or display steps), radii from the particle settings'
-    root, tip, shape and scale, material from its slot; and what was wrong."""
+    root, tip, shape and scale, material from its slot; and what was wrong. Raises
+    RenderCancelled when ``cancelled()`` (asked every CANCEL_STRANDS strands: a fur of a
+    million strands takes seconds, a Python call a key)."""
     world = np.array(obj.matrix_world, np.float64)
     if not np.isfinite(world).all() or abs(np.linalg.det(world[:3, :3])) < 1e-30:
         return _no_hair(obj.name), []
@@ -70,9 +78,14 @@ def read_particle_hair(obj: bpy.types.Object, rendering: bool, label: str
             keys += settings.kink_extra_steps
         if count == 0:
             continue
-        points = np.array([system.co_hair(obj, particle_no=first + strand, step=key)
-                           for strand in range(count) for key in range(keys)],
-                          np.float64).reshape(count, keys, 3)
+        points = np.empty((count, keys, 3))
+        for start in range(0, count, CANCEL_STRANDS):
+            if cancelled():
+                raise RenderCancelled("render cancelled while reading hair")
+            strands_here = range(first + start, first + min(start + CANCEL_STRANDS, count))
+            points[start:start + len(strands_here)] = np.reshape(
+                [system.co_hair(obj, particle_no=strand, step=key)
+                 for strand in strands_here for key in range(keys)], (-1, keys, 3))
         points = points @ to_object[:3, :3].T + to_object[:3, 3]
         scale = 0.5 * settings.radius_scale
         strands.append(points)

@@ -257,8 +257,8 @@ def engine_export(monkeypatch):
     """Render with the engine (F12's path) and keep the Scene it exported."""
     exported = []
 
-    def recording(depsgraph, cache=None):
-        scene = export_scene(depsgraph, cache)
+    def recording(depsgraph, cache=None, **options):
+        scene = export_scene(depsgraph, cache, **options)
         exported.append(scene)
         return scene
 

@@ -279,3 +279,28 @@ def test_a_point_cloud_against_cycles(blender, tmp_path):
     without = render_linear(scene, "VPL_GI", tmp_path / "without.exr")
     assert_near_cycles("point cloud", ours[..., :3], reference[..., :3], (0.02, 0.1),
                        without[..., :3], "without the points")
+
+
+def test_esc_while_hair_particles_are_read_cancels(blender):
+    """Reading a fur asks whether to stop every few thousand strands (Esc in Blender, the
+    command line's host): the render ends cancelled, not failed, before any frame."""
+    from addon.core.frame.state import RenderCancelled
+    from addon.engine import monitor
+    from addon.export_hair import CANCEL_STRANDS, read_particle_hair
+
+    scene, grey = sunlit_floor(16)
+    patch = add_primitive("plane", grey, size=1.0)
+    settings = patch.modifiers.new("Fur", "PARTICLE_SYSTEM").particle_system.settings
+    settings.type, settings.count = "HAIR", CANCEL_STRANDS + 10
+    evaluated = patch.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    asked = []
+    with pytest.raises(RenderCancelled):
+        read_particle_hair(evaluated, False, "fur", lambda: asked.append(1) or len(asked) > 1)
+    assert len(asked) == 2  # once before each block of strands
+    scene.render.engine = "VPL_GI"
+    monitor.cancel_requested = True
+    try:
+        bpy.ops.render.render()
+    finally:
+        monitor.cancel_requested = False
+    assert monitor.last_error is None and monitor.last_stats is None
