@@ -46,6 +46,14 @@ def int_attribute(mesh: bpy.types.Mesh, name: str, size: int) -> np.ndarray | No
     return read_array(attribute.data, "value", size, np.int32)
 
 
+def float_attribute(data: bpy.types.ID, name: str, size: int) -> np.ndarray | None:
+    """The values of a FLOAT attribute of ``size`` elements (float32), or None without one."""
+    attribute = data.attributes.get(name)
+    if attribute is None or attribute.data_type != "FLOAT" or len(attribute.data) != size:
+        return None
+    return read_array(attribute.data, "value", size, np.float32)
+
+
 def positions(mesh: bpy.types.Mesh) -> np.ndarray:
     """The vertices' positions, (V, 3) float32 (from the position attribute: reading each
     vertex's ``co`` is about 200× slower)."""

@@ -49,6 +49,7 @@ from .core.scene.model import (
     Panorama,
     Scene,
     World,
+    empty_mesh,
 )
 from .core.scene.sun_disc import take_out_map_sun
 from .core.scene.textures import MISSING_COLOR, decode_srgb
@@ -246,7 +247,7 @@ def _mesh_arrays(mesh: bpy.types.Mesh, name: str, label: str, faces_expected: bo
         if faces_expected and len(mesh.vertices):
             problems.append(f"{label} has no faces ({len(mesh.vertices)} vertices): "
                             f"nothing to render")
-        return _no_mesh(name), problems
+        return empty_mesh(name), problems
     keep = np.ones(count, dtype=bool)
     if not np.isfinite(co).all():
         keep = np.isfinite(co).all(axis=1)[vertex].all(axis=1)
@@ -304,11 +305,6 @@ class ExportCache:
     def clear(self) -> None:
         """Forget every mesh."""
         self._entries.clear()
-
-
-def _no_mesh(name: str) -> Mesh:
-    empty = np.zeros((0, 3), dtype=np.float32)
-    return Mesh(name, empty, empty, np.zeros(0, dtype=np.int32))
 
 
 def _fingerprint(obj: bpy.types.Object) -> tuple[int, ...]:
@@ -961,6 +957,7 @@ class _Export:
     def __init__(self, depsgraph: bpy.types.Depsgraph, cache: ExportCache, result: Scene,
                  cancelled: Callable[[], bool]):
         self.depsgraph = depsgraph
+        self.rendering = depsgraph.mode == "RENDER"  # hair particles' steps and children
         self.cancelled = cancelled
         self.cache = cache
         self.result = result
@@ -1016,19 +1013,26 @@ class _Export:
             return known.mesh
         key, names = self._key(inst, obj, pointer)
         fingerprint = _fingerprint(obj) if key[0] == "generated" else ()
+        entry = self.meshes[memo] = self._entry(key, names, fingerprint,
+                                                lambda: self._read(obj, key))
+        return entry.mesh
+
+    def _entry(self, key: tuple, names: set[str], fingerprint: tuple[int, ...],
+               read: Callable[[], tuple[Mesh, list[str]]]) -> _Entry:
+        """The geometry under ``key``: from this export or the cache where its fingerprint
+        still holds, else ``read()`` now; its problems warned once an export."""
         entry = self.used.get(key) or self.cache._entries.get(key)
         if entry is not None and entry.fingerprint == fingerprint:
             entry.names |= names
             self.cache.stats["meshes_reused"] += 1
         else:
-            mesh, problems = self._read(obj, key)
+            mesh, problems = read()
             entry = _Entry(mesh, names, fingerprint, problems)
             self.cache.stats["meshes_read"] += 1
         if key not in self.used:
             self.result.warnings.extend(entry.problems)
         self.used[key] = entry
-        self.meshes[memo] = entry
-        return entry.mesh
+        return entry
 
     def _read(self, obj: bpy.types.Object, key: tuple) -> tuple[Mesh, list[str]]:
         label = f"mesh '{key[1]}'" if key[0] == "mesh" else f"object '{obj.original.name}'"
@@ -1040,7 +1044,7 @@ class _Export:
             return read_points(obj.data, obj.name, label)
         evaluated_mesh = obj.to_mesh()
         if evaluated_mesh is None:
-            return _no_mesh(obj.name), []
+            return empty_mesh(obj.name), []
         try:
             return _mesh_arrays(evaluated_mesh, obj.name, label, faces_expected=False)
         finally:
@@ -1076,19 +1080,11 @@ class _Export:
         """The tubes of the object's hair particles (from this export, the cache, or read
         now), its materials and name."""
         original = obj.original
-        key = ("hair", original.name_full)
-        entry = self.used.get(key) or self.cache._entries.get(key)
-        if entry is None:
-            mesh, problems = read_particle_hair(obj, self.depsgraph.mode == "RENDER",
-                                                f"object '{original.name}'", self.cancelled)
-            entry = _Entry(mesh, {original.name, original.name_full, original.data.name}, (),
-                           problems)
-            self.cache.stats["meshes_read"] += 1
-        else:
-            self.cache.stats["meshes_reused"] += 1
-        if key not in self.used:
-            self.result.warnings.extend(entry.problems)
-        self.used[key] = entry
+        entry = self._entry(("hair", original.name_full),
+                            {original.name, original.name_full, original.data.name}, (),
+                            lambda: read_particle_hair(obj, self.rendering,
+                                                       f"object '{original.name}'",
+                                                       self.cancelled))
         return entry.mesh, self.materials_of(obj), obj.name
 
     def placed(self, inst, obj: bpy.types.Object) -> tuple[Mesh, list[Material], str]:
@@ -1136,7 +1132,6 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     state = _Export(depsgraph, cache, result, cancelled)
     linking = scene_light_linking(depsgraph)
     result.warnings.extend(linking.warnings)
-    rendering = depsgraph.mode == "RENDER"  # hair particles' steps and children differ
     hairy: dict[bpy.types.Object, bool] = {}  # whether an object has hair particles shown
     placed: list[tuple[Mesh, list[Material], str]] = []
     skipped: dict[str, set[str]] = {}  # what VPL GI does not render (UNRENDERED): objects
@@ -1169,7 +1164,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
         if kind == "MESH" and inst.show_particles:
             hair = hairy.get(obj.original)
             if hair is None:
-                hair = hairy[obj.original] = bool(hair_systems(obj, rendering))
+                hair = hairy[obj.original] = bool(hair_systems(obj, state.rendering))
         if kind not in RENDERED_OBJECT_TYPES or not (inst.show_self or hair):
             if kind in UNRENDERED and inst.show_self:
                 skipped.setdefault(kind, set()).add(obj.name)

@@ -8,10 +8,11 @@ from collections.abc import Callable
 import bpy
 import numpy as np
 
-from .blender_read import int_attribute, read_array
+from .blender_read import float_attribute, int_attribute, read_array
 from .core.frame.state import RenderCancelled
+from .core.scene.geometry import transform_points
 from .core.scene.hair import hair_mesh, particle_radii
-from .core.scene.model import Mesh
+from .core.scene.model import Mesh, empty_mesh
 
 CANCEL_STRANDS = 4096
 """Hair particle strands read between two checks for cancelling."""
@@ -24,13 +25,12 @@ def read_hair(curves: bpy.types.Curves, name: str, label: str) -> tuple[Mesh, li
     points or radii that are not finite are left out, with a warning)."""
     point_count, curve_count = len(curves.points), len(curves.curves)
     if curve_count == 0 or point_count == 0:
-        return _no_hair(name), []
+        return empty_mesh(name), []
     points = read_array(curves.attributes["position"].data, "vector", point_count * 3,
                         np.float32).reshape(-1, 3)
-    radius = curves.attributes.get("radius")
-    radii = np.full(point_count, DEFAULT_RADIUS, np.float32) \
-        if radius is None or radius.data_type != "FLOAT" or len(radius.data) != point_count \
-        else read_array(radius.data, "value", point_count, np.float32)
+    radii = float_attribute(curves, "radius", point_count)
+    if radii is None:
+        radii = np.full(point_count, DEFAULT_RADIUS, np.float32)
     offsets = read_array(curves.curve_offset_data, "value", curve_count + 1, np.int32)
     slots = int_attribute(curves, "material_index", curve_count)
     if slots is None:
@@ -62,7 +62,7 @@ def read_particle_hair(obj: bpy.types.Object, rendering: bool, label: str,
     million strands takes seconds, a Python call a key)."""
     world = np.array(obj.matrix_world, np.float64)
     if not np.isfinite(world).all() or abs(np.linalg.det(world[:3, :3])) < 1e-30:
-        return _no_hair(obj.name), []
+        return empty_mesh(obj.name), []
     to_object = np.linalg.inv(world)
     slots = max(len(obj.material_slots), 1)
     strands, radii, materials = [], [], []
@@ -86,7 +86,7 @@ def read_particle_hair(obj: bpy.types.Object, rendering: bool, label: str,
             points[start:start + len(strands_here)] = np.reshape(
                 [system.co_hair(obj, particle_no=strand, step=key)
                  for strand in strands_here for key in range(keys)], (-1, keys, 3))
-        points = points @ to_object[:3, :3].T + to_object[:3, 3]
+        points = transform_points(to_object, points)
         scale = 0.5 * settings.radius_scale
         strands.append(points)
         radii.append(particle_radii(points, scale * settings.root_radius,
@@ -94,7 +94,7 @@ def read_particle_hair(obj: bpy.types.Object, rendering: bool, label: str,
                                     settings.use_close_tip))
         materials.append(np.full(count, min(max(settings.material - 1, 0), slots - 1)))
     if not strands:
-        return _no_hair(obj.name), []
+        return empty_mesh(obj.name), []
     lengths = np.concatenate([np.full(len(s), s.shape[1]) for s in strands])
     mesh, dropped = hair_mesh(obj.name, np.concatenate([s.reshape(-1, 3) for s in strands]),
                               np.concatenate([r.ravel() for r in radii]),
@@ -103,8 +103,3 @@ def read_particle_hair(obj: bpy.types.Object, rendering: bool, label: str,
     problems = [f"{label}: {dropped} hair strands have NaN/Inf points and were left out"] \
         if dropped else []
     return mesh, problems
-
-
-def _no_hair(name: str) -> Mesh:
-    return hair_mesh(name, np.zeros((0, 3)), np.zeros(0), np.zeros(1, np.int64),
-                     np.zeros(0, np.int32))[0]

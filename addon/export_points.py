@@ -6,7 +6,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from .blender_read import int_attribute, read_array
+from .blender_read import float_attribute, int_attribute, read_array
 from .core.scene.model import Mesh
 from .core.scene.points import sphere_mesh
 
@@ -20,10 +20,9 @@ def read_points(cloud: bpy.types.PointCloud, name: str, label: str) -> tuple[Mes
     count = len(cloud.points)
     centres = read_array(cloud.attributes["position"].data, "vector", count * 3,
                          np.float32).reshape(-1, 3) if count else np.zeros((0, 3))
-    radius = cloud.attributes.get("radius")
-    radii = np.full(count, DEFAULT_RADIUS, np.float32) \
-        if radius is None or radius.data_type != "FLOAT" or len(radius.data) != count \
-        else read_array(radius.data, "value", count, np.float32)
+    radii = float_attribute(cloud, "radius", count)
+    if radii is None:
+        radii = np.full(count, DEFAULT_RADIUS, np.float32)
     slots = int_attribute(cloud, "material_index", count)
     mesh, dropped = sphere_mesh(name, centres, radii,
                                 np.zeros(count, np.int32) if slots is None else slots)

@@ -11,7 +11,6 @@ timed around ``bpy.ops.render.render()``.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path
@@ -32,13 +31,11 @@ def main() -> None:
     from addon.engine import monitor
     from addon.export_hair import read_particle_hair
     from devtools.registered import run_registered
-    from tests.blender.rendering import add_camera, add_primitive, add_sun, shader_material
+    from tests.blender.rendering import add_primitive, shader_material
+    from tests.blender.test_hair import sunlit_floor
 
     def measure() -> None:
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-        scene = bpy.context.scene
-        grey = shader_material("Grey", "ShaderNodeBsdfDiffuse", Color=(0.7, 0.7, 0.7, 1))
-        add_primitive("plane", grey, size=8)
+        scene, grey = sunlit_floor(640)
         patch = add_primitive("plane", grey, size=1.0)
         patch.data.materials.append(shader_material("Fur", "ShaderNodeBsdfDiffuse",
                                                     Color=(0.8, 0.4, 0.1, 1)))
@@ -47,9 +44,6 @@ def main() -> None:
         fur.child_type = "INTERPOLATED" if args.children else "NONE"
         fur.rendered_child_count = max(args.children, 1)
         fur.root_radius, fur.tip_radius, fur.radius_scale = 1.0, 0.2, 0.005
-        add_sun(scene, (40, 0, 30))
-        scene.world = bpy.data.worlds.new("Dim")
-        add_camera(scene, 640, location=(0, -2.2, 1.3), rotation=(math.radians(62), 0, 0))
         scene.render.engine = "VPL_GI"
         scene.render.resolution_x, scene.render.resolution_y = 640, 360
         scene.render.resolution_percentage = 100

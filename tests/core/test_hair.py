@@ -17,12 +17,11 @@ from addon.core.scene.hair import (
     hair_mesh,
     spline_samples,
 )
+from addon.core.scene.vectors import triangle_areas
 
 
 def _areas(mesh) -> np.ndarray:
-    corners = mesh.corner_positions().reshape(-1, 3, 3).astype(np.float64)
-    return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
-                                         corners[:, 2] - corners[:, 0]), axis=1)
+    return triangle_areas(mesh.corner_positions())
 
 
 def _one(points: np.ndarray, radius: float = 0.01):

@@ -10,12 +10,11 @@ import numpy as np
 import pytest
 
 from addon.core.scene.points import DETAILED_POINTS, sphere_mesh
+from addon.core.scene.vectors import triangle_areas
 
 
 def _areas(mesh) -> np.ndarray:
-    corners = mesh.corner_positions().reshape(-1, 3, 3).astype(np.float64)
-    return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
-                                         corners[:, 2] - corners[:, 0]), axis=1)
+    return triangle_areas(mesh.corner_positions())
 
 
 @pytest.mark.parametrize("count, faces", [(3, 20), (DETAILED_POINTS + 1, 8)])

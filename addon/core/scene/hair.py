@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 
-from .model import Mesh
-from .vectors import unit
+from .model import Mesh, empty_mesh
+from .vectors import triangle_areas, unit
 
 TUBE_SIDES = 6
 THIN_SIDES = 3
@@ -48,12 +48,10 @@ def hair_mesh(name: str, points: np.ndarray, radii: np.ndarray, offsets: np.ndar
     offsets = np.asarray(offsets, np.int64)
     counts = np.diff(offsets)
     finite = np.isfinite(points).all(axis=1) & np.isfinite(radii)
-    curve_of_point = np.repeat(np.arange(len(counts)), counts)
-    bad = np.bincount(curve_of_point[~finite], minlength=len(counts)) > 0
+    bad = np.bincount(_curve_of_each(offsets)[~finite], minlength=len(counts)) > 0
     keep = (counts >= 2) & ~bad
     if not keep.any():
-        empty = np.zeros((0, 3), np.float32)
-        return Mesh(name, empty, empty, np.zeros(0, np.int32)), int(bad.sum())
+        return empty_mesh(name), int(bad.sum())
     kept_points = np.repeat(keep, counts)
     offsets = np.concatenate([[0], np.cumsum(counts[keep])])
     control = np.concatenate([points[kept_points], radii[kept_points, None]], axis=1)
@@ -70,7 +68,7 @@ def spline_samples(control: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray
     (P, 4: position and radius), the end points repeated: every control point, and between
     two of them as many more as the curve's turn needs (``MAX_TURN``); with the samples'
     curve offsets."""
-    curve = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
+    curve = _curve_of_each(offsets)
     last = offsets[1:][curve] - 1
     first = offsets[:-1][curve]
     starts = np.flatnonzero(np.arange(len(control)) < last)  # each segment's first point
@@ -95,6 +93,11 @@ def spline_samples(control: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray
     return samples, sample_offsets
 
 
+def _curve_of_each(offsets: np.ndarray) -> np.ndarray:
+    """The curve each point (or sample) belongs to, from the curves' ``offsets``."""
+    return np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
+
+
 def _angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The angle between rows of ``u`` and ``v`` (0 where either is zero)."""
     cosine = np.einsum("ij,ij->i", unit(u), unit(v))
@@ -114,7 +117,7 @@ def tube(name: str, centres: np.ndarray, radii: np.ndarray, offsets: np.ndarray,
     around = np.cos(angle)[None, :, None] * normals[:, None] \
         + np.sin(angle)[None, :, None] * binormals[:, None]  # (S, sides, 3)
     corners = centres[:, None] + (circumradius(sides) * radii)[:, None, None] * around
-    curve = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
+    curve = _curve_of_each(offsets)
     ring = np.flatnonzero(np.arange(len(centres)) < offsets[1:][curve] - 1)
     side = np.arange(sides)
     here = ring[:, None] * sides + side[None]
@@ -124,9 +127,7 @@ def tube(name: str, centres: np.ndarray, radii: np.ndarray, offsets: np.ndarray,
     triangles = np.stack([lower, upper], axis=2).reshape(-1, 3)
     triangle_slots = np.repeat(slots[curve[ring]], 2 * sides)
     positions = corners.reshape(-1, 3)
-    p = positions[triangles]
-    area = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-    keep = area > 0
+    keep = triangle_areas(positions[triangles]) > 0
     index = triangles[keep].ravel().astype(np.int32)
     return Mesh(name, positions.astype(np.float32), around.reshape(-1, 3).astype(np.float32),
                 triangle_slots[keep].astype(np.int32), None, index, index)
@@ -134,7 +135,7 @@ def tube(name: str, centres: np.ndarray, radii: np.ndarray, offsets: np.ndarray,
 
 def _tangents(centres: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """Unit tangents at each sample: its neighbours' difference within its curve."""
-    curve = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
+    curve = _curve_of_each(offsets)
     index = np.arange(len(centres))
     ahead = np.minimum(index + 1, offsets[1:][curve] - 1)
     behind = np.maximum(index - 1, offsets[:-1][curve])

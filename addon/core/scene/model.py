@@ -164,6 +164,12 @@ class Mesh:
         return None if self.uvs is None else _per_corner(self.uvs, self.uv_index)
 
 
+def empty_mesh(name: str) -> Mesh:
+    """A mesh without triangles (an object with nothing to render)."""
+    empty = np.zeros((0, 3), np.float32)
+    return Mesh(name, empty, empty, np.zeros(0, np.int32))
+
+
 def _per_corner(values: np.ndarray, index: np.ndarray | None) -> np.ndarray:
     return values if index is None else values[index]
 

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from .model import Mesh
+from .vectors import triangle_areas
 
 DETAILED_POINTS = 65536
 
@@ -41,11 +42,6 @@ def _outward(corners: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return faces
 
 
-def _area(corners: np.ndarray, faces: np.ndarray) -> float:
-    a, b, c = (corners[faces[:, i]] for i in range(3))
-    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
-
-
 SOLIDS = {"detailed": _icosahedron(), "coarse": _octahedron()}
 
 
@@ -59,7 +55,8 @@ def sphere_mesh(name: str, centres: np.ndarray, radii: np.ndarray, slots: np.nda
     finite = np.isfinite(centres).all(axis=1) & np.isfinite(radii)
     keep = finite & (radii > 0)
     corners, faces = SOLIDS["detailed" if keep.sum() <= DETAILED_POINTS else "coarse"]
-    scale = math.sqrt(4.0 * math.pi / _area(corners, faces))  # the sphere's area
+    area = triangle_areas(corners[faces]).sum()
+    scale = math.sqrt(4.0 * math.pi / area)  # the solid's area made the sphere's
     centres, radii = centres[keep], radii[keep]
     positions = centres[:, None] + (scale * radii)[:, None, None] * corners[None]
     index = (np.arange(len(centres))[:, None, None] * len(corners) + faces[None]).ravel()
