@@ -3,9 +3,11 @@ interpolated children) on a floor under a sun, at 640×360 with default settings
 the strands, the triangles of their tubes, the time to read them (the particle system's
 paths, one ``co_hair`` call a key: the viewport's children and steps) and the frame's time
 (a final render exports the scene afresh, its hair included), the first frame untimed,
-timed around ``bpy.ops.render.render()``.
+timed around ``bpy.ops.render.render()``. ``--save FILE`` saves the scene instead (for
+``python -m devtools report FILE``).
 
     .venv/bin/python tools/bench_hair.py [--parents 1000] [--children 20] [--repeat 2]
+        [--save fur.blend]
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ def main() -> None:
     parser.add_argument("--parents", type=int, default=1000)
     parser.add_argument("--children", type=int, default=20)
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--save", type=Path, help="save the scene to this .blend and stop")
     args = parser.parse_args()
 
     import bpy
@@ -47,6 +50,9 @@ def main() -> None:
         scene.render.engine = "VPL_GI"
         scene.render.resolution_x, scene.render.resolution_y = 640, 360
         scene.render.resolution_percentage = 100
+        if args.save is not None:
+            bpy.ops.wm.save_as_mainfile(filepath=str(args.save.resolve()))
+            return
         depsgraph = bpy.context.evaluated_depsgraph_get()
         start = time.perf_counter()
         mesh, _ = read_particle_hair(patch.evaluated_get(depsgraph), False, "fur")
