@@ -412,7 +412,6 @@ def _principled_clear(node, name: str, warnings: list[str]) -> Material | None:
 
 
 PRINCIPLED_LAYERS_LEFT_OUT = (
-    ("Sheen Weight", "Sheen is not rendered"),
     ("Subsurface Weight", "Subsurface is rendered as diffuse"),
     ("Anisotropic", "Anisotropic is rendered isotropic"),
     ("Thin Film Thickness", "Thin Film is not rendered"),
@@ -431,38 +430,43 @@ def _warn_layers_left_out(node, name: str, warnings: list[str]) -> None:
 
 
 COAT_INPUTS = ("Coat Weight", "Coat Roughness", "Coat IOR")
+SHEEN_INPUTS = ("Sheen Weight", "Sheen Roughness")
 
 
-def _principled_coat(node, name: str, warnings: list[str]) -> dict[str, object]:
-    """A Principled BSDF's clear coat as Material fields (none where its weight is 0); one
-    warning for what of it is not rendered: the coat where an input of COAT_INPUTS is
-    linked, its tint where that is linked (white instead), its own normal where one is
-    linked."""
-    weight = node.inputs.get("Coat Weight")
+def _principled_layer(node, name: str, warnings: list[str], layer: str,
+                      inputs: tuple[str, ...]) -> dict[str, object]:
+    """A Principled BSDF's clear coat or sheen (``layer``: "Coat", "Sheen") as Material
+    fields named after its ``inputs`` (COAT_INPUTS, SHEEN_INPUTS: the weight first; none
+    where it is 0) and its tint; one warning for what of it is not rendered: the layer where
+    one of ``inputs`` is linked, its tint where that is linked (white instead), its own normal
+    where one is linked."""
+    weight = node.inputs.get(inputs[0])
     if weight is None or (not weight.is_linked and float(weight.default_value) <= 0.0):
         return {}
-    linked = [socket_name for socket_name in COAT_INPUTS if node.inputs[socket_name].is_linked]
+    linked = [socket_name for socket_name in inputs if node.inputs[socket_name].is_linked]
     left_out = []
     if linked:
-        left_out.append(f"Coat is not rendered (its {', '.join(linked)} linked)")
-    tint = node.inputs.get("Coat Tint")
+        left_out.append(f"{layer} is not rendered (its {', '.join(linked)} linked)")
+    tint = node.inputs.get(f"{layer} Tint")
     tinted = tint is not None and not tint.is_linked
     if not linked and tint is not None and tint.is_linked:
-        left_out.append(f"Coat Tint is not rendered (linked to "
+        left_out.append(f"{layer} Tint is not rendered (linked to "
                         f"'{tint.links[0].from_node.bl_label}')")
-    normal = node.inputs.get("Coat Normal")
+    normal = node.inputs.get(f"{layer} Normal")
     if not linked and normal is not None and normal.is_linked:
-        left_out.append("Coat Normal is not rendered (the coat follows the surface's normal)")
+        left_out.append(f"{layer} Normal is not rendered (the {layer.lower()} follows the "
+                        f"surface's normal)")
     if left_out:
         message = f"material '{name}': {'; '.join(left_out)}"
         if message not in warnings:
             warnings.append(message)
     if linked:
         return {}
-    return {"coat_weight": float(weight.default_value),
-            "coat_roughness": float(node.inputs["Coat Roughness"].default_value),
-            "coat_ior": float(node.inputs["Coat IOR"].default_value),
-            "coat_tint": rgb(tint.default_value) if tinted else (1.0, 1.0, 1.0)}
+    fields: dict[str, object] = {socket_name.lower().replace(" ", "_"):
+                                 float(node.inputs[socket_name].default_value)
+                                 for socket_name in inputs}
+    fields[f"{layer.lower()}_tint"] = rgb(tint.default_value) if tinted else (1.0, 1.0, 1.0)
+    return fields
 
 
 def _normal_map(node, name: str, images: ImageReader) -> dict[str, object]:
@@ -534,11 +538,16 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          ior=float(constant(node, "IOR", 1.5)),
                          specular_ior_level=float(constant(node, "Specular IOR Level", 0.5)),
                          specular_tint=rgb(constant(node, "Specular Tint", (1, 1, 1))),
-                         **_principled_coat(node, name, images.warnings),
+                         **_principled_layer(node, name, images.warnings, "Coat",
+                                             COAT_INPUTS),
+                         **_principled_layer(node, name, images.warnings, "Sheen",
+                                             SHEEN_INPUTS),
                          **_principled_alpha(node, name, images),
                          **_normal_map(node, name, images))
     if node.type == "BSDF_HAIR_PRINCIPLED":
         return _principled_hair(node, name, images.warnings)
+    if node.type == "BSDF_SHEEN":
+        return _sheen(node, name, images)
     if node.type == "HOLDOUT":
         return Material(name, (0.0, 0.0, 0.0), roughness=1.0, holdout=True)
     if node.type in CLEAR_SHADERS:
@@ -588,10 +597,14 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         weight = max(wa + wb, 1e-30)
         glossy = a if a.specular_ior_level >= b.specular_ior_level else b
         coated = a if a.coat_weight >= b.coat_weight else b
+        sheened = a if a.sheen_weight >= b.sheen_weight else b
         return Material(name, mix[0], mix[1], transmission=mix[2],
                         coat_weight=(wa * a.coat_weight + wb * b.coat_weight) / weight,
                         coat_roughness=coated.coat_roughness, coat_ior=coated.coat_ior,
                         coat_tint=coated.coat_tint,
+                        sheen_weight=wa * a.sheen_weight + wb * b.sheen_weight,
+                        sheen_roughness=sheened.sheen_roughness, sheen_tint=sheened.sheen_tint,
+                        sheen_layered=sheened.sheen_layered,
                         transmission_ior=_mixed_ior(a, b),
                         roughness=(wa * a.roughness + wb * b.roughness) / weight,
                         metallic=(wa * a.metallic + wb * b.metallic) / weight,
@@ -600,6 +613,18 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                                             + wb * b.specular_ior_level) / weight,
                         **_mixed_maps(node, a, b, wa, wb))
     raise UnsupportedNodes(f"shader '{node.bl_label}' is not supported")
+
+
+def _sheen(node, name: str, images: ImageReader) -> Material:
+    """A Sheen BSDF: a sheen of weight 1 that dims nothing it is mixed or added to (its
+    Ashikhmin distribution rendered as Microfiber, with a warning)."""
+    if node.distribution != "MICROFIBER":
+        images.warn(f"material '{name}': {node.bl_label}'s {node.distribution.title()} "
+                    f"distribution is rendered as Microfiber")
+    return Material(name, (0.0, 0.0, 0.0), roughness=1.0, sheen_weight=1.0, sheen_layered=False,
+                    sheen_roughness=float(constant(node, "Roughness", 0.5)),
+                    sheen_tint=rgb(constant(node, "Color", (1, 1, 1))),
+                    **_normal_map(node, name, images))
 
 
 def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[str, object]:

@@ -11,7 +11,9 @@
 // With GLOSSY a second target gets the glossy radiance towards the camera, summed over the
 // same samples with the pixel's lobe from the g-buffer (bias compensation adds no glossy
 // light). With COAT (some material has a clear coat) the pixel's triangle's coat reflects
-// the same samples through its own lobe. With VPL_GLOSSY, VPLs at glossy surfaces also emit
+// the same samples through its own lobe, with SHEEN (some material has a sheen) its sheen
+// through sheen_brdf (principled_lib.glsl), which dims the coat as it dims the g-buffer's
+// lobe. With VPL_GLOSSY, VPLs at glossy surfaces also emit
 // through their lobe (lights_lib).
 // With LIGHT_LINKING the draw's samples light only the surfaces of some receiver sets
 // (light_linking_lib.glsl): elsewhere, and at bias compensation's hits elsewhere, they add
@@ -31,7 +33,7 @@ uniform vec3 u_camera_position;
 uniform vec3 u_camera_forward;
 uniform bool u_orthographic;
 layout(location = 1) out vec4 out_glossy;
-#ifdef COAT
+#if defined(COAT) || defined(SHEEN)
 #include "materials_lib.glsl"
 #endif
 #endif
@@ -46,18 +48,22 @@ uniform int u_count;
 
 layout(location = 0) out vec4 out_light;
 
-// The pixel's glossy lobe, its clear coat's (coat_a.w = alpha is 0 without one) and the view
-// direction (a.w = alpha is 0 on diffuse pixels).
+// The pixel's glossy lobe, its clear coat's (coat_a.w = alpha is 0 without one), its sheen's
+// (principled_lib.glsl's SheenLobe; sheen_seen.rgb is 0 without one) and the view direction
+// (a.w = alpha is 0 on diffuse pixels).
 struct Lobe {
     vec4 a;
     vec4 b;
     vec4 c;
     vec4 coat_a;
     vec4 coat_b;
+    vec4 sheen_seen;
+    vec4 sheen_frame;
     vec3 view;
 };
 
-const Lobe NO_LOBE = Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec3(0.0));
+const Lobe NO_LOBE = Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0),
+                          vec4(0.0), vec3(0.0));
 
 // Sum over this draw's samples; with interleaving (u_interleave = K > 1) each pixel of a K×K
 // pattern takes every K²-th sample and scales by K², so the expectation is unchanged. With a
@@ -121,6 +127,11 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
             if (lobe.coat_a.w > 0.0) {
                 glossy += e * glossy_brdf(lobe.coat_a, lobe.coat_b, vec4(0.0), normal,
                                           lobe.view, l);
+            }
+#endif
+#ifdef SHEEN
+            if (lobe.sheen_seen.rgb != vec3(0.0)) {
+                glossy += e * sheen_brdf(SheenLobe(lobe.sheen_seen, lobe.sheen_frame), normal, l);
             }
 #endif
         }
@@ -189,12 +200,22 @@ void main() {
     lobe.b = texelFetch(u_lobe_b, px, 0);
     lobe.c = texelFetch(u_lobe_c, px, 0);
     lobe.view = u_orthographic ? -u_camera_forward : normalize(u_camera_position - world);
-#ifdef COAT
+#if defined(COAT) || defined(SHEEN)
     int triangle = int(geometric_texel.w + 0.5) - 1;
     if (triangle >= 0 && lobe.a.w > 0.0) {
-        vec4 coat = material_of(triangle).coat;
+        Material material = material_of(triangle);
+        float keep = 1.0;  // what the sheen leaves the coat
+#ifdef SHEEN
+        if (material.sheen.rgb != vec3(0.0)) {
+            SheenLobe sheen = sheen_lobe(material.sheen, normal.xyz, lobe.view);
+            lobe.sheen_seen = sheen.seen;
+            lobe.sheen_frame = sheen.frame;
+            if (material.coat_tint.w > 0.0) keep = layering_keep(sheen.seen.rgb);
+        }
+#endif
+        vec4 coat = material.coat;
         if (coat.x > 0.0) {
-            coat_lobe(vec3(coat.x), coat.y * coat.y, coat.z, lobe.coat_a, lobe.coat_b);
+            coat_lobe(vec3(coat.x * keep), coat.y * coat.y, coat.z, lobe.coat_a, lobe.coat_b);
         }
     }
 #endif

@@ -6,8 +6,8 @@
 // is not drawn. With TEXTURED the albedo (capped to 1, as base colours are) and the emission
 // come from image textures, and a normal or bump map bends the shading normal. With GLOSSY
 // (some material has a specular layer) the albedo is the diffuse layer's colour (Cycles'
-// DiffCol) and three more layers hold the pixel's glossy lobe below any clear coat
-// (principled_lib.glsl; the gather reads the coat's from the material table); the
+// DiffCol) and three more layers hold the pixel's glossy lobe below any clear coat and sheen
+// (principled_lib.glsl; the gather reads theirs from the material table); the
 // glossy colour (Cycles' GlossCol) is (lobe_c.w, albedo.w, emission.w), as OpenGL
 // guarantees only eight colour attachments; the geometric normal's w holds the triangle's
 // index + 1 (-1 on a holdout) for the ID passes. With CUTOUTS (some
@@ -144,11 +144,12 @@ void main() {
 #ifdef GLOSSY
     out_lobe_a = out_lobe_b = out_lobe_c = vec4(0.0);
     if (material.tint.w > 0.0) {
-        vec3 below_coat;
+        vec3 below_layers;
         albedo *= principled_layers(albedo, material.specular, material.tint, material.coat,
-                                    material.coat_tint, dot(shading, to_camera), gloss,
-                                    out_lobe_a, out_lobe_b, out_lobe_c, below_coat);
-        emission *= below_coat;  // Cycles dims emission under a clear coat
+                                    material.coat_tint, material.sheen,
+                                    dot(shading, to_camera), gloss, out_lobe_a, out_lobe_b,
+                                    out_lobe_c, below_layers);
+        emission *= below_layers;  // Cycles dims emission under a clear coat and a sheen
         out_lobe_c.w = gloss.r;
     }
 #endif

@@ -1,9 +1,10 @@
 // The material table of core/geometry.py and each triangle's row in it, as textures
 // (core/scene_buffers.py; OpenGL 4.1 has no storage buffers): entry i of a table is texel
-// (i % width, i / width). A material row is nine texels: albedo, emission, texture attribute,
+// (i % width, i / width). A material row is ten texels: albedo, emission, texture attribute,
 // the specular parameters (roughness, metallic, eta, s_avg), (F0 x tint, glossy flag), the
-// clear coat (weight, roughness, eta, 0) and its tint (rgb, 0) (core/scene/principled.py's
-// specular_row), the cutout (coverage_lib.glsl) and the normal map (gbuffer_frag.glsl).
+// clear coat (weight, roughness, eta, 0) and its tint (rgb, whether the sheen is layered),
+// the sheen (weight x tint, roughness) (core/scene/principled.py's specular_row), the cutout (coverage_lib.glsl) and
+// the normal map (gbuffer_frag.glsl).
 // Vertex shaders pass the triangle index (gl_VertexID / 3, which instanced draws do not reset).
 #ifndef MATERIALS_LIB_GLSL
 #define MATERIALS_LIB_GLSL
@@ -19,6 +20,7 @@ struct Material {
     vec4 tint;
     vec4 coat;
     vec4 coat_tint;
+    vec4 sheen;
     vec4 cutout;
     vec4 normal_map;  // layer + 1 (0: none), strength, a bump map's filter width, its distance
 };
@@ -31,12 +33,12 @@ vec4 material_texel(int i) {
 Material material_of(int triangle) {
     int width = textureSize(u_triangle_materials, 0).x;
     int row = texelFetch(u_triangle_materials, ivec2(triangle % width, triangle / width), 0).r;
-    int first = 9 * row;
+    int first = 10 * row;
     return Material(material_texel(first), material_texel(first + 1),
                     material_texel(first + 2), material_texel(first + 3),
                     material_texel(first + 4), material_texel(first + 5),
                     material_texel(first + 6), material_texel(first + 7),
-                    material_texel(first + 8));
+                    material_texel(first + 8), material_texel(first + 9));
 }
 
 #endif

@@ -2,7 +2,9 @@
 // which computes the same on the CPU): a dielectric GGX lobe with the remapped dielectric
 // Fresnel, a metallic GGX lobe with Schlick's Fresnel from the base colour, both with
 // multiple-scattering compensation, over a diffuse base weighted by (1 - metallic)(1 - the
-// dielectric lobe's albedo). The g-buffer stores each pixel's lobe as three texels
+// dielectric lobe's albedo), under a clear coat and a sheen (core/scene/sheen.py: its BRDF
+// times cos is colour R(mu_v) D(l), R and D's transform measured on Cycles). The g-buffer
+// stores each pixel's lobe as three texels
 //   a = (A, alpha), b = (B, eta), c = (C, unused here)
 // so that the glossy BRDF times cos is F(h.v) D G2 / (4 n.v) with
 //   F = A + B s_eta(h.v) + C (1 - h.v)^5.
@@ -18,6 +20,8 @@
 #define ROW_EAVG 32
 #define ROW_S_IOR 33
 #define ROW_S5 289
+#define ROW_SHEEN 305
+#define SHEEN_SIZE 17  // rows of R, then of the lobe's a, then of its b
 
 uniform sampler2D u_ggx_tables;
 
@@ -58,16 +62,60 @@ float dielectric_albedo(float rough, float eta, float mu) {
     return table_2d(ROW_E, rough, mu, E_SIZE) * (f0 + (1.0 - f0) * s);
 }
 
+// The sheen's albedo R at cosine mu for its roughness.
+float sheen_albedo(float rough, float mu) {
+    return table_2d(ROW_SHEEN, rough, mu, SHEEN_SIZE);
+}
+
+// What a layer that reflects ``reflected`` leaves the layers below it: one minus its largest
+// channel (Cycles' closure_layering_weight).
+float layering_keep(vec3 reflected) {
+    return clamp(1.0 - max(reflected.r, max(reflected.g, reflected.b)), 0.0, 1.0);
+}
+
+// A pixel's sheen lobe: its colour x R at the view (rgb) and the transform's a (w), and the
+// frame's x axis, the view's projection on the surface (xyz), with the transform's b (w).
+struct SheenLobe {
+    vec4 seen;
+    vec4 frame;
+};
+
+SheenLobe sheen_lobe(vec4 sheen, vec3 n, vec3 view) {
+    float mu = clamp(dot(n, view), 0.0, 1.0);
+    vec3 x = view - n * dot(n, view);
+    float length_x = length(x);
+    x = length_x > 1e-6 ? x / length_x : abs(n.x) < 0.9 ? normalize(cross(n, vec3(1, 0, 0)))
+                                                          : normalize(cross(n, vec3(0, 1, 0)));
+    return SheenLobe(vec4(sheen.rgb * sheen_albedo(sheen.w, mu),
+                          table_2d(ROW_SHEEN + SHEEN_SIZE, sheen.w, mu, SHEEN_SIZE)),
+                     vec4(x, table_2d(ROW_SHEEN + 2 * SHEEN_SIZE, sheen.w, mu, SHEEN_SIZE)));
+}
+
+// The sheen's BRDF (radiance towards the view per unit irradiance from l): colour R D(l) /
+// cos(l), D the transformed cosine a^2 cos_o / (pi |M^-1 l|^3) with cos_o = z / |M^-1 l|.
+vec3 sheen_brdf(SheenLobe lobe, vec3 n, vec3 l) {
+    float z = dot(n, l);
+    if (z <= 0.0) return vec3(0.0);
+    float a = lobe.seen.w, b = lobe.frame.w;
+    vec3 y = cross(n, lobe.frame.xyz);
+    vec3 o = vec3(a * dot(lobe.frame.xyz, l) + b * z, a * dot(y, l), z);
+    float length2 = dot(o, o);
+    return lobe.seen.rgb * (a * a / (PI * length2 * length2));
+}
+
 // Layers of a pixel seen at cosine mu: the diffuse weight (returned), the glossy albedo
-// (Cycles' GlossCol, the coat's included) and the lobe texels, all below the clear coat
-// dimmed by (1 - what it reflects) and its tint (to the power 1 / cos of the view refracted
-// into it, mixed in by its weight, as Cycles). spec = (roughness, metallic, eta, s_avg),
-// tint = (F0 x tint, flag), coat = (weight, roughness, eta, 0), coat_tint = (rgb, 0) from the
-// material table; the coat's own lobe is coat_lobe's. below: what of the layers under the
-// coat (and of the emission, as Cycles dims it) is seen through it.
-vec3 principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, vec4 coat_tint, float mu,
-                       out vec3 gloss, out vec4 lobe_a, out vec4 lobe_b, out vec4 lobe_c,
-                       out vec3 below) {
+// (Cycles' GlossCol, the coat's and the sheen's included) and the lobe texels, all below the
+// clear coat dimmed by (1 - what it reflects) and its tint (to the power 1 / cos of the view
+// refracted into it, mixed in by its weight, as Cycles), and all below a layered sheen by
+// layering_keep of its albedo. spec = (roughness, metallic, eta, s_avg), tint = (F0 x tint,
+// flag), coat = (weight, roughness, eta, 0), coat_tint = (rgb, 1 where the sheen dims the
+// layers below, as the Principled BSDF's; 0 for a Sheen BSDF's), sheen = (weight x tint,
+// roughness) from the material table; the coat's and the sheen's own lobes are coat_lobe's and sheen_brdf's.
+// below: what of the layers under the coat and sheen (and of the emission, as Cycles dims
+// it) is seen through them.
+vec3 principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, vec4 coat_tint,
+                       vec4 sheen, float mu, out vec3 gloss, out vec4 lobe_a, out vec4 lobe_b,
+                       out vec4 lobe_c, out vec3 below) {
     float rough = spec.x, metallic = spec.y, eta = spec.z;
     mu = clamp(mu, 1e-3, 1.0);
     float e = max(table_2d(ROW_E, rough, mu, E_SIZE), 1e-4);
@@ -107,10 +155,14 @@ vec3 principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, vec4 coat_tin
             below *= 1.0 + coat.x * (pow(coat_tint.rgb, vec3(1.0 / cos_refracted)) - 1.0);
         }
     }
+    gloss = gloss * below + reflected;
+    vec3 sheen_reflected = sheen.rgb * sheen_albedo(sheen.w, mu);
+    float keep = coat_tint.w > 0.0 ? layering_keep(sheen_reflected) : 1.0;
+    below *= keep;
+    gloss = gloss * keep + sheen_reflected;
     lobe_a = vec4(a * below, rough * rough);
     lobe_b = vec4(b * below, eta);
     lobe_c = vec4(c * below, 0.0);
-    gloss = gloss * below + reflected;
     return diffuse * below;
 }
 

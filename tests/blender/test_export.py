@@ -387,9 +387,9 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
         return node
     metal = shader_material(bpy, "Metal", principled)
 
-    def sheen(nodes, _links):
-        return nodes.new("ShaderNodeBsdfSheen")
-    shiny = shader_material(bpy, "Shiny", sheen)
+    def toon(nodes, _links):
+        return nodes.new("ShaderNodeBsdfToon")
+    shiny = shader_material(bpy, "Shiny", toon)
     shiny.diffuse_color = (0.3, 0.2, 0.1, 1)
 
     def textured(nodes, links):
@@ -422,7 +422,7 @@ def test_materials_mix_principled_fallbacks_and_empty_slots(blender):
         "background renders, in the viewport and by Bake Materials)",
         *(["material 'Plain' has no shader nodes: rendered as a diffuse surface in its "
            "viewport colour (as Cycles does)"] if plain_warned else []),
-        "material 'Shiny': shader 'Sheen BSDF' is not supported; using its viewport colour"]
+        "material 'Shiny': shader 'Toon BSDF' is not supported; using its viewport colour"]
     # Cycles 5.x renders an empty slot as a default Principled BSDF (specular level 0.5)
     assert got["(no material)"].specular_ior_level == (0.5 if BLENDER_5 else 0.0)
     assert scene.notes == []

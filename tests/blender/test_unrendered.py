@@ -1,4 +1,4 @@
-"""What Cycles renders and VPL GI does not (volumes, a Principled BSDF's sheen, subsurface,
+"""What Cycles renders and VPL GI does not (volumes, a Principled BSDF's subsurface,
 anisotropy and thin film) is named in one warning each, and an object
 with only a Volume shader lets light through as in Cycles instead of rendering as a black
 surface."""
@@ -117,6 +117,7 @@ def test_principled_layers_left_out_are_named_once_per_material(blender):
     tree = varnish.node_tree
     tree.links.new(tree.nodes.new("ShaderNodeTexNoise").outputs["Fac"],
                    tree.nodes["Principled BSDF"].inputs["Subsurface Weight"])
-    assert export_material(varnish, warnings).coat_weight == 1.0  # rendered (test_coat.py)
-    assert warnings == ["material 'Varnish': Sheen is not rendered; Subsurface is rendered as "
-                        "diffuse"]
+    exported = export_material(varnish, warnings)
+    assert exported.coat_weight == 1.0  # rendered (test_coat.py)
+    assert exported.sheen_weight == pytest.approx(0.3)  # rendered (test_sheen.py)
+    assert warnings == ["material 'Varnish': Subsurface is rendered as diffuse"]

@@ -185,6 +185,8 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
             uniforms.update(gbuffer.view)
             if scene is not None and scene.has_coat:
                 defines.update(COAT=1)
+            if scene is not None and scene.has_sheen:
+                defines.update(SHEEN=1)
         if compensation is not None:
             defines.update(BIAS_COMPENSATION=1, SURFACE_VERTICES_BINDING=SURFACE_VERTICES_BINDING)
             uniforms.update(u_clamp_distance=compensation.clamp_distance,
@@ -205,12 +207,15 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         if compensation is not None:  # the surfaces rays reach: positions and materials
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
             scene.bind_materials(program)
-        elif "COAT" in defines:  # the pixels' coats
+        elif "COAT" in defines or "SHEEN" in defines:  # the pixels' coats and sheens
             for shader in shaders:
                 scene.bind_materials(shader)
         elif "LIGHT_LINKING" in defines:
             for shader in shaders:
                 scene.bind_triangle_rows(shader)
+        if "SHEEN" in defines:  # the sheen's albedo table
+            for shader in shaders:
+                scene.bind_specular(shader)
         accumulator.use()
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.ONE, moderngl.ONE

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..scene import principled
 from ..scene.geometry import WorldGeometry
+from .gl import set_uniforms
 from .texture_array import upload as upload_textures
 
 MATERIAL_UNITS = 6, 7  # texture units of the triangles' rows and the material table (units
@@ -53,13 +54,14 @@ class SceneBuffers:
                 if column is not None:
                     rows = np.concatenate([rows, column[:, None]], axis=1)
             self.triangle_material = self._own(table_texture(ctx, rows, rows.shape[1], "i4"))
-            table = geometry.materials.reshape(-1, 4)  # nine RGBA texels a row
+            table = geometry.materials.reshape(-1, 4)  # ten RGBA texels a row
             self.materials = self._own(table_texture(ctx, table, 4, "f4"))
             self.uv = None if geometry.uv is None else self._own(ctx.buffer(geometry.uv))
             self.textures = tuple(self._own(t) for t in upload_textures(ctx, geometry.textures)) \
                 if geometry.has_textures else None
             self.has_specular = geometry.has_specular
             self.has_coat = geometry.has_coat
+            self.has_sheen = geometry.has_sheen
             self.has_cutouts = bool(geometry.cutout.any())
             self.ggx_tables = None
             if self.has_specular:
@@ -114,9 +116,10 @@ class SceneBuffers:
                 CUTOUT_TEXTURE_UNITS
 
     def bind_specular(self, program: moderngl.Program) -> None:
-        """Bind the glossy lobe's tables for principled_lib.glsl (scenes with specular)."""
+        """Bind the glossy lobe's tables for principled_lib.glsl (scenes with specular), where
+        the program reads them."""
         self.ggx_tables.use(GGX_TABLES_UNIT)
-        program["u_ggx_tables"].value = GGX_TABLES_UNIT
+        set_uniforms(program, u_ggx_tables=GGX_TABLES_UNIT)
 
     def release(self) -> None:
         for obj in self._objects:

@@ -9,6 +9,7 @@ from functools import cached_property
 import numpy as np
 
 from . import principled
+from . import sheen as sheens
 from . import textures as tex
 from .model import (
     DEFAULT_MATERIAL,
@@ -26,16 +27,17 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
-MATERIAL_COLUMNS = 36  # albedo, hidden, emission, holdout, texture attribute, shadowless,
-# specular (with the coat), cutout, diffuse-hidden, normal map: nine texels
+MATERIAL_COLUMNS = 40  # albedo, hidden, emission, holdout, texture attribute, shadowless,
+# specular (with the coat and sheen), cutout, diffuse-hidden, normal map: ten texels
 HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 HOLDOUT = 7  # 1 in the rows of holdout instances (gbuffer_frag.glsl, combined_frag.glsl)
 SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl)
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
 COAT = SPECULAR + 8  # the coat's weight in them
-CUTOUT = 28  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
-DIFFUSE_HIDDEN = 31  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
-NORMAL_MAP = 32  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
+SHEEN = SPECULAR + principled.SHEEN_COLUMN  # the sheen's colour in them
+CUTOUT = 32  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
+DIFFUSE_HIDDEN = 35  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
+NORMAL_MAP = 36  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 NO_LINKING = (0, EVERY_RECEIVER_SET, 0, EVERY_RECEIVER_SET)  # Instance.linking's defaults
@@ -51,7 +53,7 @@ class WorldGeometry:
     layer, emission layer — NO_TEXTURE for none — and the strength the emission texture is
     multiplied by) and the Principled BSDF's specular parameters (principled.specular_row),
     the cutout texel (TextureSet.cutout) and the normal map's (TextureSet.normal), laid out
-    as nine RGBA texels
+    as ten RGBA texels
     (gpu_shaders/materials_lib.glsl). Textured materials
     have their textures' average colour as albedo and emission (the per-triangle values light
     sampling and path termination use); ``uv`` (per vertex) is set only when some material has
@@ -164,6 +166,11 @@ class WorldGeometry:
         """Whether some material has a clear coat (the shaders' COAT path)."""
         return bool(np.any(self.materials[:, COAT] > 0))
 
+    @property
+    def has_sheen(self) -> bool:
+        """Whether some material has a sheen (the shaders' SHEEN path)."""
+        return bool(np.any(self.materials[:, SHEEN:SHEEN + 3] > 0))
+
     @cached_property
     def emission(self) -> np.ndarray:
         """Each triangle's emitted radiance, (T, 3) float32."""
@@ -173,16 +180,17 @@ class WorldGeometry:
     def light_emission(self) -> np.ndarray:
         """Each triangle's emitted radiance as a light of the other surfaces (T, 3): its
         emission times its mean coverage (a cutout emits from the part that is there) and
-        what leaves through its clear coat (principled.emission_below_coat), none where
-        diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
+        what leaves through its clear coat and sheen (principled.emission_below_layers), none
+        where diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
         emission = self.emission
-        coated = np.flatnonzero((self.materials[:, COAT] > 0)
-                                & (self.materials[:, 4:7].max(axis=1) > 0))
-        if len(coated):
+        layered = (self.materials[:, COAT] > 0) | self.materials[:, SHEEN:SHEEN + 3].any(axis=1)
+        covered = np.flatnonzero(layered & (self.materials[:, 4:7].max(axis=1) > 0))
+        if len(covered):
             table = np.ones((len(self.materials), 3), np.float32)
-            for row in coated:
-                coat = principled.coat_of(self.materials[row, SPECULAR:CUTOUT])
-                table[row] = principled.emission_below_coat(coat)
+            for row in covered:
+                params = self.materials[row, SPECULAR:CUTOUT]
+                table[row] = principled.emission_below_layers(principled.coat_of(params),
+                                                              principled.sheen_of(params))
             emission = emission * table[self.triangle_material]
         if not (self.cutout.any() or self.diffuse_hidden.any()):
             return emission
@@ -288,8 +296,9 @@ class WorldGeometry:
                                      np.ndarray]:
         """What a light path arriving at cosine ``mu`` (m,) keeps at points on triangles whose
         base colour is ``base`` (m, 3): the diffuse reflectance (m, 3) (base colour × the
-        diffuse weight averaged over outgoing directions), the glossy albedo (m, 3) at ``mu``
-        (the coat's included), the lobe's roughness (m,), and the coat's share of the glossy
+        diffuse weight averaged over outgoing directions, plus what the sheen reflects at
+        ``mu``, which a VPL re-emits diffusely), the glossy albedo (m, 3) at ``mu`` (the
+        coat's included), the lobe's roughness (m,), and the coat's share of the glossy
         albedo's luminance (m,) and roughness (m,)."""
         diffuse = base.copy()
         gloss, rough = np.zeros_like(diffuse), np.zeros(len(triangle))
@@ -300,13 +309,15 @@ class WorldGeometry:
             if params[7] <= 0:
                 continue
             group = np.flatnonzero(material == row)
-            _, gloss[group] = principled.layer_weights(
-                diffuse[group], *principled.specular_parameters(params), mu[group])
-            diffuse[group] *= principled.diffuse_average(params)
+            specular = principled.specular_parameters(params)
+            _, gloss[group] = principled.layer_weights(diffuse[group], *specular, mu[group])
+            sheen_reflected, keep = sheens.layer(specular[-1], mu[group])
+            diffuse[group] = diffuse[group] * principled.diffuse_average(params) \
+                + sheen_reflected
             rough[group] = params[0]
             coat = principled.coat_of(params)
             if coat.weight > 0:
-                reflected = principled.coat_albedo(coat, mu[group])
+                reflected = principled.coat_albedo(coat, mu[group]) * keep
                 luminance = np.maximum(gloss[group] @ tex.LUMINANCE, 1e-30)
                 coat_share[group] = reflected / luminance
                 coat_rough[group] = coat.roughness
@@ -424,7 +435,7 @@ def _material_rows(materials: list[Material], warnings: list[str],
     for row, m in enumerate(materials):
         values = np.array([m.roughness, m.metallic, m.ior, m.specular_ior_level,
                            *m.specular_tint, m.coat_weight, m.coat_roughness, m.coat_ior,
-                           *m.coat_tint],
+                           *m.coat_tint, m.sheen_weight, m.sheen_roughness, *m.sheen_tint],
                           np.float64)
         if not np.isfinite(values).all():
             message = f"material '{m.name}': specular values are not finite: rendered diffuse"
@@ -433,7 +444,9 @@ def _material_rows(materials: list[Material], warnings: list[str],
             continue
         rows[row, SPECULAR:CUTOUT] = principled.specular_row(
             m.roughness, m.metallic, m.ior, m.specular_ior_level, m.specular_tint,
-            principled.Coat(m.coat_weight, m.coat_roughness, m.coat_ior, m.coat_tint))
+            principled.Coat(m.coat_weight, m.coat_roughness, m.coat_ior, m.coat_tint),
+            principled.Sheen(tuple(max(m.sheen_weight, 0.0) * np.asarray(m.sheen_tint)),
+                             m.sheen_roughness, m.sheen_layered))
         base_lobe = rows[row, SPECULAR + 7] > 0 \
             and (rows[row, SPECULAR + 2] != 1.0 or rows[row, SPECULAR + 1] > 0)
         if (base_lobe and m.roughness < principled.MIN_ROUGHNESS) \

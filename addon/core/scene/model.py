@@ -66,7 +66,8 @@ class Material:
     strength per channel). Roughness, metallic, IOR, specular IOR level and specular tint are
     the Principled BSDF's inputs; with level 0, metallic 0 and no coat (the defaults here, as
     for a Diffuse BSDF) the material is pure Lambert. A coat (``coat_weight`` above 0) is a
-    dielectric GGX layer of its own roughness and IOR over the others. ``transmission`` is
+    dielectric GGX layer of its own roughness and IOR over the others, a sheen (``sheen_weight``
+    above 0) a soft reflection over all of them. ``transmission`` is
     the colour of the light it lets straight through (Transparent, Glass and Refraction
     BSDFs, a Principled BSDF's Alpha and Transmission); a material that does nothing else is
     clear (``is_clear``).
@@ -92,6 +93,10 @@ class Material:
     coat_roughness: float = 0.03
     coat_ior: float = 1.5
     coat_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    sheen_weight: float = 0.0  # the Principled BSDF's sheen, over the coat (core/scene/sheen.py)
+    sheen_roughness: float = 0.5
+    sheen_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    sheen_layered: bool = True  # it dims the layers below (a Sheen BSDF node's does not)
     base_color_texture: Texture | None = None
     emission_texture: Texture | None = None
     transmission: tuple[float, float, float] = (0.0, 0.0, 0.0)

@@ -8,9 +8,11 @@
   (1 + Fms (1 − E)/E) for the single-scattering albedo E and the Fresnel's cosine average);
 - a diffuse base of weight (1 − metallic)(1 − max over channels of the dielectric lobe's
   albedo), the energy-conserving layering;
-- over all of them a clear coat: a dielectric GGX lobe of weight ``coat`` with its own
+- over them a clear coat: a dielectric GGX lobe of weight ``coat`` with its own
   roughness and IOR (real Fresnel, no energy compensation, as Cycles' plain GGX), which
-  dims every layer below by (1 − coat × its albedo at the view).
+  dims every layer below by (1 − coat × its albedo at the view);
+- over all of them a sheen (core/scene/sheen.py: Cycles' microfiber sheen, measured), which
+  dims the rest by (1 − the largest channel of its albedo at the view).
 
 The albedos come from tables of the GGX lobe, computed here by stratified sampling of visible
 normals (Heitz 2018), as Cycles precomputes its own (``ggx_E``, ``ggx_Eavg``,
@@ -24,6 +26,9 @@ from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
+
+from . import sheen as sheens
+from .sheen import NO_SHEEN, Sheen
 
 E_SIZE = 32  # roughness × cos(view) nodes of the single-scattering albedo E
 S_SIZE = 16  # roughness × cos(view) × IOR nodes of the Fresnel factors s
@@ -46,11 +51,13 @@ class Coat(NamedTuple):
 NO_COAT = Coat(0.0, MIN_ROUGHNESS, 1.5)
 
 # Rows of the table texture (width E_SIZE): E by roughness, then E_avg, then s_ior by
-# (IOR, roughness), then s for Schlick's exponent 5 by roughness.
+# (IOR, roughness), then s for Schlick's exponent 5 by roughness, then the sheen's albedo and
+# its lobe's a and b by roughness (sheen.table(), sheen.SIZE wide).
 ROW_E, ROW_EAVG = 0, E_SIZE
 ROW_S_IOR = ROW_EAVG + 1
 ROW_S5 = ROW_S_IOR + S_SIZE * S_SIZE
-TABLE_ROWS = ROW_S5 + S_SIZE
+ROW_SHEEN = ROW_S5 + S_SIZE
+TABLE_ROWS = ROW_SHEEN + 3 * sheens.SIZE
 
 
 def f0_from_ior(eta: np.ndarray | float) -> np.ndarray:
@@ -145,6 +152,7 @@ def tables() -> np.ndarray:
         rows = slice(ROW_S_IOR + k * S_SIZE, ROW_S_IOR + (k + 1) * S_SIZE)
         out[rows, :S_SIZE] = (weight * s).mean(-1) / albedo
     out[ROW_S5:ROW_S5 + S_SIZE, :S_SIZE] = (weight * (1.0 - cos_vh) ** 5).mean(-1) / albedo
+    out[ROW_SHEEN:, :sheens.SIZE] = sheens.table()
     return out
 
 
@@ -229,11 +237,12 @@ def below_coat(coat: Coat, mu: np.ndarray, reflected: np.ndarray) -> np.ndarray:
 
 
 def layer_weights(base: np.ndarray, rough: float, metallic: float, eta: float,
-                  f0: np.ndarray, s_avg: float, coat: Coat, mu: np.ndarray
+                  f0: np.ndarray, s_avg: float, coat: Coat, sheen: Sheen, mu: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """The diffuse weight (n, 3) and the glossy albedo (Cycles' GlossCol, the coat's included)
     (n, 3) of base colours (n, 3) seen at cosines ``mu`` (n,), for a material's specular
-    parameters (see ``specular_row``). The shader computes the same per pixel."""
+    parameters (see ``specular_row``), both dimmed by the sheen above them (whose own albedo,
+    ``sheen.layer``, is in neither). The shader computes the same per pixel."""
     z = np.sqrt(np.abs((eta - 1.0) / (eta + 1.0)))
     e, e_avg, s_ior, s5 = (x[:, None] for x in lookup(np.full(len(mu), rough), mu,
                                                       np.full(len(mu), z)))
@@ -252,7 +261,8 @@ def layer_weights(base: np.ndarray, rough: float, metallic: float, eta: float,
         reflected = coat_albedo(coat, mu)
         below = below_coat(coat, mu, reflected)
         diffuse, gloss = diffuse * below, gloss * below + reflected[:, None]
-    return diffuse, gloss
+    _, keep = sheens.layer(sheen, mu)
+    return diffuse * keep[:, None], gloss * keep[:, None]
 
 
 def _darkening(f0: np.ndarray, s_avg: float, e: np.ndarray, e_avg: np.ndarray) -> np.ndarray:
@@ -264,28 +274,39 @@ def _darkening(f0: np.ndarray, s_avg: float, e: np.ndarray, e_avg: np.ndarray) -
 
 def path_albedo(base: np.ndarray, row: np.ndarray) -> np.ndarray:
     """Reflectance of light arriving from a cosine-weighted direction (what a light path keeps
-    at a bounce, the glossy part re-emitted diffusely): ∫ (diffuse weight × base + GlossCol)
-    2μ dμ, for base colours (n, 3) of one material's specular row."""
+    at a bounce, the glossy part re-emitted diffusely): ∫ (diffuse weight × base + GlossCol
+    + the sheen's albedo) 2μ dμ, for base colours (n, 3) of one material's specular row."""
     mu, weight = COSINE_MU, COSINE_WEIGHT
     n = len(base)
     repeated = np.repeat(base, len(mu), axis=0)
-    diffuse, gloss = layer_weights(repeated, *specular_parameters(row), np.tile(mu, n))
-    per = diffuse * repeated + gloss
+    params = specular_parameters(row)
+    diffuse, gloss = layer_weights(repeated, *params, np.tile(mu, n))
+    per = diffuse * repeated + gloss + sheens.layer(params[-1], np.tile(mu, n))[0]
     return (per.reshape(n, len(mu), 3) * weight[None, :, None]).sum(axis=1)
 
 
-SPECULAR_COLUMNS = 16  # four RGBA texels: (roughness, metallic, eta, s_avg),
-# (tint F0 rgb, flag), (coat weight, coat roughness, coat eta, 0), (coat tint rgb, 0)
+SPECULAR_COLUMNS = 20  # five RGBA texels: (roughness, metallic, eta, s_avg),
+# (tint F0 rgb, flag), (coat weight, coat roughness, coat eta, 0), (coat tint rgb, sheen
+# layered), (sheen colour rgb, sheen roughness)
+SHEEN_LAYERED_COLUMN = 15
+SHEEN_COLUMN = 16
 
 
 def specular_row(roughness: float, metallic: float, ior: float, level: float,
-                 tint: tuple[float, float, float], coat: Coat = NO_COAT) -> np.ndarray:
+                 tint: tuple[float, float, float], coat: Coat = NO_COAT,
+                 sheen: Sheen = NO_SHEEN) -> np.ndarray:
     """A material's specular texels: clamped roughness, metallic, the Fresnel's IOR (level
     applied, as Cycles does), its remapped cosine average, F0 × tint (saturated), a flag
-    (1 when there is any glossy lobe; 0 keeps the pure-Lambert path) and the clear coat's
-    weight (in [0, 1]), clamped roughness, IOR (at least 1, as Cycles takes it) and tint (at
-    least 0)."""
+    (1 when there is any glossy lobe or sheen; 0 keeps the pure-Lambert path), the clear
+    coat's weight (in [0, 1]), clamped roughness, IOR (at least 1, as Cycles takes it) and
+    tint (at least 0), and the sheen's colour (at least 0), roughness (in [0, 1], as Cycles
+    saturates it) and whether it dims the layers below (1) or not (0)."""
     row = np.zeros(SPECULAR_COLUMNS, np.float32)
+    color = np.maximum(np.nan_to_num(np.asarray(sheen.color, float)), 0.0)
+    if color.any():
+        row[SHEEN_COLUMN:SHEEN_COLUMN + 3] = color
+        row[SHEEN_COLUMN + 3] = np.clip(sheen.roughness, 0.0, 1.0)
+        row[SHEEN_LAYERED_COLUMN] = float(sheen.layered)
     coat_weight = float(np.clip(coat.weight, 0.0, 1.0))
     coat_ior = max(float(coat.ior), 1.0)
     if coat_weight > 0 and coat_ior > 1.0:
@@ -307,7 +328,7 @@ def specular_row(roughness: float, metallic: float, ior: float, level: float,
     dielectric = eta != 1.0 and metallic < 1.0
     rough = max(float(np.clip(roughness, 0.0, 1.0)), MIN_ROUGHNESS)
     if not dielectric and metallic <= 0.0:
-        if row[8] > 0:  # a coat alone over a diffuse base
+        if row[8] > 0 or color.any():  # a coat or sheen alone over a diffuse base
             row[:4] = rough, metallic, 1.0, 0.0
             row[7] = 1.0
         return row
@@ -321,17 +342,24 @@ def specular_row(roughness: float, metallic: float, ior: float, level: float,
 
 
 def specular_parameters(row: np.ndarray
-                        ) -> tuple[float, float, float, np.ndarray, float, Coat]:
-    """(roughness, metallic, eta, F0 × tint, s_avg, coat) of a specular row, for
+                        ) -> tuple[float, float, float, np.ndarray, float, Coat, Sheen]:
+    """(roughness, metallic, eta, F0 × tint, s_avg, coat, sheen) of a specular row, for
     ``layer_weights``."""
     return float(row[0]), float(row[1]), float(row[2]), np.asarray(row[4:7], float), \
-        float(row[3]), coat_of(row)
+        float(row[3]), coat_of(row), sheen_of(row)
 
 
 def coat_of(row: np.ndarray) -> Coat:
     """The clear coat of a specular row."""
     return Coat(float(row[8]), float(row[9]), float(row[10]),
                 (float(row[12]), float(row[13]), float(row[14])))
+
+
+def sheen_of(row: np.ndarray) -> Sheen:
+    """The sheen of a specular row."""
+    color = row[SHEEN_COLUMN:SHEEN_COLUMN + 3]
+    return Sheen((float(color[0]), float(color[1]), float(color[2])),
+                 float(row[SHEEN_COLUMN + 3]), bool(row[SHEEN_LAYERED_COLUMN] > 0))
 
 
 def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarray,
@@ -372,21 +400,25 @@ def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarra
 
 def diffuse_average(row: np.ndarray) -> np.ndarray:
     """The diffuse weight (3,) averaged over outgoing cosine-weighted directions (what a
-    diffuse VPL of this material emits per unit base colour): ∫ weight(μ) 2μ dμ."""
+    diffuse VPL of this material emits per unit base colour, below its sheen):
+    ∫ weight(μ) 2μ dμ."""
     mu, weight = COSINE_MU, COSINE_WEIGHT
     diffuse, _ = layer_weights(np.zeros((len(mu), 3)), *specular_parameters(row), mu)
     return (diffuse * weight[:, None]).sum(axis=0)
 
 
-def emission_below_coat(coat: Coat) -> np.ndarray:
-    """What of a surface's emission leaves through its clear coat (3,), averaged over
-    cosine-weighted directions: Cycles dims emission under the coat as it dims the layers
-    below (``below_coat`` at the direction it leaves in), so this keeps the emitted power
-    exact; the camera's view is dimmed at its own angle (principled_layers)."""
-    if coat.weight <= 0:
-        return np.ones(3)
+def emission_below_layers(coat: Coat, sheen: Sheen) -> np.ndarray:
+    """What of a surface's emission leaves through its clear coat and sheen (3,), averaged
+    over cosine-weighted directions: Cycles dims emission under them as it dims the layers
+    below (``below_coat`` and the sheen's keep at the direction it leaves in), so this keeps
+    the emitted power exact; the camera's view is dimmed at its own angle
+    (principled_layers)."""
     mu, weight = COSINE_MU, COSINE_WEIGHT
-    return (below_coat(coat, mu, coat_albedo(coat, mu)) * weight[:, None]).sum(axis=0)
+    below = np.ones((len(mu), 3))
+    if coat.weight > 0:
+        below = below_coat(coat, mu, coat_albedo(coat, mu))
+    below *= sheens.layer(sheen, mu)[1][:, None]
+    return (below * weight[:, None]).sum(axis=0)
 
 
 LOBE_TEXELS = 3  # (A rgb, alpha), (B rgb, eta), (C rgb, 0): principled_lib.glsl's lobe_a/b/c
@@ -395,9 +427,9 @@ LOBE_TEXELS = 3  # (A rgb, alpha), (B rgb, eta), (C rgb, 0): principled_lib.glsl
 def lobe_texels(base: np.ndarray, row: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """The glossy lobe's texels (n, 3, 4) of base colours (n, 3) at cosines ``mu`` (n,), as
     principled_layers in principled_lib.glsl computes them for a pixel (glossy_brdf reads
-    them), dimmed by the coat above it (whose own lobe is not in them); all zero for a row
-    without a glossy lobe."""
-    rough, metallic, eta, f0, s_avg, coat = specular_parameters(row)
+    them), dimmed by the coat and sheen above it (whose own lobes are not in them); all zero
+    for a row without a glossy lobe."""
+    rough, metallic, eta, f0, s_avg, coat, sheen = specular_parameters(row)
     out = np.zeros((len(mu), LOBE_TEXELS, 4))
     if row[7] <= 0:
         return out
@@ -415,8 +447,9 @@ def lobe_texels(base: np.ndarray, row: np.ndarray, mu: np.ndarray) -> np.ndarray
         k_m = metallic * _darkening(metal_f0, 1.0 / 21.0, e, e_avg) / e
         out[:, 0, :3] += k_m * metal_f0
         out[:, 2, :3] = k_m * (1.0 - metal_f0)
+    mu = np.clip(mu, 1e-3, 1.0)
     if coat.weight > 0:
-        mu = np.clip(mu, 1e-3, 1.0)
         out[:, :, :3] *= below_coat(coat, mu, coat_albedo(coat, mu))[:, None, :]
+    out[:, :, :3] *= sheens.layer(sheen, mu)[1][:, None, None]
     out[:, 0, 3], out[:, 1, 3] = rough * rough, eta
     return out
