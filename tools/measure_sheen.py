@@ -49,6 +49,8 @@ def light_directions() -> np.ndarray:
 def sheen_scene(bpy):
     """A plane of sheen alone, a white world, a sun, an orthographic camera and Cycles."""
     from tests.blender.rendering import configure_cycles
+    from tests.blender.test_cycles_principled import principled_material
+    from tests.blender.test_sheen import velvet
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -60,14 +62,9 @@ def sheen_scene(bpy):
     world.use_nodes = True
     scene.world = world
     bpy.ops.mesh.primitive_plane_add(size=1000.0)
-    material = bpy.data.materials.new("Sheen")
-    material.use_nodes = True
-    bsdf = material.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
-    bsdf.inputs["Specular IOR Level"].default_value = 0.0
-    bsdf.inputs["Sheen Weight"].default_value = 1.0
-    bsdf.inputs["Sheen Tint"].default_value = (1, 1, 1, 1)
+    material = velvet(principled_material("Sheen", (0.0, 0.0, 0.0), 0.5, level=0.0))
     bpy.context.object.data.materials.append(material)
+    bsdf = material.node_tree.nodes["Principled BSDF"]
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     camera.data.type, camera.data.ortho_scale = "ORTHO", 0.1
     scene.collection.objects.link(camera)

@@ -11,7 +11,12 @@ import pytest
 from addon.export import export_material
 from tests.blender.rendering import configure_cycles, shader_material
 from tests.blender.test_cycles_principled import compare as compare_with_cycles
-from tests.blender.test_cycles_principled import floor_scene, principled_material, sphere_scene
+from tests.blender.test_cycles_principled import (
+    floor_scene,
+    floor_with_two_bounces,
+    principled_material,
+    sphere_scene,
+)
 
 
 @pytest.fixture
@@ -65,12 +70,7 @@ def test_coated_floor_in_direct_light(blender, tmp_path, without_coat, level, ti
 def test_coated_floor_with_bounces(blender, tmp_path, without_coat):
     """The coat's reflection of the light onto the wall, and the wall's light in the coat."""
     scene = coated_floor(blender, 0.5)
-    configure_cycles(scene, 256, bounces=2)
-    scene.cycles.glossy_bounces = 2
-    scene.cycles.blur_glossy = 0.0
-    settings = scene.vpl_gi
-    settings.bounces, settings.antialiasing, settings.light_samples = 2, 2, 64
-    settings.visibility, settings.clamp_distance, settings.vpl_count = "exact", 0.0, 4096
+    floor_with_two_bounces(scene)
     # the coat's lobe gathers the VPLs' light as specks (1.5 % on the uncoated floor); Cycles
     # 4.2 renders coats 0.7 % brighter than 4.5 and 5.3 (+1.1 % here against +0.3 %)
     compare(scene, tmp_path, without_coat, (0.015, 0.04, 0.06), "coated floor, 2 bounces")

@@ -157,6 +157,17 @@ def glossy_bsdf(name: str, color: tuple[float, float, float], roughness: float
                            Roughness=roughness)
 
 
+def floor_with_two_bounces(scene) -> None:
+    """The floor scene set up for two bounces: Cycles with as many glossy bounces and Filter
+    Glossy 0, VPL GI with 4096 VPLs, exact visibility and no clamp."""
+    configure_cycles(scene, 256, bounces=2)
+    scene.cycles.glossy_bounces = 2
+    scene.cycles.blur_glossy = 0.0
+    settings = scene.vpl_gi
+    settings.bounces, settings.antialiasing, settings.light_samples = 2, 2, 64
+    settings.visibility, settings.clamp_distance, settings.vpl_count = "exact", 0.0, 4096
+
+
 def sphere_scene(bpy, material: Callable[[], bpy.types.Material]):
     """A smooth sphere of the ``material`` it makes (in a new, empty file) under a point
     light, a black world, direct light only (Cycles 256 samples; VPL GI antialiasing 4, 64

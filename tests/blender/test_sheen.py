@@ -17,9 +17,14 @@ from __future__ import annotations
 import pytest
 
 from addon.export import export_material
-from tests.blender.rendering import configure_cycles, shader_material
+from tests.blender.rendering import shader_material
 from tests.blender.test_cycles_principled import compare as compare_with_cycles
-from tests.blender.test_cycles_principled import floor_scene, principled_material, sphere_scene
+from tests.blender.test_cycles_principled import (
+    floor_scene,
+    floor_with_two_bounces,
+    principled_material,
+    sphere_scene,
+)
 
 
 @pytest.fixture
@@ -70,12 +75,7 @@ def test_velvet_floor_with_bounces(blender, tmp_path, without_sheen):
     the wall and back."""
     scene = floor_scene(blender, 0.5)
     velvet_floor(blender)
-    configure_cycles(scene, 256, bounces=2)
-    scene.cycles.glossy_bounces = 2
-    scene.cycles.blur_glossy = 0.0
-    settings = scene.vpl_gi
-    settings.bounces, settings.antialiasing, settings.light_samples = 2, 2, 64
-    settings.visibility, settings.clamp_distance, settings.vpl_count = "exact", 0.0, 4096
+    floor_with_two_bounces(scene)
     compare(scene, tmp_path, without_sheen, (0.01, 0.03, 0.05), "velvet floor, 2 bounces")
 
 
