@@ -95,18 +95,26 @@ def test_a_coated_emitter_shines_through_its_coat(blender, tmp_path, without_coa
     grazing angles the coat dims more, a few percent bright); the same wall uncoated
     measures 1.6 / 5.1 %; the emission undimmed (as before): energy +40.5 %, relRMSE
     64.9 %."""
-    scene = floor_scene(blender, 0.5)
-    wall = blender.data.materials["Wall"]
+    scene, wall = glowing_wall(blender)
+    wall.node_tree.nodes["Principled BSDF"].inputs["Coat Tint"].default_value = \
+        (0.9, 0.6, 0.2, 1.0)
+    coat(wall, roughness=0.3)
+    compare(scene, tmp_path, without_coat, (0.01, 0.05, 0.06), "coated emitter")
+
+
+def glowing_wall(bpy):
+    """The glossy floor scene with its wall glowing white (Emission Strength 3), direct
+    light only (VPL GI: 1024 emission samples); the scene and the wall's material."""
+    scene = floor_scene(bpy, 0.5)
+    wall = bpy.data.materials["Wall"]
     bsdf = wall.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Emission Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     bsdf.inputs["Emission Strength"].default_value = 3.0
-    bsdf.inputs["Coat Tint"].default_value = (0.9, 0.6, 0.2, 1.0)
-    coat(wall, roughness=0.3)
     configure_cycles(scene, 256, bounces=0)
     settings = scene.vpl_gi
     settings.bounces, settings.antialiasing, settings.light_samples = 0, 2, 64
     settings.emission_samples = 1024
-    compare(scene, tmp_path, without_coat, (0.01, 0.05, 0.06), "coated emitter")
+    return scene, wall
 
 
 def test_what_of_a_coat_is_not_rendered_is_one_warning(blender):

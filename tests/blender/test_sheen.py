@@ -9,6 +9,8 @@ Measured (bpy 4.5; energy, relRMSE inside, overall; without the sheen):
 - roughness 1.0: +0.03 %, 0.07 %, 2.8 % (−78.8 %, 155 %, 161 %)
 - velvet floor, 2 bounces: −0.08 %, 1.5 %, 3.5 % (−1.5 %, 12.0 %, 12.4 %)
 - Sheen BSDF + Diffuse BSDF: +0.06 %, 0.21 %, 3.8 % (−45.9 %, 76.4 %, 95.8 %)
+- the floor's wall glowing under a sheen: +0.42 %, 4.8 %, 5.2 % (+10.9 %, 19.3 %, 20.2 %;
+  dimming the light it casts on the floor as well: −4.5 %, 7.2 %, 7.5 %)
 The spheres' overall error is their rim's pixels, partly covered, where a sheen seen edge-on
 shines most; the floor's, the VPLs' light through the sheen."""
 
@@ -18,6 +20,7 @@ import pytest
 
 from addon.export import export_material
 from tests.blender.rendering import shader_material
+from tests.blender.test_coat import glowing_wall
 from tests.blender.test_cycles_principled import compare as compare_with_cycles
 from tests.blender.test_cycles_principled import (
     floor_scene,
@@ -77,6 +80,15 @@ def test_velvet_floor_with_bounces(blender, tmp_path, without_sheen):
     velvet_floor(blender)
     floor_with_two_bounces(scene)
     compare(scene, tmp_path, without_sheen, (0.01, 0.03, 0.05), "velvet floor, 2 bounces")
+
+
+def test_an_emitter_shines_through_its_sheen(blender, tmp_path, without_sheen):
+    """The glossy floor's wall glowing under a sheen (roughness 1): Cycles dims emission
+    under a sheen as it dims the layers below where the camera sees it, but not the light
+    it casts on the floor (measured: the floor as bright as without the sheen)."""
+    scene, wall = glowing_wall(blender)
+    velvet(wall, roughness=1.0)
+    compare(scene, tmp_path, without_sheen, (0.01, 0.06, 0.07), "emitter under a sheen")
 
 
 def test_sheen_bsdf_added_to_diffuse(blender, tmp_path, without_sheen):

@@ -77,12 +77,3 @@ def test_the_row_keeps_the_sheen_and_clamps_bad_values():
                                   sheen=sheen.Sheen((-1.0, np.nan, 2.0), 7.0))
     assert flat(principled.sheen_of(odd)) == pytest.approx([0.0, 0.0, 2.0, 1.0])
     assert not principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1)).any()
-
-
-def test_emission_leaves_a_sheen_as_the_layers_below_do_on_average():
-    layer = sheen.Sheen((1.0, 1.0, 1.0), 1.0)
-    mu = (np.arange(4000) + 0.5) / 4000
-    expected = (sheen.layer(layer, mu)[1] * 2 * mu).mean()
-    through = principled.emission_below_layers(principled.NO_COAT, layer)
-    assert through == pytest.approx(np.full(3, expected), rel=2e-3)
-    assert 0.4 < expected < 0.7

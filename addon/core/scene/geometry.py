@@ -180,17 +180,16 @@ class WorldGeometry:
     def light_emission(self) -> np.ndarray:
         """Each triangle's emitted radiance as a light of the other surfaces (T, 3): its
         emission times its mean coverage (a cutout emits from the part that is there) and
-        what leaves through its clear coat and sheen (principled.emission_below_layers), none
-        where diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
+        what leaves through its clear coat (principled.emission_below_coat), none where
+        diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
         emission = self.emission
-        layered = (self.materials[:, COAT] > 0) | self.materials[:, SHEEN:SHEEN + 3].any(axis=1)
-        covered = np.flatnonzero(layered & (self.materials[:, 4:7].max(axis=1) > 0))
-        if len(covered):
+        coated = np.flatnonzero((self.materials[:, COAT] > 0)
+                                & (self.materials[:, 4:7].max(axis=1) > 0))
+        if len(coated):
             table = np.ones((len(self.materials), 3), np.float32)
-            for row in covered:
-                params = self.materials[row, SPECULAR:CUTOUT]
-                table[row] = principled.emission_below_layers(principled.coat_of(params),
-                                                              principled.sheen_of(params))
+            for row in coated:
+                coat = principled.coat_of(self.materials[row, SPECULAR:CUTOUT])
+                table[row] = principled.emission_below_coat(coat)
             emission = emission * table[self.triangle_material]
         if not (self.cutout.any() or self.diffuse_hidden.any()):
             return emission

@@ -407,18 +407,17 @@ def diffuse_average(row: np.ndarray) -> np.ndarray:
     return (diffuse * weight[:, None]).sum(axis=0)
 
 
-def emission_below_layers(coat: Coat, sheen: Sheen) -> np.ndarray:
-    """What of a surface's emission leaves through its clear coat and sheen (3,), averaged
-    over cosine-weighted directions: Cycles dims emission under them as it dims the layers
-    below (``below_coat`` and the sheen's keep at the direction it leaves in), so this keeps
-    the emitted power exact; the camera's view is dimmed at its own angle
-    (principled_layers)."""
+def emission_below_coat(coat: Coat) -> np.ndarray:
+    """What of a surface's emission leaves through its clear coat (3,), averaged over
+    cosine-weighted directions: Cycles dims emission under the coat as it dims the layers
+    below (``below_coat`` at the direction it leaves in), so this keeps the emitted power
+    exact; the camera's view is dimmed at its own angle (principled_layers). (Cycles dims
+    emission under a sheen only where the camera sees it, measured: the light it casts on
+    other surfaces is the same with the sheen and without.)"""
+    if coat.weight <= 0:
+        return np.ones(3)
     mu, weight = COSINE_MU, COSINE_WEIGHT
-    below = np.ones((len(mu), 3))
-    if coat.weight > 0:
-        below = below_coat(coat, mu, coat_albedo(coat, mu))
-    below *= sheens.layer(sheen, mu)[1][:, None]
-    return (below * weight[:, None]).sum(axis=0)
+    return (below_coat(coat, mu, coat_albedo(coat, mu)) * weight[:, None]).sum(axis=0)
 
 
 LOBE_TEXELS = 3  # (A rgb, alpha), (B rgb, eta), (C rgb, 0): principled_lib.glsl's lobe_a/b/c
