@@ -44,6 +44,11 @@ _PASS_NAMES_5 = {
     "Env": "Environment",
 }
 
+OREN_NAYAR_MULTISCATTER = 2 if BLENDER_5 else 1 if VERSION >= (4, 3, 0) else 0
+"""The multiple-scattering term of Cycles' rough diffuse lobe (a Diffuse BSDF's Roughness,
+the Principled BSDF's Diffuse Roughness, new in 4.3), core/scene/oren_nayar.py's mode:
+measured, 4.2's has none, 4.5's scales it by the colour once more than 5.3's (OpenPBR's)."""
+
 DEFAULT_SURFACE_IS_PRINCIPLED = BLENDER_5
 """True where Cycles renders an object without a material as a default Principled BSDF
 (glossy part included), False where as a diffuse surface (4.x)."""

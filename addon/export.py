@@ -15,7 +15,11 @@ import bpy
 import numpy as np
 
 from . import bake, world_bake
-from .blender_compat import DEFAULT_SURFACE_IS_PRINCIPLED, uses_nodes
+from .blender_compat import (
+    DEFAULT_SURFACE_IS_PRINCIPLED,
+    OREN_NAYAR_MULTISCATTER,
+    uses_nodes,
+)
 from .blender_read import (
     UnsupportedNodes,
     active_uvs,
@@ -543,6 +547,8 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                          **_principled_layer(node, name, images.warnings, "Sheen",
                                              SHEEN_INPUTS),
                          **_principled_alpha(node, name, images),
+                         **_diffuse_roughness(node, "Diffuse Roughness", name,
+                                              images.warnings),
                          **_normal_map(node, name, images))
     if node.type == "BSDF_HAIR_PRINCIPLED":
         return _principled_hair(node, name, images.warnings)
@@ -564,8 +570,10 @@ def _shader(node, name: str, images: ImageReader) -> Material:
             images.warn(f"material '{name}': {node.bl_label} rendered as a Diffuse BSDF "
                         f"{AS_DIFFUSE[node.type]}")
         base, texture = images.color(node, "Color", (0.8,) * 3, name)
+        rough = _diffuse_roughness(node, "Roughness", name, images.warnings) \
+            if node.type == "BSDF_DIFFUSE" else {}
         return Material(name, base, roughness=1.0, base_color_texture=texture,
-                        **_normal_map(node, name, images))
+                        **rough, **_normal_map(node, name, images))
     if node.type == "EMISSION":
         return _emissive(name, (0.0, 0.0, 0.0), None,
                          *images.color(node, "Color", (1, 1, 1), name),
@@ -605,6 +613,10 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                         sheen_weight=wa * a.sheen_weight + wb * b.sheen_weight,
                         sheen_roughness=sheened.sheen_roughness, sheen_tint=sheened.sheen_tint,
                         sheen_layered=sheened.sheen_layered,
+                        diffuse_roughness=(wa * a.diffuse_roughness
+                                           + wb * b.diffuse_roughness) / weight,
+                        diffuse_multiscatter=min(a.diffuse_multiscatter,
+                                                 b.diffuse_multiscatter),
                         transmission_ior=_mixed_ior(a, b),
                         roughness=(wa * a.roughness + wb * b.roughness) / weight,
                         metallic=(wa * a.metallic + wb * b.metallic) / weight,
@@ -613,6 +625,25 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                                             + wb * b.specular_ior_level) / weight,
                         **_mixed_maps(node, a, b, wa, wb))
     raise UnsupportedNodes(f"shader '{node.bl_label}' is not supported")
+
+
+def _diffuse_roughness(node, socket_name: str, name: str, warnings: list[str]
+                       ) -> dict[str, object]:
+    """A shader's diffuse roughness (``socket_name``: Roughness of a Diffuse BSDF, Diffuse
+    Roughness of a Principled BSDF) as Material fields; none, with a warning, where it is
+    linked (the surface is rendered smooth)."""
+    socket = node.inputs.get(socket_name)
+    if socket is None:
+        return {}
+    if socket.is_linked:
+        message = (f"material '{name}': {node.bl_label}'s {socket_name} linked to "
+                   f"'{socket.links[0].from_node.bl_label}' is not rendered (a smooth diffuse "
+                   f"surface)")
+        if message not in warnings:
+            warnings.append(message)
+        return {}
+    return {"diffuse_roughness": float(socket.default_value),
+            "diffuse_multiscatter": OREN_NAYAR_MULTISCATTER}
 
 
 def _sheen(node, name: str, images: ImageReader) -> Material:

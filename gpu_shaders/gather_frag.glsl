@@ -13,8 +13,10 @@
 // light). With COAT (some material has a clear coat) the pixel's triangle's coat reflects
 // the same samples through its own lobe, with SHEEN (some material has a sheen) its sheen
 // through sheen_brdf (principled_lib.glsl), which dims the coat as it dims the g-buffer's
-// lobe. With VPL_GLOSSY, VPLs at glossy surfaces also emit
-// through their lobe (lights_lib).
+// lobe. With VPL_GLOSSY, VPLs at glossy surfaces also emit through their lobe (lights_lib).
+// With ROUGH_DIFFUSE (some material has a rough diffuse layer) each sample's diffuse light
+// is weighted by the pixel's Oren-Nayar lobe over Lambert's (oren_nayar_lib.glsl), read from
+// its triangle's material row.
 // With LIGHT_LINKING the draw's samples light only the surfaces of some receiver sets
 // (light_linking_lib.glsl): elsewhere, and at bias compensation's hits elsewhere, they add
 // nothing. With RT_SHADOW_LINKING (ray-traced samples whose shadows some objects do not
@@ -24,18 +26,23 @@
 #ifdef LIGHT_LINKING
 #include "light_linking_lib.glsl"
 #endif
+#if defined(GLOSSY) || defined(ROUGH_DIFFUSE)
+uniform vec3 u_camera_position;
+uniform vec3 u_camera_forward;
+uniform bool u_orthographic;
+#endif
 #ifdef GLOSSY
 #include "principled_lib.glsl"
 uniform sampler2D u_lobe_a;
 uniform sampler2D u_lobe_b;
 uniform sampler2D u_lobe_c;
-uniform vec3 u_camera_position;
-uniform vec3 u_camera_forward;
-uniform bool u_orthographic;
 layout(location = 1) out vec4 out_glossy;
-#if defined(COAT) || defined(SHEEN)
+#endif
+#if defined(COAT) || defined(SHEEN) || defined(ROUGH_DIFFUSE)
 #include "materials_lib.glsl"
 #endif
+#ifdef ROUGH_DIFFUSE
+#include "oren_nayar_lib.glsl"
 #endif
 
 in vec2 v_uv;
@@ -49,8 +56,9 @@ uniform int u_count;
 layout(location = 0) out vec4 out_light;
 
 // The pixel's glossy lobe, its clear coat's (coat_a.w = alpha is 0 without one), its sheen's
-// (principled_lib.glsl's SheenLobe; sheen_seen.rgb is 0 without one) and the view direction
-// (a.w = alpha is 0 on diffuse pixels).
+// (principled_lib.glsl's SheenLobe; sheen_seen.rgb is 0 without one), its rough diffuse
+// layer's (oren_nayar_view's; rough.x is 0 without one) and the view direction (a.w =
+// alpha is 0 on diffuse pixels).
 struct Lobe {
     vec4 a;
     vec4 b;
@@ -59,11 +67,13 @@ struct Lobe {
     vec4 coat_b;
     vec4 sheen_seen;
     vec4 sheen_frame;
+    vec4 rough;
+    vec3 rough_ms;
     vec3 view;
 };
 
 const Lobe NO_LOBE = Lobe(vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0),
-                          vec4(0.0), vec3(0.0));
+                          vec4(0.0), vec4(0.0), vec3(0.0), vec3(0.0));
 
 // Sum over this draw's samples; with interleaving (u_interleave = K > 1) each pixel of a K×K
 // pattern takes every K²-th sample and scales by K², so the expectation is unchanged. With a
@@ -115,10 +125,17 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
         }
 #endif
         if (any(greaterThan(e, vec3(0.0)))) e *= shadow_visibility(s, world, geometric);
-#ifdef AREA_SHAPES
-        shaded += e;
+        vec3 diffuse = e;
+#ifdef ROUGH_DIFFUSE
+        if (lobe.rough.x > 0.0 && any(greaterThan(e, vec3(0.0)))) {
+            vec3 l = s.kind == KIND_DIRECTIONAL ? -s.axis : normalize(s.position - world);
+            diffuse *= oren_nayar_factor(lobe.rough, lobe.rough_ms, normal, lobe.view, l);
+        }
 #endif
-        irradiance += e;
+#ifdef AREA_SHAPES
+        shaded += diffuse;
+#endif
+        irradiance += diffuse;
 #ifdef GLOSSY
         if (lobe.a.w > 0.0 && any(greaterThan(e, vec3(0.0)))) {
             vec3 l = s.kind == KIND_DIRECTIONAL ? -s.axis : normalize(s.position - world);
@@ -194,12 +211,25 @@ void main() {
     vec4 geometric_texel = texelFetch(u_geometric, px, 0);  // w: the triangle + 1
     vec3 geometric = geometric_texel.xyz;
     Lobe lobe = NO_LOBE;
+#if defined(GLOSSY) || defined(ROUGH_DIFFUSE)
+    lobe.view = u_orthographic ? -u_camera_forward : normalize(u_camera_position - world);
+#endif
+#ifdef ROUGH_DIFFUSE
+    int pixel_triangle = int(geometric_texel.w + 0.5) - 1;
+    if (pixel_triangle >= 0) {
+        Material material = material_of(pixel_triangle);
+        if (material.coat.w != 0.0) {  // the diffuse roughness
+            lobe.rough = oren_nayar_view(material.coat.w, material.albedo.rgb,
+                                         clamp(dot(normal.xyz, lobe.view), 0.0, 1.0),
+                                         lobe.rough_ms);
+        }
+    }
+#endif
 #ifdef GLOSSY
     out_glossy = vec4(0.0);
     lobe.a = texelFetch(u_lobe_a, px, 0);
     lobe.b = texelFetch(u_lobe_b, px, 0);
     lobe.c = texelFetch(u_lobe_c, px, 0);
-    lobe.view = u_orthographic ? -u_camera_forward : normalize(u_camera_position - world);
 #if defined(COAT) || defined(SHEEN)
     int triangle = int(geometric_texel.w + 0.5) - 1;
     if (triangle >= 0 && lobe.a.w > 0.0) {

@@ -2,7 +2,8 @@
 // (core/scene_buffers.py; OpenGL 4.1 has no storage buffers): entry i of a table is texel
 // (i % width, i / width). A material row is ten texels: albedo, emission, texture attribute,
 // the specular parameters (roughness, metallic, eta, s_avg), (F0 x tint, glossy flag), the
-// clear coat (weight, roughness, eta, 0) and its tint (rgb, whether the sheen is layered),
+// clear coat (weight, roughness, eta, the diffuse roughness: core/scene/oren_nayar.py) and
+// its tint (rgb, whether the sheen is layered),
 // the sheen (weight x tint, roughness) (core/scene/principled.py's specular_row), the cutout (coverage_lib.glsl) and
 // the normal map (gbuffer_frag.glsl).
 // Vertex shaders pass the triangle index (gl_VertexID / 3, which instanced draws do not reset).

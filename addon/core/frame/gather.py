@@ -177,6 +177,9 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
             uniforms.update(u_shadow_hints=HINTS_UNIT, u_hint_factor=hints[1],
                             u_inverse_view_projection=inverse_mat4(gbuffer.view_projection),
                             u_tile_size=gbuffer.textures["position"].size)
+        if scene is not None and scene.has_rough_diffuse:
+            defines.update(ROUGH_DIFFUSE=1)
+            uniforms.update(gbuffer.view)
         if gbuffer.glossy:
             defines.update(GLOSSY=1)
             for unit, name in zip(LOBE_UNITS, GLOSSY_LAYERS, strict=True):
@@ -207,7 +210,7 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         if compensation is not None:  # the surfaces rays reach: positions and materials
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
             scene.bind_materials(program)
-        elif "COAT" in defines or "SHEEN" in defines:  # the pixels' coats and sheens
+        elif {"COAT", "SHEEN", "ROUGH_DIFFUSE"} & defines.keys():  # the pixels' layers
             for shader in shaders:
                 scene.bind_materials(shader)
         elif "LIGHT_LINKING" in defines:

@@ -60,8 +60,8 @@ class TextureImages(Mapping[str, np.ndarray]):
 class GBuffer:
     """The tile's layers as GPU textures (for the gather) and as (h, w, 4) float32 arrays
     (read back when first used); ``view_projection``: world to the tile's clip space, as a
-    mat4 uniform; ``view``: the camera uniforms a glossy gather needs (empty without
-    GLOSSY_LAYERS); ``depth``: the depth the layers were drawn with."""
+    mat4 uniform; ``view``: the camera uniforms a gather needs for view-dependent
+    reflection (glossy lobes, rough diffuse); ``depth``: the depth the layers were drawn with."""
 
     textures: dict[str, moderngl.Texture]
     images: Mapping[str, np.ndarray]
@@ -135,4 +135,4 @@ def render_gbuffer(ctx: moderngl.Context, programs: ProgramCache, scene: SceneBu
     ctx.disable(moderngl.DEPTH_TEST)
     by_name = dict(zip(names, layers, strict=True))
     return GBuffer(by_name, TextureImages(by_name), uniforms["u_view_projection"],
-                   view if glossy else {}, depth)
+                   view, depth)

@@ -62,6 +62,7 @@ class SceneBuffers:
             self.has_specular = geometry.has_specular
             self.has_coat = geometry.has_coat
             self.has_sheen = geometry.has_sheen
+            self.has_rough_diffuse = geometry.has_rough_diffuse
             self.has_cutouts = bool(geometry.cutout.any())
             self.ggx_tables = None
             if self.has_specular:

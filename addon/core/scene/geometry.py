@@ -8,7 +8,7 @@ from functools import cached_property
 
 import numpy as np
 
-from . import principled
+from . import oren_nayar, principled
 from . import sheen as sheens
 from . import textures as tex
 from .model import (
@@ -35,6 +35,7 @@ SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl
 SPECULAR = 12  # first column of the specular texels (principled.specular_row)
 COAT = SPECULAR + 8  # the coat's weight in them
 SHEEN = SPECULAR + principled.SHEEN_COLUMN  # the sheen's colour in them
+ROUGH_DIFFUSE = SPECULAR + principled.DIFFUSE_ROUGHNESS_COLUMN  # the diffuse roughness
 CUTOUT = 32  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
 DIFFUSE_HIDDEN = 35  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
 NORMAL_MAP = 36  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
@@ -111,13 +112,19 @@ class WorldGeometry:
     @cached_property
     def albedo(self) -> np.ndarray:
         """Each triangle's reflectance for light paths, (T, 3) float32."""
-        glossy = np.flatnonzero(self.materials[:, SPECULAR + 7] > 0)
-        if len(glossy) == 0:
+        layered = np.flatnonzero(self._layered_rows)
+        if len(layered) == 0:
             return self._per_triangle(0)
         table = self.materials[:, 0:3].copy()  # never a view: rows change below
-        for row in glossy:
+        for row in layered:
             table[row] = self._path_albedo(table[row][None], row)[0]
         return np.take(table, self.triangle_material, axis=0)
+
+    @property
+    def _layered_rows(self) -> np.ndarray:
+        """(M,) bool: material rows whose reflectance is not their base colour's (a glossy
+        lobe, a coat, a sheen or a rough diffuse layer)."""
+        return (self.materials[:, SPECULAR + 7] > 0) | (self.materials[:, ROUGH_DIFFUSE] != 0)
 
     def _path_albedo(self, base: np.ndarray, row: int) -> np.ndarray:
         params = self.materials[row, SPECULAR:CUTOUT]
@@ -165,6 +172,12 @@ class WorldGeometry:
     def has_coat(self) -> bool:
         """Whether some material has a clear coat (the shaders' COAT path)."""
         return bool(np.any(self.materials[:, COAT] > 0))
+
+    @property
+    def has_rough_diffuse(self) -> bool:
+        """Whether some material has a rough diffuse layer (the shaders' ROUGH_DIFFUSE
+        path)."""
+        return bool(np.any(self.materials[:, ROUGH_DIFFUSE] != 0))
 
     @property
     def has_sheen(self) -> bool:
@@ -284,8 +297,9 @@ class WorldGeometry:
             return self.albedo[triangle].astype(np.float64)
         albedo = base.copy()
         material = self.triangle_material[triangle]
+        layered = self._layered_rows
         for row in np.unique(material):
-            if self.materials[row, SPECULAR + 7] > 0:
+            if layered[row]:
                 group = np.flatnonzero(material == row)
                 albedo[group] = self._path_albedo(albedo[group], row)
         return albedo
@@ -295,8 +309,9 @@ class WorldGeometry:
                                      np.ndarray]:
         """What a light path arriving at cosine ``mu`` (m,) keeps at points on triangles whose
         base colour is ``base`` (m, 3): the diffuse reflectance (m, 3) (base colour × the
-        diffuse weight averaged over outgoing directions, plus what the sheen reflects at
-        ``mu``, which a VPL re-emits diffusely), the glossy albedo (m, 3) at ``mu`` (the
+        diffuse weight averaged over outgoing directions × the rough diffuse lobe's albedo
+        factor at ``mu``, plus what the sheen reflects at ``mu``, which a VPL re-emits
+        diffusely), the glossy albedo (m, 3) at ``mu`` (the
         coat's included), the lobe's roughness (m,), and the coat's share of the glossy
         albedo's luminance (m,) and roughness (m,)."""
         diffuse = base.copy()
@@ -305,11 +320,15 @@ class WorldGeometry:
         material = self.triangle_material[triangle]
         for row in np.unique(material):
             params = self.materials[row, SPECULAR:CUTOUT]
+            sigma, multiscatter = principled.diffuse_roughness_of(params)
+            group = np.flatnonzero(material == row)
+            if sigma > 0:
+                diffuse[group] *= oren_nayar.albedo_factor(base[group], sigma, mu[group],
+                                                           multiscatter)
             if params[7] <= 0:
                 continue
-            group = np.flatnonzero(material == row)
             specular = principled.specular_parameters(params)
-            _, gloss[group] = principled.layer_weights(diffuse[group], *specular, mu[group])
+            _, gloss[group] = principled.layer_weights(base[group], *specular, mu[group])
             sheen_reflected, keep = sheens.layer(specular[-1], mu[group])
             diffuse[group] = diffuse[group] * principled.diffuse_average(params) \
                 + sheen_reflected
@@ -434,7 +453,8 @@ def _material_rows(materials: list[Material], warnings: list[str],
     for row, m in enumerate(materials):
         values = np.array([m.roughness, m.metallic, m.ior, m.specular_ior_level,
                            *m.specular_tint, m.coat_weight, m.coat_roughness, m.coat_ior,
-                           *m.coat_tint, m.sheen_weight, m.sheen_roughness, *m.sheen_tint],
+                           *m.coat_tint, m.sheen_weight, m.sheen_roughness, *m.sheen_tint,
+                           m.diffuse_roughness],
                           np.float64)
         if not np.isfinite(values).all():
             message = f"material '{m.name}': specular values are not finite: rendered diffuse"
@@ -445,7 +465,8 @@ def _material_rows(materials: list[Material], warnings: list[str],
             m.roughness, m.metallic, m.ior, m.specular_ior_level, m.specular_tint,
             principled.Coat(m.coat_weight, m.coat_roughness, m.coat_ior, m.coat_tint),
             principled.Sheen(tuple(max(m.sheen_weight, 0.0) * np.asarray(m.sheen_tint)),
-                             m.sheen_roughness, m.sheen_layered))
+                             m.sheen_roughness, m.sheen_layered),
+            m.diffuse_roughness, m.diffuse_multiscatter)
         base_lobe = rows[row, SPECULAR + 7] > 0 \
             and (rows[row, SPECULAR + 2] != 1.0 or rows[row, SPECULAR + 1] > 0)
         if (base_lobe and m.roughness < principled.MIN_ROUGHNESS) \

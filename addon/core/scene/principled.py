@@ -27,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import oren_nayar
 from . import sheen as sheens
 from .sheen import NO_SHEEN, Sheen
 
@@ -274,34 +275,50 @@ def _darkening(f0: np.ndarray, s_avg: float, e: np.ndarray, e_avg: np.ndarray) -
 
 def path_albedo(base: np.ndarray, row: np.ndarray) -> np.ndarray:
     """Reflectance of light arriving from a cosine-weighted direction (what a light path keeps
-    at a bounce, the glossy part re-emitted diffusely): ∫ (diffuse weight × base + GlossCol
-    + the sheen's albedo) 2μ dμ, for base colours (n, 3) of one material's specular row."""
+    at a bounce, the glossy part re-emitted diffusely): ∫ (diffuse weight × base × the rough
+    diffuse lobe's albedo factor + GlossCol + the sheen's albedo) 2μ dμ, for base colours
+    (n, 3) of one material's specular row."""
     mu, weight = COSINE_MU, COSINE_WEIGHT
     n = len(base)
-    repeated = np.repeat(base, len(mu), axis=0)
-    params = specular_parameters(row)
-    diffuse, gloss = layer_weights(repeated, *params, np.tile(mu, n))
-    per = diffuse * repeated + gloss + sheens.layer(params[-1], np.tile(mu, n))[0]
+    repeated, tiled = np.repeat(base, len(mu), axis=0), np.tile(mu, n)
+    diffuse, other = repeated.copy(), np.zeros_like(repeated)
+    if row[7] > 0:
+        params = specular_parameters(row)
+        weights, gloss = layer_weights(repeated, *params, tiled)
+        diffuse *= weights
+        other = gloss + sheens.layer(params[-1], tiled)[0]
+    sigma, multiscatter = diffuse_roughness_of(row)
+    if sigma > 0:
+        diffuse *= oren_nayar.albedo_factor(repeated, sigma, tiled, multiscatter)
+    per = diffuse + other
     return (per.reshape(n, len(mu), 3) * weight[None, :, None]).sum(axis=1)
 
 
 SPECULAR_COLUMNS = 20  # five RGBA texels: (roughness, metallic, eta, s_avg),
-# (tint F0 rgb, flag), (coat weight, coat roughness, coat eta, 0), (coat tint rgb, sheen
-# layered), (sheen colour rgb, sheen roughness)
+# (tint F0 rgb, flag), (coat weight, coat roughness, coat eta, diffuse roughness), (coat
+# tint rgb, sheen layered), (sheen colour rgb, sheen roughness)
+DIFFUSE_ROUGHNESS_COLUMN = 11
 SHEEN_LAYERED_COLUMN = 15
 SHEEN_COLUMN = 16
 
 
 def specular_row(roughness: float, metallic: float, ior: float, level: float,
                  tint: tuple[float, float, float], coat: Coat = NO_COAT,
-                 sheen: Sheen = NO_SHEEN) -> np.ndarray:
+                 sheen: Sheen = NO_SHEEN, diffuse_roughness: float = 0.0,
+                 diffuse_multiscatter: int = oren_nayar.OPENPBR) -> np.ndarray:
     """A material's specular texels: clamped roughness, metallic, the Fresnel's IOR (level
     applied, as Cycles does), its remapped cosine average, F0 × tint (saturated), a flag
     (1 when there is any glossy lobe or sheen; 0 keeps the pure-Lambert path), the clear
     coat's weight (in [0, 1]), clamped roughness, IOR (at least 1, as Cycles takes it) and
-    tint (at least 0), and the sheen's colour (at least 0), roughness (in [0, 1], as Cycles
-    saturates it) and whether it dims the layers below (1) or not (0)."""
+    tint (at least 0), the sheen's colour (at least 0), roughness (in [0, 1], as Cycles
+    saturates it) and whether it dims the layers below (1) or not (0), and the diffuse
+    layer's roughness σ (core/scene/oren_nayar.py; in [0, 1]) as σ + 2 × its
+    multiple-scattering mode (0 where σ is 0). The diffuse roughness alone keeps the flag 0:
+    the shaders read it from the material table."""
     row = np.zeros(SPECULAR_COLUMNS, np.float32)
+    sigma = float(np.clip(np.nan_to_num(diffuse_roughness), 0.0, 1.0))
+    if sigma > 0:
+        row[DIFFUSE_ROUGHNESS_COLUMN] = sigma + 2 * int(diffuse_multiscatter)
     color = np.maximum(np.nan_to_num(np.asarray(sheen.color, float)), 0.0)
     if color.any():
         row[SHEEN_COLUMN:SHEEN_COLUMN + 3] = color
@@ -353,6 +370,13 @@ def coat_of(row: np.ndarray) -> Coat:
     """The clear coat of a specular row."""
     return Coat(float(row[8]), float(row[9]), float(row[10]),
                 (float(row[12]), float(row[13]), float(row[14])))
+
+
+def diffuse_roughness_of(row: np.ndarray) -> tuple[float, int]:
+    """The diffuse layer's roughness of a specular row and its multiple-scattering mode."""
+    value = float(row[DIFFUSE_ROUGHNESS_COLUMN])
+    mode = min(int(value // 2), oren_nayar.OPENPBR) if value > 1.0 else 0
+    return value - 2 * mode, mode
 
 
 def sheen_of(row: np.ndarray) -> Sheen:
