@@ -1,7 +1,7 @@
 """Rough diffuse reflection as Cycles renders a Diffuse BSDF's Roughness and the Principled
 BSDF's Diffuse Roughness σ: Fujii's improved Oren–Nayar lobe with, from Blender 4.3 on, a
-multiple-scattering term (measured on Cycles: a plane of each under a white world reads
-these albedos to 4 decimals, one MULTISCATTER mode per version).
+multiple-scattering term (measured on Cycles by ``tools/measure_oren_nayar.py``: a plane
+of each under a white world reads these albedos within 0.0001, one mode per version).
 
 Per unit colour ρ the BRDF is A + B t + m (1 − E(μ_l)) (1 − E(μ_v)): A = 1 / (π + σ (π/2 −
 2/3)), B = σ A, t = l·v − μ_l μ_v (divided by max(μ_l, μ_v) where positive), E the
