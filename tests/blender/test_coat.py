@@ -15,6 +15,7 @@ from tests.blender.test_cycles_principled import (
     floor_scene,
     floor_with_two_bounces,
     principled_material,
+    specular_rows_from,
     sphere_scene,
 )
 
@@ -22,13 +23,7 @@ from tests.blender.test_cycles_principled import (
 @pytest.fixture
 def without_coat(monkeypatch):
     """Calling it makes VPL GI render every material without its clear coat."""
-    from addon.core.scene import principled
-
-    specular_row = principled.specular_row
-
-    def remove() -> None:
-        monkeypatch.setattr(principled, "specular_row", lambda *args: specular_row(*args[:5]))
-    return remove
+    return specular_rows_from(monkeypatch, 5)
 
 
 def coat(material, weight: float = 1.0, roughness: float = 0.25, ior: float = 1.5) -> None:

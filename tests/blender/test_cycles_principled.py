@@ -66,6 +66,18 @@ def without_specular(monkeypatch):
     return remove
 
 
+def specular_rows_from(monkeypatch, kept: int) -> Callable[[], None]:
+    """A function that makes VPL GI build every specular row from ``principled.specular_row``'s
+    first ``kept`` arguments (the layers past them left out)."""
+    from addon.core.scene import principled
+
+    specular_row = principled.specular_row
+
+    def remove() -> None:
+        monkeypatch.setattr(principled, "specular_row", lambda *args: specular_row(*args[:kept]))
+    return remove
+
+
 def compare(scene, tmp_path, without_specular, bounds, label: str,
             left_out: str = "the specular layer") -> None:
     """Render with both engines, check the bounds, and check that leaving ``left_out`` out

@@ -20,19 +20,17 @@ import pytest
 
 from tests.blender.rendering import configure_cycles, open_scene, shader_material
 from tests.blender.test_cycles_principled import compare as compare_with_cycles
-from tests.blender.test_cycles_principled import principled_material, sphere_scene
+from tests.blender.test_cycles_principled import (
+    principled_material,
+    specular_rows_from,
+    sphere_scene,
+)
 
 
 @pytest.fixture
 def without_roughness(monkeypatch):
     """Calling it makes VPL GI render every diffuse layer smooth (Lambert)."""
-    from addon.core.scene import principled
-
-    specular_row = principled.specular_row
-
-    def remove() -> None:
-        monkeypatch.setattr(principled, "specular_row", lambda *args: specular_row(*args[:7]))
-    return remove
+    return specular_rows_from(monkeypatch, 7)
 
 
 def compare(scene, tmp_path, without_roughness, bounds, label: str) -> None:

@@ -26,6 +26,7 @@ from tests.blender.test_cycles_principled import (
     floor_scene,
     floor_with_two_bounces,
     principled_material,
+    specular_rows_from,
     sphere_scene,
 )
 
@@ -33,13 +34,7 @@ from tests.blender.test_cycles_principled import (
 @pytest.fixture
 def without_sheen(monkeypatch):
     """Calling it makes VPL GI render every material without its sheen."""
-    from addon.core.scene import principled
-
-    specular_row = principled.specular_row
-
-    def remove() -> None:
-        monkeypatch.setattr(principled, "specular_row", lambda *args: specular_row(*args[:6]))
-    return remove
+    return specular_rows_from(monkeypatch, 6)
 
 
 def compare(scene, tmp_path, without_sheen, bounds, label: str) -> None:
