@@ -49,6 +49,11 @@ OREN_NAYAR_MULTISCATTER = 2 if BLENDER_5 else 1 if VERSION >= (4, 3, 0) else 0
 the Principled BSDF's Diffuse Roughness, new in 4.3), core/scene/oren_nayar.py's mode:
 measured, 4.2's has none, 4.5's scales it by the colour once more than 5.3's (OpenPBR's)."""
 
+SHEEN_DIMS_CAST_LIGHT = BLENDER_5
+"""True where Cycles dims a Principled BSDF's emission under its sheen in the light it casts
+on other surfaces as well as where the camera sees it (measured: a glowing wall's sheen dims
+the floor it lights by 18.9 % in 5.3, not at all in 4.2 and 4.5)."""
+
 DEFAULT_SURFACE_IS_PRINCIPLED = BLENDER_5
 """True where Cycles renders an object without a material as a default Principled BSDF
 (glossy part included), False where as a diffuse surface (4.x)."""

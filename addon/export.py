@@ -18,6 +18,7 @@ from . import bake, world_bake
 from .blender_compat import (
     DEFAULT_SURFACE_IS_PRINCIPLED,
     OREN_NAYAR_MULTISCATTER,
+    SHEEN_DIMS_CAST_LIGHT,
     uses_nodes,
 )
 from .blender_read import (
@@ -546,6 +547,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                                              COAT_INPUTS),
                          **_principled_layer(node, name, images.warnings, "Sheen",
                                              SHEEN_INPUTS),
+                         sheen_dims_cast_light=SHEEN_DIMS_CAST_LIGHT,
                          **_principled_alpha(node, name, images),
                          **_diffuse_roughness(node, "Diffuse Roughness", name,
                                               images.warnings),
@@ -613,6 +615,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                         sheen_weight=wa * a.sheen_weight + wb * b.sheen_weight,
                         sheen_roughness=sheened.sheen_roughness, sheen_tint=sheened.sheen_tint,
                         sheen_layered=sheened.sheen_layered,
+                        sheen_dims_cast_light=sheened.sheen_dims_cast_light,
                         diffuse_roughness=(wa * a.diffuse_roughness
                                            + wb * b.diffuse_roughness) / weight,
                         diffuse_multiscatter=min(a.diffuse_multiscatter,

@@ -218,11 +218,13 @@ def test_emission_leaves_a_coat_as_the_layers_below_do_on_average():
     """The emitted power through a coat: below_coat averaged over cosine-weighted
     directions (a fine midpoint rule here), none taken without a coat, the tint's colour
     kept."""
-    assert principled.emission_below_coat(principled.NO_COAT) == pytest.approx(np.ones(3))
+    no_sheen = principled.NO_SHEEN
+    assert principled.emission_below_layers(principled.NO_COAT, no_sheen) == pytest.approx(
+        np.ones(3))
     coat = principled.Coat(1.0, 0.3, 1.5, (0.9, 0.6, 0.2))
     mu = (np.arange(4000) + 0.5) / 4000
     below = principled.below_coat(coat, mu, principled.coat_albedo(coat, mu))
     expected = (below * 2 * mu[:, None]).mean(axis=0)
-    through = principled.emission_below_coat(coat)
+    through = principled.emission_below_layers(coat, no_sheen)
     assert through == pytest.approx(expected, rel=2e-3)
     assert 0.0 < through[2] < through[1] < through[0] < 0.9  # dimmed, amber

@@ -77,3 +77,18 @@ def test_the_row_keeps_the_sheen_and_clamps_bad_values():
                                   sheen=sheen.Sheen((-1.0, np.nan, 2.0), 7.0))
     assert flat(principled.sheen_of(odd)) == pytest.approx([0.0, 0.0, 2.0, 1.0])
     assert not principled.specular_row(0.5, 0.0, 1.5, 0.0, (1, 1, 1)).any()
+
+
+def test_a_sheen_dims_the_light_its_emission_casts_where_it_says_so():
+    """Blender 5.x dims the light a glowing surface casts under its sheen by the sheen's
+    keep averaged over cosine-weighted directions; 4.x only what the camera sees."""
+    layer = sheen.Sheen((1.0, 1.0, 1.0), 1.0, dims_cast_light=True)
+    mu = (np.arange(4000) + 0.5) / 4000
+    expected = (sheen.layer(layer, mu)[1] * 2 * mu).mean()
+    through = principled.emission_below_layers(principled.NO_COAT, layer)
+    assert through == pytest.approx(np.full(3, expected), rel=2e-3)
+    assert 0.4 < expected < 0.7
+    assert principled.emission_below_layers(
+        principled.NO_COAT, layer._replace(dims_cast_light=False)) == pytest.approx(np.ones(3))
+    row = principled.specular_row(0.5, 0.0, 1.5, 0.5, (1, 1, 1), sheen=layer)
+    assert principled.sheen_of(row).dims_cast_light and principled.sheen_of(row).layered

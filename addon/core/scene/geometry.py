@@ -193,16 +193,18 @@ class WorldGeometry:
     def light_emission(self) -> np.ndarray:
         """Each triangle's emitted radiance as a light of the other surfaces (T, 3): its
         emission times its mean coverage (a cutout emits from the part that is there) and
-        what leaves through its clear coat (principled.emission_below_coat), none where
-        diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
+        what leaves through its clear coat and sheen (principled.emission_below_layers), none
+        where diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
         emission = self.emission
-        coated = np.flatnonzero((self.materials[:, COAT] > 0)
-                                & (self.materials[:, 4:7].max(axis=1) > 0))
-        if len(coated):
+        sheen_dims = self.materials[:, SPECULAR + principled.SHEEN_LAYERED_COLUMN] > 1.5
+        layered = (self.materials[:, COAT] > 0) | sheen_dims
+        covered = np.flatnonzero(layered & (self.materials[:, 4:7].max(axis=1) > 0))
+        if len(covered):
             table = np.ones((len(self.materials), 3), np.float32)
-            for row in coated:
-                coat = principled.coat_of(self.materials[row, SPECULAR:CUTOUT])
-                table[row] = principled.emission_below_coat(coat)
+            for row in covered:
+                params = self.materials[row, SPECULAR:CUTOUT]
+                table[row] = principled.emission_below_layers(principled.coat_of(params),
+                                                              principled.sheen_of(params))
             emission = emission * table[self.triangle_material]
         if not (self.cutout.any() or self.diffuse_hidden.any()):
             return emission
@@ -465,7 +467,7 @@ def _material_rows(materials: list[Material], warnings: list[str],
             m.roughness, m.metallic, m.ior, m.specular_ior_level, m.specular_tint,
             principled.Coat(m.coat_weight, m.coat_roughness, m.coat_ior, m.coat_tint),
             principled.Sheen(tuple(max(m.sheen_weight, 0.0) * np.asarray(m.sheen_tint)),
-                             m.sheen_roughness, m.sheen_layered),
+                             m.sheen_roughness, m.sheen_layered, m.sheen_dims_cast_light),
             m.diffuse_roughness, m.diffuse_multiscatter)
         base_lobe = rows[row, SPECULAR + 7] > 0 \
             and (rows[row, SPECULAR + 2] != 1.0 or rows[row, SPECULAR + 1] > 0)

@@ -97,6 +97,7 @@ class Material:
     sheen_roughness: float = 0.5
     sheen_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
     sheen_layered: bool = True  # it dims the layers below (a Sheen BSDF node's does not)
+    sheen_dims_cast_light: bool = False  # and the light its emission casts (Blender 5.x)
     diffuse_roughness: float = 0.0  # Oren–Nayar (core/scene/oren_nayar.py)
     diffuse_multiscatter: int = 2  # its multiple-scattering term (oren_nayar.py's modes)
     base_color_texture: Texture | None = None

@@ -296,7 +296,8 @@ def path_albedo(base: np.ndarray, row: np.ndarray) -> np.ndarray:
 
 SPECULAR_COLUMNS = 20  # five RGBA texels: (roughness, metallic, eta, s_avg),
 # (tint F0 rgb, flag), (coat weight, coat roughness, coat eta, diffuse roughness), (coat
-# tint rgb, sheen layered), (sheen colour rgb, sheen roughness)
+# tint rgb, sheen layering: 0 none, 1 layered, 2 dimming cast light too), (sheen colour rgb,
+# sheen roughness)
 DIFFUSE_ROUGHNESS_COLUMN = 11
 SHEEN_LAYERED_COLUMN = 15
 SHEEN_COLUMN = 16
@@ -311,7 +312,8 @@ def specular_row(roughness: float, metallic: float, ior: float, level: float,
     (1 when there is any glossy lobe or sheen; 0 keeps the pure-Lambert path), the clear
     coat's weight (in [0, 1]), clamped roughness, IOR (at least 1, as Cycles takes it) and
     tint (at least 0), the sheen's colour (at least 0), roughness (in [0, 1], as Cycles
-    saturates it) and whether it dims the layers below (1) or not (0), and the diffuse
+    saturates it) and whether it dims the layers below (1; 2 where it dims the light its
+    emission casts too) or not (0), and the diffuse
     layer's roughness σ (core/scene/oren_nayar.py; in [0, 1]) as σ + 2 × its
     multiple-scattering mode (0 where σ is 0). The diffuse roughness alone keeps the flag 0:
     the shaders read it from the material table."""
@@ -323,7 +325,8 @@ def specular_row(roughness: float, metallic: float, ior: float, level: float,
     if color.any():
         row[SHEEN_COLUMN:SHEEN_COLUMN + 3] = color
         row[SHEEN_COLUMN + 3] = np.clip(sheen.roughness, 0.0, 1.0)
-        row[SHEEN_LAYERED_COLUMN] = float(sheen.layered)
+        row[SHEEN_LAYERED_COLUMN] = (2.0 if sheen.dims_cast_light else 1.0) \
+            if sheen.layered else 0.0
     coat_weight = float(np.clip(coat.weight, 0.0, 1.0))
     coat_ior = max(float(coat.ior), 1.0)
     if coat_weight > 0 and coat_ior > 1.0:
@@ -382,8 +385,9 @@ def diffuse_roughness_of(row: np.ndarray) -> tuple[float, int]:
 def sheen_of(row: np.ndarray) -> Sheen:
     """The sheen of a specular row."""
     color = row[SHEEN_COLUMN:SHEEN_COLUMN + 3]
+    layering = float(row[SHEEN_LAYERED_COLUMN])
     return Sheen((float(color[0]), float(color[1]), float(color[2])),
-                 float(row[SHEEN_COLUMN + 3]), bool(row[SHEEN_LAYERED_COLUMN] > 0))
+                 float(row[SHEEN_COLUMN + 3]), layering > 0.5, layering > 1.5)
 
 
 def sample_reflection(normal: np.ndarray, incoming: np.ndarray, rough: np.ndarray,
@@ -431,17 +435,20 @@ def diffuse_average(row: np.ndarray) -> np.ndarray:
     return (diffuse * weight[:, None]).sum(axis=0)
 
 
-def emission_below_coat(coat: Coat) -> np.ndarray:
-    """What of a surface's emission leaves through its clear coat (3,), averaged over
-    cosine-weighted directions: Cycles dims emission under the coat as it dims the layers
-    below (``below_coat`` at the direction it leaves in), so this keeps the emitted power
-    exact; the camera's view is dimmed at its own angle (principled_layers). (Cycles dims
-    emission under a sheen only where the camera sees it, measured: the light it casts on
-    other surfaces is the same with the sheen and without.)"""
-    if coat.weight <= 0:
-        return np.ones(3)
+def emission_below_layers(coat: Coat, sheen: Sheen) -> np.ndarray:
+    """What of a surface's emission leaves through its clear coat and sheen as the light it
+    casts on other surfaces (3,), averaged over cosine-weighted directions: Cycles dims
+    emission under the coat as it dims the layers below (``below_coat`` at the direction it
+    leaves in), so this keeps the emitted power exact, and under a sheen where the sheen
+    ``dims_cast_light`` (Blender 5.x; measured: 4.x dims only what the camera sees); the
+    camera's view is dimmed at its own angle (principled_layers)."""
     mu, weight = COSINE_MU, COSINE_WEIGHT
-    return (below_coat(coat, mu, coat_albedo(coat, mu)) * weight[:, None]).sum(axis=0)
+    below = np.ones((len(mu), 3))
+    if coat.weight > 0:
+        below = below_coat(coat, mu, coat_albedo(coat, mu))
+    if sheen.dims_cast_light:
+        below = below * sheens.layer(sheen, mu)[1][:, None]
+    return (below * weight[:, None]).sum(axis=0)
 
 
 LOBE_TEXELS = 3  # (A rgb, alpha), (B rgb, eta), (C rgb, 0): principled_lib.glsl's lobe_a/b/c

@@ -26,13 +26,15 @@ SIZE = 17  # roughness × cos(view) nodes, evenly spaced on [0, 1]
 
 
 class Sheen(NamedTuple):
-    """A sheen: its colour (weight × tint, at least 0), roughness in [0, 1], and whether it
-    is the Principled BSDF's layer, which dims the layers below it (a Sheen BSDF mixed or
-    added to other shaders dims nothing)."""
+    """A sheen: its colour (weight × tint, at least 0), roughness in [0, 1], whether it is
+    the Principled BSDF's layer, which dims the layers below it and the emission the camera
+    sees (a Sheen BSDF mixed or added to other shaders dims nothing), and whether it dims
+    the light that emission casts on other surfaces too (Blender 5.x, measured; 4.x not)."""
 
     color: tuple[float, float, float]
     roughness: float
     layered: bool = True
+    dims_cast_light: bool = False
 
 
 NO_SHEEN = Sheen((0.0, 0.0, 0.0), 0.5)
