@@ -240,7 +240,7 @@ void main() {
             SheenLobe sheen = sheen_lobe(material.sheen, normal.xyz, lobe.view);
             lobe.sheen_seen = sheen.seen;
             lobe.sheen_frame = sheen.frame;
-            if (material.coat_tint.w > 0.0) keep = layering_keep(sheen.seen.rgb);
+            keep = below_sheen(sheen.seen.rgb, material.coat_tint.w);
         }
 #endif
         vec4 coat = material.coat;

@@ -67,9 +67,11 @@ float sheen_albedo(float rough, float mu) {
     return table_2d(ROW_SHEEN, rough, mu, SHEEN_SIZE);
 }
 
-// What a layer that reflects ``reflected`` leaves the layers below it: one minus its largest
-// channel (Cycles' closure_layering_weight).
-float layering_keep(vec3 reflected) {
+// What a sheen that reflects ``reflected`` leaves the layers below it: where it is layered
+// (the material row's layering above 0) one minus its largest channel (Cycles'
+// closure_layering_weight), else all.
+float below_sheen(vec3 reflected, float layering) {
+    if (layering <= 0.0) return 1.0;
     return clamp(1.0 - max(reflected.r, max(reflected.g, reflected.b)), 0.0, 1.0);
 }
 
@@ -107,9 +109,10 @@ vec3 sheen_brdf(SheenLobe lobe, vec3 n, vec3 l) {
 // (Cycles' GlossCol, the coat's and the sheen's included) and the lobe texels, all below the
 // clear coat dimmed by (1 - what it reflects) and its tint (to the power 1 / cos of the view
 // refracted into it, mixed in by its weight, as Cycles), and all below a layered sheen by
-// layering_keep of its albedo. spec = (roughness, metallic, eta, s_avg), tint = (F0 x tint,
-// flag), coat = (weight, roughness, eta, 0), coat_tint = (rgb, 1 where the sheen dims the
-// layers below, as the Principled BSDF's; 0 for a Sheen BSDF's), sheen = (weight x tint,
+// below_sheen. spec = (roughness, metallic, eta, s_avg), tint = (F0 x tint,
+// flag), coat = (weight, roughness, eta, 0), coat_tint = (rgb, the sheen's layering: 0 for
+// a Sheen BSDF's, 1 or 2 for the Principled BSDF's, which dims the layers below), sheen =
+// (weight x tint,
 // roughness) from the material table; the coat's and the sheen's own lobes are coat_lobe's and sheen_brdf's.
 // below: what of the layers under the coat and sheen (and of the emission, as Cycles dims
 // it) is seen through them.
@@ -157,7 +160,7 @@ vec3 principled_layers(vec3 base, vec4 spec, vec4 tint, vec4 coat, vec4 coat_tin
     }
     gloss = gloss * below + reflected;
     vec3 sheen_reflected = sheen.rgb * sheen_albedo(sheen.w, mu);
-    float keep = coat_tint.w > 0.0 ? layering_keep(sheen_reflected) : 1.0;
+    float keep = below_sheen(sheen_reflected, coat_tint.w);
     below *= keep;
     gloss = gloss * keep + sheen_reflected;
     lobe_a = vec4(a * below, rough * rough);

@@ -31,7 +31,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 OUT = ROOT / "addon" / "core" / "scene" / "sheen_table.json"
 NODES = 17  # roughness and cos(view) nodes
-GRAZING = 0.01  # the cosine measured for μ = 0 (a plane seen edge-on shows nothing)
 SIZE = 8  # pixels across each render
 LIGHT_COSINES = (0.05, 0.2, 0.4, 0.6, 0.8, 0.95)
 LIGHT_AZIMUTHS = (0.0, 45.0, 90.0, 135.0, 180.0)  # degrees from the view's side
@@ -46,33 +45,20 @@ def light_directions() -> np.ndarray:
     return np.array([*out, (0.0, 0.0, 1.0)])
 
 
-def sheen_scene(bpy):
-    """A plane of sheen alone, a white world, a sun, an orthographic camera and Cycles."""
-    from tests.blender.rendering import configure_cycles
+def sheen_furnace(bpy, samples: int):
+    """A plane of sheen alone in a furnace (devtools/furnace.py), a sun of angle 0 (off),
+    and the sheen's Principled BSDF."""
+    from devtools.furnace import Furnace
     from tests.blender.test_cycles_principled import principled_material
     from tests.blender.test_sheen import velvet
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    configure_cycles(scene, 1, bounces=0)
-    scene.render.resolution_x = scene.render.resolution_y = SIZE
-    scene.view_settings.view_transform = "Standard"
-    world = bpy.data.worlds.new("White")
-    world.use_nodes = True
-    scene.world = world
-    bpy.ops.mesh.primitive_plane_add(size=1000.0)
     material = velvet(principled_material("Sheen", (0.0, 0.0, 0.0), 0.5, level=0.0))
-    bpy.context.object.data.materials.append(material)
-    bsdf = material.node_tree.nodes["Principled BSDF"]
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.data.type, camera.data.ortho_scale = "ORTHO", 0.1
-    scene.collection.objects.link(camera)
-    scene.camera = camera
+    furnace = Furnace(material, SIZE, samples)
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.angle = 0.0
-    scene.collection.objects.link(sun)
-    return scene, world, bsdf, camera, sun
+    sun.data.angle, sun.data.energy = 0.0, 0.0
+    furnace.scene.collection.objects.link(sun)
+    return furnace, sun, material.node_tree.nodes["Principled BSDF"]
 
 
 def ltc(a: float, b: float, light: np.ndarray) -> np.ndarray:
@@ -99,43 +85,29 @@ def measure(samples: int) -> dict:
     import bpy
     from mathutils import Vector
 
-    scene, world, bsdf, camera, sun = sheen_scene(bpy)
-    background = world.node_tree.nodes["Background"].inputs["Color"]
+    from devtools.furnace import GRAZING
+
+    furnace, sun, bsdf = sheen_furnace(bpy, samples)
     nodes = np.linspace(0.0, 1.0, NODES)
     albedo, a, b, residual = (np.zeros((NODES, NODES)) for _ in range(4))
     lights = light_directions()
-    path = Path(bpy.app.tempdir or "/tmp") / "sheen_measure.exr"
-    scene.render.filepath = str(path)
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.image_settings.color_depth = "32"
-
-    def render() -> float:
-        bpy.ops.render.render(write_still=True)
-        image = bpy.data.images.load(str(path))
-        value = float(np.asarray(image.pixels[:]).reshape(-1, 4)[:, :3].mean())
-        bpy.data.images.remove(image)
-        return value
-
     start = time.perf_counter()
     for i, r in enumerate(nodes):
         bsdf.inputs["Sheen Roughness"].default_value = float(r)
         for j, mu in enumerate(nodes):
-            theta = math.acos(max(float(mu), GRAZING))
-            # the view's projection on the plane is -y, so local x = -y, y = +x, z = z
-            camera.location = (0.0, -10.0 * math.sin(theta), 10.0 * math.cos(theta))
-            camera.rotation_euler = (theta, 0.0, 0.0)
-            background.default_value = (1, 1, 1, 1)
+            furnace.view_at(mu)  # the view's projection is -y: local x = -y, y = +x, z = z
+            furnace.world_color.default_value = (1, 1, 1, 1)
             sun.data.energy = 0.0
-            scene.cycles.samples = samples
-            albedo[i, j] = render()
-            background.default_value = (0, 0, 0, 1)
+            furnace.scene.cycles.samples = samples
+            albedo[i, j] = furnace.render()
+            furnace.world_color.default_value = (0, 0, 0, 1)
             sun.data.energy = 1.0
-            scene.cycles.samples = 1
+            furnace.scene.cycles.samples = 1
             values = []
             for light in lights:
                 world_direction = Vector((light[1], -light[0], light[2]))
                 sun.rotation_euler = world_direction.to_track_quat("Z", "Y").to_euler()
-                values.append(render())
+                values.append(furnace.render())
             a[i, j], b[i, j], residual[i, j] = fit(np.array(values), albedo[i, j], lights)
         print(f"roughness {r:.3f}: albedo " + " ".join(f"{v:.3f}" for v in albedo[i])
               + f"; a {a[i].min():.2f}–{a[i].max():.2f}, b {b[i].min():+.2f}–"

@@ -150,7 +150,7 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         atlas.use(4)
         visibility = light_pass.visibility
         defines: dict[str, object] = dict(visibility.defines)
-        uniforms: dict[str, object] = {}
+        uniforms: dict[str, object] = dict(gbuffer.view)  # view-dependent reflection
         if light_table.width > 5:  # some VPLs reflect glossily (LightSamples.table)
             defines.update(VPL_GLOSSY=1)
         if s.shapes is not None and s.shape is not None and bool(np.any(s.shape >= 0)):
@@ -179,13 +179,11 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
                             u_tile_size=gbuffer.textures["position"].size)
         if scene is not None and scene.has_rough_diffuse:
             defines.update(ROUGH_DIFFUSE=1)
-            uniforms.update(gbuffer.view)
         if gbuffer.glossy:
             defines.update(GLOSSY=1)
             for unit, name in zip(LOBE_UNITS, GLOSSY_LAYERS, strict=True):
                 gbuffer.textures[name].use(unit)
                 uniforms[f"u_{name}"] = unit
-            uniforms.update(gbuffer.view)
             if scene is not None and scene.has_coat:
                 defines.update(COAT=1)
             if scene is not None and scene.has_sheen:

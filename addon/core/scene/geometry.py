@@ -196,8 +196,7 @@ class WorldGeometry:
         what leaves through its clear coat and sheen (principled.emission_below_layers), none
         where diffuse bounces pass it (as Cycles' diffuse rays do not see it)."""
         emission = self.emission
-        sheen_dims = self.materials[:, SPECULAR + principled.SHEEN_LAYERED_COLUMN] > 1.5
-        layered = (self.materials[:, COAT] > 0) | sheen_dims
+        layered = (self.materials[:, COAT] > 0) | self.materials[:, SHEEN:SHEEN + 3].any(axis=1)
         covered = np.flatnonzero(layered & (self.materials[:, 4:7].max(axis=1) > 0))
         if len(covered):
             table = np.ones((len(self.materials), 3), np.float32)

@@ -30,6 +30,7 @@ import numpy as np
 from . import oren_nayar
 from . import sheen as sheens
 from .sheen import NO_SHEEN, Sheen
+from .table_lookup import lerp_2d, lerp_row
 
 E_SIZE = 32  # roughness × cos(view) nodes of the single-scattering albedo E
 S_SIZE = 16  # roughness × cos(view) × IOR nodes of the Fresnel factors s
@@ -172,35 +173,19 @@ def _cosine_quadrature(nodes: int) -> tuple[np.ndarray, np.ndarray]:
 COSINE_MU, COSINE_WEIGHT = _cosine_quadrature(8)
 
 
-def _lerp_row(table: np.ndarray, row: np.ndarray, x: np.ndarray, size: int) -> np.ndarray:
-    f = np.clip(x, 0.0, 1.0) * (size - 1)
-    i = np.minimum(np.floor(f).astype(int), size - 2)
-    t = f - i
-    return (1 - t) * table[row, i] + t * table[row, i + 1]
-
-
-def _lerp_2d(table: np.ndarray, first: int, rough: np.ndarray, mu: np.ndarray, size: int
-             ) -> np.ndarray:
-    f = np.clip(rough, 0.0, 1.0) * (size - 1)
-    i = np.minimum(np.floor(f).astype(int), size - 2)
-    t = f - i
-    return (1 - t) * _lerp_row(table, first + i, mu, size) \
-        + t * _lerp_row(table, first + i + 1, mu, size)
-
-
 def lookup(rough: np.ndarray, mu: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, ...]:
     """E, E_avg, s_ior and s5 at (roughness, cos view, IOR parameter), interpolated linearly
     between table nodes (as the shader does)."""
     t = _tables64()
     rough, mu, z = np.broadcast_arrays(*(np.asarray(a, float) for a in (rough, mu, z)))
-    e = _lerp_2d(t, ROW_E, rough, mu, E_SIZE)
-    e_avg = _lerp_row(t, np.full(rough.shape, ROW_EAVG), rough, E_SIZE)
+    e = lerp_2d(t, ROW_E, rough, mu, E_SIZE)
+    e_avg = lerp_row(t, np.full(rough.shape, ROW_EAVG), rough, E_SIZE)
     f = np.clip(z, 0.0, 1.0) * (S_SIZE - 1)
     k = np.minimum(np.floor(f).astype(int), S_SIZE - 2)
     w = f - k
-    s_ior = (1 - w) * _lerp_2d(t, ROW_S_IOR + k * S_SIZE, rough, mu, S_SIZE) \
-        + w * _lerp_2d(t, ROW_S_IOR + (k + 1) * S_SIZE, rough, mu, S_SIZE)
-    s5 = _lerp_2d(t, ROW_S5, rough, mu, S_SIZE)
+    s_ior = (1 - w) * lerp_2d(t, ROW_S_IOR + k * S_SIZE, rough, mu, S_SIZE) \
+        + w * lerp_2d(t, ROW_S_IOR + (k + 1) * S_SIZE, rough, mu, S_SIZE)
+    s5 = lerp_2d(t, ROW_S5, rough, mu, S_SIZE)
     return e, e_avg, s_ior, s5
 
 

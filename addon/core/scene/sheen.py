@@ -21,6 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .table_lookup import lerp_2d
+
 TABLE = Path(__file__).with_name("sheen_table.json")
 SIZE = 17  # roughness × cos(view) nodes, evenly spaced on [0, 1]
 
@@ -52,22 +54,11 @@ def table() -> np.ndarray:
     return np.vstack(parts)
 
 
-def _index(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    f = np.clip(x, 0.0, 1.0) * (SIZE - 1)
-    i = np.minimum(np.floor(f).astype(int), SIZE - 2)
-    return i, f - i
-
-
 def albedo(rough: np.ndarray | float, mu: np.ndarray) -> np.ndarray:
     """R(μ, r) (n,) at cosines ``mu`` (n,), interpolated bilinearly between the table's
     nodes as the shaders do (principled_lib.glsl's sheen_albedo)."""
-    t = table()[:SIZE]
     rough, mu = np.broadcast_arrays(np.asarray(rough, float), np.asarray(mu, float))
-    i, s = _index(rough)
-    j, u = _index(mu)
-    row = (1 - s)[..., None] * t[i] + s[..., None] * t[i + 1]
-    return np.take_along_axis(row, j[..., None], -1)[..., 0] * (1 - u) \
-        + np.take_along_axis(row, j[..., None] + 1, -1)[..., 0] * u
+    return lerp_2d(table(), 0, rough, mu, SIZE)
 
 
 def layer(sheen: Sheen, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
