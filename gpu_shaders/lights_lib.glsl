@@ -2,7 +2,10 @@
 // With VPL_GLOSSY the table has 10 texels per sample: texel 4's w flags a VPL at a glossy
 // surface, whose texels 5-9 are its GGX lobe scaled by the incident flux (principled_lib's
 // lobe_a/b/c), the direction its light came from with its clear coat's eta, and the coat's
-// weight times the flux with its alpha (transport/vpl.py's VPLs.glossy).
+// weight times the flux with its alpha (transport/vpl.py's VPLs.glossy). With VPL_ROUGH too
+// the table has 12 texels per sample: texels 10-11 are a VPL's rough diffuse lobe (its
+// sigma in texel 10's w, 0 for a smooth surface), whose light leaves through its Oren-Nayar
+// lobe instead of a cosine.
 // A negative texel 4 w, -(k + 1), marks a sample of area light k of the AREA_SHAPES table.
 // Texel 4's z is the spread's normalisation where texel 4's y (its tan) is positive, else the
 // radius of the sample's light's Soft Falloff (transport/lights.py soft_falloff_radius).
@@ -12,6 +15,9 @@
 #include "common_lib.glsl"
 #ifdef VPL_GLOSSY
 #include "principled_lib.glsl"
+#endif
+#ifdef VPL_ROUGH
+#include "oren_nayar_lib.glsl"
 #endif
 
 struct LightSample {
@@ -38,6 +44,8 @@ struct LightSample {
     vec3 towards_light; // where the VPL's light came from
     float coat_eta;     // its clear coat's IOR
     vec4 coat;          // flux x the coat's weight, its alpha (0: no coat)
+    vec4 rough;         // flux x the diffuse colour, sigma (0: no rough diffuse lobe)
+    vec3 rough_ms;      // flux x the colour x m (1 - E(mu_l)) (oren_nayar_vpl_excess)
 #endif
 };
 
@@ -51,17 +59,22 @@ LightSample light_sample(int index) {
     vec4 t4 = texelFetch(u_light_table, ivec2(4, index), 0);
 #ifdef VPL_GLOSSY
     vec4 a = vec4(0.0), b = vec4(0.0), c = vec4(0.0), d = vec4(0.0), e = vec4(0.0);
+    vec4 f = vec4(0.0), g = vec4(0.0);
     if (t4.w > 0.0) {
         a = texelFetch(u_light_table, ivec2(5, index), 0);
         b = texelFetch(u_light_table, ivec2(6, index), 0);
         c = texelFetch(u_light_table, ivec2(7, index), 0);
         d = texelFetch(u_light_table, ivec2(8, index), 0);
         e = texelFetch(u_light_table, ivec2(9, index), 0);
+#ifdef VPL_ROUGH
+        f = texelFetch(u_light_table, ivec2(10, index), 0);
+        g = texelFetch(u_light_table, ivec2(11, index), 0);
+#endif
     }
     return LightSample(t0.xyz, int(t0.w) & 3, t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
                        t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1,
                        t4.y > 0.0 ? 0.0 : t4.z, (int(t0.w) >> 2) - 1, a, b, c, d.xyz, d.w,
-                       e);
+                       e, f, g.rgb);
 #else
     return LightSample(t0.xyz, int(t0.w) & 3, t1.xyz, t1.w, t2.xyz, t2.w, int(t3.x), t3.y, t3.z,
                        t3.w, int(t4.x), t4.y, t4.z, int(max(-t4.w, 0.0)) - 1,
@@ -186,7 +199,8 @@ float light_profile(int light, vec3 from_light) {
 #endif
 
 // Radiant intensity (W/sr) of a non-directional sample towards a unit direction; a glossy
-// VPL adds its light reflected by its lobe, flux x f_glossy(towards_light, from_light) x cos.
+// VPL adds its light reflected by its lobe, flux x f_glossy(towards_light, from_light) x cos,
+// and a VPL at a rough diffuse surface redistributes its diffuse light by its lobe.
 vec3 emitted_intensity(LightSample s, vec3 from_light) {
     float falloff = 1.0;
     if (s.kind == KIND_COSINE) falloff = max(dot(from_light, s.axis), 0.0) * spread(s, from_light);
@@ -195,6 +209,13 @@ vec3 emitted_intensity(LightSample s, vec3 from_light) {
     falloff *= light_profile(s.profile, from_light);
 #endif
 #ifdef VPL_GLOSSY
+    vec3 diffuse = s.intensity * falloff * spot_mask(s, from_light);
+#ifdef VPL_ROUGH
+    if (s.rough.w > 0.0) {
+        diffuse = max(diffuse + max(dot(from_light, s.axis), 0.0) * oren_nayar_vpl_excess(
+            s.rough, s.rough_ms, s.axis, s.towards_light, from_light), 0.0);
+    }
+#endif
     vec3 glossy = vec3(0.0);
     if (s.lobe_a.w > 0.0) {
         glossy = glossy_brdf(s.lobe_a, s.lobe_b, s.lobe_c, s.axis, from_light, s.towards_light);
@@ -206,7 +227,7 @@ vec3 emitted_intensity(LightSample s, vec3 from_light) {
         }
         glossy *= max(dot(from_light, s.axis), 0.0);
     }
-    return s.intensity * falloff * spot_mask(s, from_light) + glossy;
+    return diffuse + glossy;
 #else
     return s.intensity * falloff * spot_mask(s, from_light);
 #endif

@@ -41,4 +41,19 @@ vec3 oren_nayar_factor(vec4 lobe, vec3 ms, vec3 n, vec3 view, vec3 l) {
     return PI * (vec3(lobe.x + lobe.y * t) + ms * (1.0 - e_l));
 }
 
+// What a VPL at a rough diffuse surface of normal n, lit from towards_light, emits towards
+// out_dir per unit cosine beyond the Lambertian intensity it carries, which has the lobe's
+// power: u (A + B t - E(mu_l) / pi) + v (E_avg - E(mu_out)), whose cosine-weighted integral
+// is zero, for u = (flux x the diffuse colour, sigma) and v = flux x colour x m (1 - E(mu_l))
+// (transport/vpl.py's VPLs.glossy, scene/geometry.py's rough_lobes).
+vec3 oren_nayar_vpl_excess(vec4 u, vec3 v, vec3 n, vec3 towards_light, vec3 out_dir) {
+    float a = 1.0 / (PI + u.w * (PI / 2.0 - 2.0 / 3.0)), b = u.w * a;
+    float mu_l = max(dot(n, towards_light), 0.0), mu_o = max(dot(n, out_dir), 0.0);
+    float t = dot(towards_light, out_dir) - mu_l * mu_o;
+    if (t > 0.0) t /= max(max(mu_l, mu_o), 1e-6);
+    float e_l = PI * a + b * oren_nayar_g(mu_l), e_o = PI * a + b * oren_nayar_g(mu_o);
+    float e_avg = PI * a + (2.0 * PI - 5.6) / 3.0 * b;
+    return u.rgb * (a + b * t - e_l / PI) + v * (e_avg - e_o);
+}
+
 #endif

@@ -10,7 +10,7 @@ Measured (bpy 4.5 and 5.3; energy, relRMSE inside, overall; without the roughnes
   55.3 %, 54.5 %); Blender 4.2's Diffuse BSDF (no multiple-scattering term): see the test's
   output
 - the Cornell box, every surface of Diffuse Roughness 1, four bounces (2048 VPLs, exact
-  visibility, no clamp): −2.7 %, 16.2 %, 13.0 % (+32.1 %, 39.9 %, 47.9 %); the smooth box at
+  visibility, no clamp): −1.1 %, 12.0 %, 11.3 % (+32.1 %, 39.9 %, 47.9 %); the smooth box at
   the same settings measures 10.5 % overall (test_cycles_indirect.py)."""
 
 from __future__ import annotations
@@ -75,9 +75,10 @@ def test_rough_cornell_box_with_bounces(blender, tmp_path, without_roughness):
     settings = scene.vpl_gi
     settings.antialiasing, settings.light_samples, settings.bounces = 2, 64, 4
     settings.visibility, settings.clamp_distance, settings.vpl_count = "exact", 0.0, 2048
-    # the VPLs at rough walls emit as Lambertian surfaces of the lobe's albedo (power kept,
-    # not its retro-reflection): the box's top, lit by them alone, 15–20 % dark
-    compare(scene, tmp_path, without_roughness, (0.04, 0.2, 0.16), "rough cornell box")
+    # the VPLs at rough walls emit through their lobe: as Lambertian surfaces of the lobe's
+    # albedo instead (power kept, not the retro-reflection) the box's top, lit by them
+    # alone, is 15–20 % dark, and the box −2.7 %, 16.2 %, 13.0 %, which these bounds fail
+    compare(scene, tmp_path, without_roughness, (0.02, 0.14, 0.125), "rough cornell box")
 
 
 def test_a_linked_roughness_is_one_warning(blender):

@@ -240,14 +240,14 @@ def test_imperfect_shadow_maps_beyond_the_point_sets(renderer):
 def test_glossy_vpls_widen_the_light_table_only_when_present():
     """Diffuse-only VPLs keep the 5-texel table (the shaders' Lambert path); glossy ones get
     texels 5-9 and a flag, kept through subsets, scaling and concatenation (which scales the
-    flux texels, not the directions, alphas and IORs)."""
-    from addon.core.transport.vpl import VPLs
+    flux texels, not the directions, alphas and IORs); rough diffuse ones texels 10-11 too."""
+    from addon.core.transport.vpl import GLOSSY_TEXELS, VPLs
     n = 3
     diffuse = VPLs(np.zeros((n, 3)), np.tile([0.0, 0.0, 1.0], (n, 1)), np.ones((n, 3)),
                    np.ones(n, int), np.arange(n))
     assert diffuse.as_light_samples(8).table(np.zeros(n), np.ones(n), np.ones(n)).shape == \
         (n, 5, 4)
-    lobe = np.zeros((n, 5, 4))
+    lobe = np.zeros((n, GLOSSY_TEXELS, 4))
     lobe[1, 0] = [0.1, 0.2, 0.3, 0.25]
     lobe[1, 3] = [0.0, 0.0, 1.0, 1.5]
     lobe[1, 4] = [0.5, 0.5, 0.5, 0.04]
@@ -255,11 +255,18 @@ def test_glossy_vpls_widen_the_light_table_only_when_present():
                   diffuse.rank, glossy=lobe)
     table = glossy.as_light_samples(8).table(np.zeros(n), np.ones(n), np.ones(n))
     assert table.shape == (n, 10, 4)
-    assert list(table[:, 4, 3]) == [0, 1, 0] and np.allclose(table[1, 5:], lobe[1])
+    assert list(table[:, 4, 3]) == [0, 1, 0] and np.allclose(table[1, 5:], lobe[1, :5])
     both = VPLs.concatenate([diffuse, glossy.scaled(slice(None), 2.0)])
-    assert both.glossy.shape == (2 * n, 5, 4) and not both.glossy[:n].any()
+    assert both.glossy.shape == (2 * n, GLOSSY_TEXELS, 4) and not both.glossy[:n].any()
     assert np.allclose(both.glossy[n + 1, 0], [0.2, 0.4, 0.6, 0.25])
     assert np.allclose(both.glossy[n + 1, 3], [0.0, 0.0, 1.0, 1.5])
     assert np.allclose(both.glossy[n + 1, 4], [1.0, 1.0, 1.0, 0.04])
     kept = both.as_light_samples(8).subset(np.array([0, n + 1]))
-    assert kept.glossy.shape == (2, 5, 4) and kept.glossy[1, 0, 3] == 0.25
+    assert kept.glossy.shape == (2, GLOSSY_TEXELS, 4) and kept.glossy[1, 0, 3] == 0.25
+    lobe[2, 3] = [0.0, 0.6, 0.8, 0.0]  # a rough diffuse VPL: no glossy lobe, its sigma
+    lobe[2, 5], lobe[2, 6] = [0.4, 0.3, 0.2, 0.7], [0.1, 0.1, 0.1, 0.0]
+    table = glossy.as_light_samples(8).table(np.zeros(n), np.ones(n), np.ones(n))
+    assert table.shape == (n, 12, 4) and list(table[:, 4, 3]) == [0, 1, 1]
+    rough = glossy.scaled(slice(None), 2.0).glossy[2]
+    assert np.allclose(rough[5], [0.8, 0.6, 0.4, 0.7]) and np.allclose(rough[6, :3], 0.2)
+    assert np.allclose(rough[3], lobe[2, 3])

@@ -151,8 +151,10 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         visibility = light_pass.visibility
         defines: dict[str, object] = dict(visibility.defines)
         uniforms: dict[str, object] = dict(gbuffer.view)  # view-dependent reflection
-        if light_table.width > 5:  # some VPLs reflect glossily (LightSamples.table)
+        if light_table.width > 5:  # some VPLs reflect directionally (LightSamples.table)
             defines.update(VPL_GLOSSY=1)
+        if light_table.width > 10:  # some VPLs are at rough diffuse surfaces
+            defines.update(VPL_ROUGH=1)
         if s.shapes is not None and s.shape is not None and bool(np.any(s.shape >= 0)):
             defines.update(AREA_SHAPES=1, AREA_SHAPES_WIDTH=AREA_SHAPES_WIDTH)
             scope.own(area_shapes_texture(ctx, s.shapes)).use(AREA_SHAPES_UNIT)

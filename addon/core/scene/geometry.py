@@ -342,6 +342,28 @@ class WorldGeometry:
                 coat_rough[group] = coat.roughness
         return diffuse, gloss, rough, np.clip(coat_share, 0.0, 1.0), coat_rough
 
+    def rough_lobes(self, triangle: np.ndarray, base: np.ndarray, mu: np.ndarray
+                    ) -> np.ndarray:
+        """The rough diffuse lobes (m, 2, 4) at points on triangles whose base colour is
+        ``base`` (m, 3), for light arriving at cosine ``mu`` (m,), per unit incident flux:
+        (c, σ) and (c m (1 − E(μ)), 0), c the diffuse layer's colour (the base colour times
+        the diffuse weight ``reflectance_split`` averages); zero for smooth materials (what
+        lights_lib.glsl's VPLs at rough surfaces emit beyond a Lambertian one)."""
+        out = np.zeros((len(triangle), 2, 4))
+        material = self.triangle_material[triangle]
+        for row in np.unique(material):
+            params = self.materials[row, SPECULAR:CUTOUT]
+            sigma, multiscatter = principled.diffuse_roughness_of(params)
+            if sigma <= 0:
+                continue
+            group = np.flatnonzero(material == row)
+            colour = base[group] * (principled.diffuse_average(params) if params[7] > 0
+                                    else 1.0)
+            out[group, 0, :3], out[group, 0, 3] = colour, sigma
+            out[group, 1, :3] = colour * oren_nayar.multiscatter_at(
+                base[group], sigma, mu[group], multiscatter)
+        return out
+
     def coats(self, triangle: np.ndarray) -> np.ndarray:
         """The clear coats (weight, roughness, IOR) (m, 3) of triangles (weight 0: none)."""
         return self.materials[self.triangle_material[triangle], COAT:COAT + 3].astype(

@@ -46,6 +46,14 @@ def average_albedo(sigma: float) -> float:
     return float(np.pi * a + (2.0 * np.pi - 5.6) / 3.0 * b)
 
 
+def _per_colour(color: np.ndarray, sigma: float, mode: int) -> np.ndarray:
+    """ρ_ms ρ^k / ρ (n, 3) of colours ``color`` (n, 3) by the multiple-scattering ``mode``."""
+    e_avg = average_albedo(sigma)
+    rho = np.clip(np.asarray(color, float), 0.0, 1.0)
+    per_colour = rho * e_avg / (1.0 - rho * (1.0 - e_avg))
+    return per_colour * rho if mode == COLOUR_SCALED else per_colour
+
+
 def albedo_factor(color: np.ndarray, sigma: float, mu: np.ndarray, mode: int) -> np.ndarray:
     """What a rough diffuse surface of colours ``color`` (n, 3) reflects of light arriving at
     cosines ``mu`` (n,), over what a Lambertian one of the same colours does (n, 3):
@@ -53,9 +61,15 @@ def albedo_factor(color: np.ndarray, sigma: float, mu: np.ndarray, mode: int) ->
     e = single_albedo(sigma, mu)[:, None]
     if mode == NO_MULTISCATTER:
         return np.repeat(e, 3, axis=1)
-    e_avg = average_albedo(sigma)
-    rho = np.clip(np.asarray(color, float), 0.0, 1.0)
-    per_colour = rho * e_avg / (1.0 - rho * (1.0 - e_avg))  # ρ_ms / ρ
-    if mode == COLOUR_SCALED:
-        per_colour = per_colour * rho
-    return e + per_colour * (1.0 - e)
+    return e + _per_colour(color, sigma, mode) * (1.0 - e)
+
+
+def multiscatter_at(color: np.ndarray, sigma: float, mu: np.ndarray, mode: int) -> np.ndarray:
+    """m (1 − E(μ)) (n, 3): the multiple-scattering term's factor of the cosines ``mu`` (n,)
+    on one side of the lobe (the BRDF's term is it times 1 − E at the other side's cosine);
+    zero without the term."""
+    if mode == NO_MULTISCATTER:
+        return np.zeros((len(mu), 3))
+    e = single_albedo(sigma, mu)[:, None]
+    m = _per_colour(color, sigma, mode) / (np.pi * (1.0 - average_albedo(sigma)))
+    return m * (1.0 - e)

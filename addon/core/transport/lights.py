@@ -27,6 +27,14 @@ from .light_profiles import LightProfiles
 KIND_OMNI, KIND_COSINE, KIND_COSINE2, KIND_DIRECTIONAL = 0, 1, 2, 3
 NO_SPOT = -2.0
 MIN_SPREAD = np.radians(1.0)  # narrower area-light spreads (collimated light) are widened
+GLOSSY_LOBE_TEXELS = 5  # a VPL's glossy emission: its lobe, towards its light, its coat
+ROUGH_TEXELS = 2  # then its rough diffuse lobe (VPLs.glossy; lights_lib.glsl's VPL_ROUGH)
+
+
+def directional_emission(glossy: np.ndarray) -> np.ndarray:
+    """Per VPL of the ``glossy`` texels (n, 7, 4) (VPLs.glossy): whether it emits through a
+    glossy lobe or a rough diffuse one (the light table's texel 4 w flag)."""
+    return (glossy[:, 0, 3] > 0) | (glossy[:, GLOSSY_LOBE_TEXELS, 3] > 0)
 
 
 @dataclass
@@ -45,8 +53,8 @@ class LightSamples:
     soft: np.ndarray  # (n,) bool one of many samples of a soft light (area, sphere, sun angle,
     # world, emission) rather than a light of its own
     spread: np.ndarray  # (n, 2) area-light spread: tan(half angle), normalisation; 0 = none
-    glossy: np.ndarray | None = None  # (n, 5, 4) VPLs' glossy emission (VPLs.glossy); None
-    # when no sample has one (the table then has no glossy texels)
+    glossy: np.ndarray | None = None  # (n, 7, 4) VPLs' glossy and rough diffuse emission
+    # (VPLs.glossy); None when no sample has one (the table then has no glossy texels)
     broad: np.ndarray | None = None  # (n,) bool a sample of light from everywhere (the
     # world), whose light varies smoothly over surfaces, diffuse and glossy; None: none is
     shape: np.ndarray | None = None  # (n,) int the sample's area light in ``shapes``, -1 for
@@ -78,10 +86,15 @@ class LightSamples:
 
     def table(self, first_tile: np.ndarray, near: np.ndarray, far: np.ndarray) -> np.ndarray:
         """The (n, 5, 4) float32 table the shaders read (see lights_lib.glsl); (n, 10, 4) with
-        glossy emission (texel 4's w flags the samples that have it)."""
+        glossy emission (texel 4's w flags the samples that have it), (n, 12, 4) where a
+        VPL is at a rough diffuse surface."""
         n = len(self)
-        glossy = self.glossy is not None and bool(np.any(self.glossy[:, 0, 3] > 0))
-        t = np.zeros((n, 5 + self.glossy.shape[1] if glossy else 5, 4), dtype=np.float32)
+        flagged = directional_emission(self.glossy) if self.glossy is not None else None
+        width = 5
+        if flagged is not None and flagged.any():
+            rough = bool(np.any(self.glossy[:, GLOSSY_LOBE_TEXELS, 3] > 0))
+            width += GLOSSY_LOBE_TEXELS + ROUGH_TEXELS * rough
+        t = np.zeros((n, width, 4), dtype=np.float32)
         t[:, 0, :3], t[:, 0, 3] = self.position, self.kind
         if self.profile is not None:  # kind + 4 (profiled light + 1): lights_lib.glsl
             t[:, 0, 3] += 4 * (np.maximum(self.profile, -1) + 1)
@@ -95,9 +108,9 @@ class LightSamples:
             t[:, 4, 2] = np.where(self.spread[:, 0] > 0, t[:, 4, 2], self.soft_radius)
         if self.shape is not None:  # negative: -(shape + 1); the glossy flag is positive
             t[:, 4, 3] = np.where(self.shape >= 0, -(self.shape + 1), 0)
-        if glossy:
-            t[:, 4, 3] = np.where(self.glossy[:, 0, 3] > 0, 1.0, t[:, 4, 3])
-            t[:, 5:] = self.glossy
+        if width > 5:
+            t[:, 4, 3] = np.where(flagged, 1.0, t[:, 4, 3])
+            t[:, 5:] = self.glossy[:, :width - 5]
         return t
 
     def subset(self, index: np.ndarray) -> LightSamples:

@@ -10,7 +10,9 @@ Weights (flux Φ is RGB):
   Φ ρ(y) / π (W/sr) around the normal facing the incoming path; at a glossy surface it also
   reflects Φ through its GGX lobe (a glossy point emitter, as Virtual Spherical Lights without
   the spread): Φ f_glossy(ω_in, ω) cos θ towards ω, the lobe evaluated at the receiver by
-  the gather (lights_lib.glsl) from the VPL's ``glossy`` texels;
+  the gather (lights_lib.glsl) from the VPL's ``glossy`` texels; at a rough diffuse surface
+  its diffuse light leaves through the Oren–Nayar lobe of the direction it arrived from
+  (retro-reflecting towards it) instead of a cosine, of the same power (``rough_lobes``);
 - continuing, the flux becomes Φ ρ(y) / q, where q is the chance to continue: with
   fractional absorption q = n_k / n_(k-1), the share of the N index-ordered paths that go on
   (n_k = round(ρ̄^k N), ρ̄ the scene's average reflectance); with Russian roulette
@@ -37,8 +39,10 @@ from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
 from .light_profiles import profile_sampler, profile_towards
 from .lights import (
+    GLOSSY_LOBE_TEXELS,
     KIND_COSINE,
     NO_SPOT,
+    ROUGH_TEXELS,
     LightSamples,
     area_light_points,
     concentric_disk,
@@ -54,8 +58,8 @@ from .ray_caster import RayCaster
 from .sequences import scrambled_halton
 
 START_DIMENSIONS = 5  # emitter choice, position (2), direction (2)
-GLOSSY_TEXELS = 5  # a glossy VPL's texels (VPLs.glossy; lights_lib.glsl's VPL_GLOSSY)
-FLUX_TEXELS = [0, 1, 2, 4]  # those of them scaled by the flux
+GLOSSY_TEXELS = GLOSSY_LOBE_TEXELS + ROUGH_TEXELS  # VPLs.glossy's (lights_lib.glsl's VPL_GLOSSY)
+FLUX_TEXELS = [0, 1, 2, 4, 5, 6]  # those of them scaled by the flux
 
 
 @dataclass
@@ -69,10 +73,12 @@ class VPLs:
     rank: np.ndarray  # (n,) int, the rank of the light path that left it
     key: np.ndarray | None = None  # (n,) int64 identity kept while the VPL holds still
     # (Incremental Instant Radiosity); None when VPLs are made afresh every frame
-    glossy: np.ndarray | None = None  # (n, GLOSSY_TEXELS, 4) glossy emission: the lobe
-    # texels scaled by the incident flux (Φ A, alpha), (Φ B, eta), (Φ C, 0), (towards the
-    # light, the coat's eta) and the clear coat's (Φ × its weight, its alpha); all zero for
-    # a diffuse VPL; None when no VPL is glossy
+    glossy: np.ndarray | None = None  # (n, GLOSSY_TEXELS, 4) directional emission: the
+    # glossy lobe's texels scaled by the incident flux (Φ A, alpha), (Φ B, eta), (Φ C, 0),
+    # (towards the light, the coat's eta), the clear coat's (Φ × its weight, its alpha)
+    # (alpha 0: no glossy lobe), and a rough diffuse lobe's (Φ c, σ), (Φ c m (1 − E(μ)), 0)
+    # (WorldGeometry.rough_lobes; σ 0: smooth); all zero for a Lambertian VPL; None when no
+    # VPL emits directionally
 
     def __len__(self) -> int:
         return len(self.generation)
@@ -515,11 +521,12 @@ def _lobes(hits: SurfaceHits, geometry: WorldGeometry
            ) -> tuple[np.ndarray, np.ndarray | None, tuple[np.ndarray, ...], np.ndarray | None]:
     """What a VPL at the hits emits diffusely (reflectance (m, 3)), the glossy albedo (m, 3)
     of the paths' glossy continuation and its lobes (roughness (m,), the coat's share of it
-    (m,) and the coat's roughness (m,)), and the VPLs' glossy emission (VPLs.glossy, the
-    coats' included) (both None where no material is glossy or the incoming direction or base
-    colour is not known: the path albedo is then all diffuse)."""
+    (m,) and the coat's roughness (m,)), and the VPLs' directional emission (VPLs.glossy: the
+    glossy lobes, the coats' included, and the rough diffuse ones) (both None where no
+    material is glossy or rough or the incoming direction or base colour is not known: the
+    path albedo is then all diffuse)."""
     if hits.incoming is None or hits.triangle is None or hits.base is None \
-            or not geometry.has_specular:
+            or not (geometry.has_specular or geometry.has_rough_diffuse):
         return hits.albedo, None, (np.zeros(len(hits.rank)),) * 3, None
     mu = np.clip(-(hits.incoming * hits.normal).sum(axis=1), 0.0, 1.0)
     diffuse, gloss, *lobes = geometry.reflectance_split(hits.triangle, hits.base, mu)
@@ -528,8 +535,10 @@ def _lobes(hits: SurfaceHits, geometry: WorldGeometry
     emission[:, 3, :3] = -hits.incoming
     weight, rough, eta = geometry.coats(hits.triangle).T
     emission[:, 3, 3], emission[:, 4, :3], emission[:, 4, 3] = eta, weight[:, None], rough**2
+    no_lobe = emission[:, 0, 3] <= 0
+    emission[no_lobe, :3] = emission[no_lobe, 4] = 0.0
+    emission[:, GLOSSY_LOBE_TEXELS:] = geometry.rough_lobes(hits.triangle, hits.base, mu)
     emission[:, FLUX_TEXELS, :3] *= hits.flux[:, None, :]
-    emission[emission[:, 0, 3] <= 0] = 0.0
     return diffuse, gloss, tuple(lobes), emission
 
 
