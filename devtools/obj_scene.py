@@ -1,6 +1,7 @@
 """Benchmark scenes from OBJ assets (e.g. ../shared/assets' Sponza, Sibenik, Cornell box): the
-mesh with its .mtl colours as pure diffuse materials, a camera inside looking along the longest
-horizontal axis, and a sun with a dim sky unless a material already emits light."""
+mesh with its .mtl colours as pure diffuse materials, window panes open, a camera inside
+looking along the longest horizontal axis, and a sun with a dim sky unless a material already
+emits light."""
 
 from __future__ import annotations
 
@@ -29,9 +30,13 @@ def _diffuse_only() -> bool:
                 node.inputs["Specular IOR Level"].default_value = 0.0
                 node.inputs["Metallic"].default_value = 0.0
                 # the importer reads MTL transparency (Tf, d) as glass: Sibenik's stone walls
-                # came in with Transmission Weight 1
+                # came in with Transmission Weight 1, its window panes (d < 1 or a coloured
+                # Tf) with Alpha below 1 or a partial Transmission Weight; the panes are left
+                # open (Alpha 0), so that light comes in alike in both renderers
+                pane = node.inputs["Alpha"].default_value < 1.0 \
+                    or 0.0 < node.inputs["Transmission Weight"].default_value < 1.0
                 node.inputs["Transmission Weight"].default_value = 0.0
-                node.inputs["Alpha"].default_value = 1.0
+                node.inputs["Alpha"].default_value = 0.0 if pane else 1.0
                 color = node.inputs["Emission Color"].default_value
                 if node.inputs["Emission Strength"].default_value == 0 and max(color[:3]) > 1:
                     # Blender 4.2's importer puts Ke (17 12 4) in the colour and leaves the

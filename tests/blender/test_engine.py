@@ -145,19 +145,34 @@ def test_final_render_writes_an_image(blender, tmp_path):
 ASSETS = Path(__file__).resolve().parents[3] / "shared" / "assets"
 
 
+SIBENIK_PANES = {"staklo", "staklo_crveno", "staklo_plavo", "staklo_zeleno", "staklo_zuto"}
+
+
 @pytest.mark.skipif(not (ASSETS / "cornell-box").is_dir(), reason="shared assets not present")
-@pytest.mark.parametrize("asset, emits", [("cornell-box/CornellBox-Original.obj", True),
-                                          ("sponza/sponza.obj", False)])
-def test_obj_assets_become_diffuse_benchmark_scenes(blender, asset, emits):
+@pytest.mark.parametrize("asset, emits, panes", [
+    ("cornell-box/CornellBox-Original.obj", True, set()), ("sponza/sponza.obj", False, set()),
+    ("sibenik/sibenik.obj", False, SIBENIK_PANES)])
+def test_obj_assets_become_diffuse_benchmark_scenes(blender, asset, emits, panes):
+    """Diffuse materials, opaque but for the window panes (Sibenik's glass: open), a camera,
+    and a sun and sky where nothing emits."""
     from devtools.obj_scene import scene_from_obj
 
     scene = scene_from_obj(ASSETS / asset)
     assert scene.camera is not None
     assert (scene.world is None) == emits  # a sun and sky only where nothing emits
     assert any(o.type == "LIGHT" for o in scene.objects) != emits
+    open_panes = set()
     for material in blender.data.materials:
         bsdf = material.node_tree.nodes.get("Principled BSDF")
-        assert bsdf is None or bsdf.inputs["Specular IOR Level"].default_value == 0.0
+        if bsdf is None:
+            continue
+        assert bsdf.inputs["Specular IOR Level"].default_value == 0.0
+        assert bsdf.inputs["Transmission Weight"].default_value == 0.0
+        if bsdf.inputs["Alpha"].default_value == 0.0:
+            open_panes.add(material.name)
+        else:
+            assert bsdf.inputs["Alpha"].default_value == 1.0
+    assert open_panes == panes
     exported = export_scene(blender.context.evaluated_depsgraph_get())
     assert sum(i.mesh.triangle_count for i in exported.instances) > 30
 
