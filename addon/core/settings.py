@@ -291,6 +291,14 @@ class Settings:
         "points: the maps' visibility error is the same in every pass, so passes alone do "
         "not remove it (0 = never)",
         low=0, high=1 << 16, soft_high=64, applies=when("visibility", "ism"))
+    map_error_limit: float = setting(
+        0.25, "Map Error Limit", "visibility",
+        "In scenes with more triangles than each imperfect shadow map has points, a frame "
+        "(not with VPL reuse) first compares the light its maps let through with what rays "
+        "let through at 4096 pairs of VPLs and points the camera sees; off by more than "
+        "this share, it traces a ray per pixel and VPL instead, as thin occluders the maps "
+        "miss let light through (0 = no check)",
+        low=0.0, high=10.0, soft_high=1.0, applies=when("visibility", "ism"))
     vpl_shadow_resolution: int = setting(
         256, "VPL Shadow Resolution", "visibility",
         "Texels per cube-face edge of each VPL's shadow map",

@@ -4,6 +4,7 @@ light and the composition of Blender's passes."""
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from functools import partial
 
@@ -156,7 +157,8 @@ class GatherStage(TileStage):
         centre, radius, bias = frame.centre, frame.radius, frame.settings.shadow_bias
         for light_pass in passes:
             frame.check_cancelled()
-            with stats.timed(f"{light_pass.name} maps"):
+            traced = light_pass.visibility.rays_per_sample > 0  # no maps: a placeholder
+            with nullcontext() if traced else stats.timed(f"{light_pass.name} maps"):
                 atlas = light_pass.visibility.maps(light_pass.batch, data.maps)
                 clear = data.maps.shadow_atlases.clear_atlas(atlas)
                 ctx.finish()

@@ -27,6 +27,30 @@ batches.ATLAS_TEXELS), so that the image's tiles and the bias compensation's uns
 them without rendering them again: 8 atlases, 16384 VPLs of 128² maps."""
 
 
+def prepare_points(ism: ImperfectShadowMaps, kept: KeptProducts, geometry: WorldGeometry,
+                   settings: Settings, point_seed: int, stats: Stats) -> None:
+    """Have ``ism`` draw the frame's points (``ism_points`` per map from ``point_seed``),
+    uploading the triangles' area table unless the geometry's version is the one uploaded."""
+    start = time.perf_counter()
+    try:
+        uploaded = ism.prepare(geometry.positions.reshape(-1, 3, 3), settings.ism_points,
+                               point_seed, kept.versions.shape,
+                               geometry.coverage if geometry.cutout.any() else None,
+                               geometry.diffuse_hidden if geometry.diffuse_hidden.any()
+                               else None)
+    except ValueError as exc:  # the area table exceeds the GPU's storage-buffer limit
+        raise RenderError(f"imperfect shadow maps: {exc}") from None
+    if uploaded:
+        stats.timings["ism points"] = time.perf_counter() - start
+    else:
+        stats.skipped["ism points"] = "triangle positions unchanged (area table kept)"
+
+
+def pull_push_levels(settings: Settings) -> int:
+    """The pull-push levels the maps get (capped at log2 of their resolution)."""
+    return min(settings.pull_push_levels, int(np.log2(settings.ism_resolution)))
+
+
 class ImperfectShadowMapFrame:
     """Renders the imperfect shadow maps of a frame's batches. With a single batch its atlas
     is kept between frames: ``keys`` identify the VPLs of ``keyed_batch``, and only maps of
@@ -43,20 +67,8 @@ class ImperfectShadowMapFrame:
         self.sphere, self.stats, self.keyed_batch, self.keys = sphere, stats, keyed_batch, keys
         self.triangles = geometry.positions.reshape(-1, 3, 3)
         self.empty = geometry.vertex_count == 0
-        start = time.perf_counter()
-        try:
-            uploaded = ism.prepare(self.triangles, settings.ism_points, point_seed,
-                                   kept.versions.shape,
-                                   geometry.coverage if geometry.cutout.any() else None,
-                                   geometry.diffuse_hidden if geometry.diffuse_hidden.any()
-                                   else None)
-        except ValueError as exc:  # the area table exceeds the GPU's storage-buffer limit
-            raise RenderError(f"imperfect shadow maps: {exc}") from None
-        if uploaded:
-            stats.timings["ism points"] = time.perf_counter() - start
-        else:
-            stats.skipped["ism points"] = "triangle positions unchanged (area table kept)"
-        self.levels = min(settings.pull_push_levels, int(np.log2(settings.ism_resolution)))
+        prepare_points(ism, kept, geometry, settings, point_seed, stats)
+        self.levels = pull_push_levels(settings)
         stats.counts["isms"] = sum(len(b.samples) for b in batches)
         self.atlas_key = (kept.versions.shape, *settings_key(settings, ATLAS_FIELDS))
         self.atlas_bytes = 4 * sum(b.columns * b.rows * b.resolution**2 for b in batches)

@@ -20,6 +20,7 @@ from .compose import sanitize
 from .gather import RAY_OFFSET, Compensation, LightPass
 from .gpu_session import GpuSession
 from .ism_maps import ImperfectShadowMapFrame
+from .map_check import frame_traces_vpls
 from .near_field import NearField
 from .planner import plan_frame, plan_gather, visible_bounds
 from .progressive import pass_camera, pass_settings
@@ -208,6 +209,8 @@ class PlanLightPasses(Stage):
     def run(self, frame: FrameState) -> None:
         settings, stats, radius = frame.settings, frame.stats, frame.radius
         mode = VISIBILITY[settings.visibility]()
+        if mode.uses_ism and frame_traces_vpls(frame, self.gpu, self.kept):
+            mode = RayTracedVisibility()
         vpl_samples = mode.prepare(frame.vpl_samples)
         vpl_batches = mode.batches(vpl_samples, settings, self.gpu.max_texture)
         passes = self._direct_passes(frame)
