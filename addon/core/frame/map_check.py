@@ -13,11 +13,11 @@ visibility instead (stages.PlanLightPasses)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..gpu.ism import ImperfectShadowMaps
 from ..scene.textures import LUMINANCE
 from ..transport.guidance import CameraPoints, camera_points
 from ..transport.lights import KIND_DIRECTIONAL, LightSamples
@@ -85,16 +85,20 @@ def ray_visibility(tracer: RayCaster, start: np.ndarray, normal: np.ndarray,
     return np.where(hits.triangle >= 0, 0.0, hits.transmittance.mean(axis=1))
 
 
-def check_maps(ism: ImperfectShadowMaps, triangles: np.ndarray, vpls: LightSamples,
-               points: CameraPoints, tracer: RayCaster, resolution: int, levels: int,
-               sphere: tuple[np.ndarray, float], min_distance: float, limit: float, seed: int
+MapsVisibility = Callable[[LightSamples, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+"""Renders the maps of VPLs (LightSamples) and reads them: what they let through from VPL
+``vpl[q]`` to point ``world[q]`` of geometric normal ``normal[q]`` (Q,)."""
+
+
+def check_maps(vpls: LightSamples, points: CameraPoints, tracer: RayCaster, epsilon: float,
+               min_distance: float, limit: float, seed: int, maps_visibility: MapsVisibility
                ) -> MapCheck | None:
-    """Compare the maps of ``vpls`` (``ism`` prepared with the frame's points; its atlas is
-    overwritten) with rays at pairs with ``points`` drawn by their unshadowed light: CHECK_VPLS
-    VPLs by their light on all the points, then PAIRS_PER_VPL points by each one's light on
-    it, so that the pairs follow the light of all pairs with the maps of few VPLs. Where rays
-    let through more than 1 / (1 + ``limit``) of it, no map can let through more than that
-    much over the rays and the maps are not rendered. None where too few pairs are lit."""
+    """Compare the maps of ``vpls`` (read by ``maps_visibility``) with rays at pairs with
+    ``points`` drawn by their unshadowed light: CHECK_VPLS VPLs by their light on all the
+    points, then PAIRS_PER_VPL points by each one's light on it, so that the pairs follow the
+    light of all pairs with the maps of few VPLs. Where rays let through more than
+    1 / (1 + ``limit``) of it, no map can let through more than that much over the rays and
+    the maps are not rendered. None where too few pairs are lit."""
     rng = np.random.default_rng(seed)
     totals = np.concatenate([
         unshadowed_pair_light(vpls.subset(np.arange(start, min(start + CHUNK_VPLS, len(vpls)))),
@@ -111,39 +115,47 @@ def check_maps(ism: ImperfectShadowMaps, triangles: np.ndarray, vpls: LightSampl
     point = np.concatenate([rng.choice(len(points), PAIRS_PER_VPL, p=light[k] / light[k].sum())
                             for k in drawn])
     by_rays = ray_visibility(tracer, subset.position[vpl], subset.axis[vpl],
-                             points.position[point], 1e-5 * sphere[1])
+                             points.position[point], epsilon)
     lit_by_rays = float(by_rays.sum())
     if lit_by_rays * (1.0 + limit) >= len(vpl):
         return MapCheck(len(vpl), lit_by_rays / len(vpl))
-    ism.render(triangles, subset.position, subset.axis, resolution, levels,
-               subset.kind == KIND_DIRECTIONAL, sphere)
-    lit_by_maps = float(ism.visibility(vpl, points.position[point], points.normal[point]).sum())
+    lit_by_maps = float(maps_visibility(subset, vpl, points.position[point],
+                                        points.normal[point]).sum())
     if max(lit_by_maps, lit_by_rays) < MIN_LIT_PAIRS:
         return None
     return MapCheck(len(vpl), lit_by_rays / len(vpl), lit_by_maps / max(lit_by_rays, 1.0))
 
 
-def frame_traces_vpls(frame: FrameState, gpu: GpuSession, kept: KeptProducts) -> bool:
+def frame_traces_vpls(frame: FrameState, gpu: GpuSession, kept: KeptProducts,
+                      min_distance: float) -> bool:
     """Whether a frame set to read imperfect shadow maps should trace its VPLs' visibility:
     where the maps undersample its triangles (progressive.maps_undersample) and ``check_maps``
-    finds them off by more than ``map_error_limit``; not with VPL reuse (the viewport keeps
-    its maps between frames) and not below OpenGL 4.3. The verdict goes into the stats."""
+    finds them off by more than ``map_error_limit`` (VPL distances clamped below
+    ``min_distance``, as the gather clamps them); not with VPL reuse (the viewport keeps its
+    maps between frames) and not below OpenGL 4.3. The verdict goes into the stats."""
     settings, stats, geometry = frame.settings, frame.stats, frame.geometry
     limit = settings.map_error_limit
     if limit <= 0 or settings.incremental or frame.vpl_samples is None \
             or len(frame.vpl_samples) == 0 or gpu.ctx.version_code < 430 \
             or not maps_undersample(settings, geometry.vertex_count // 3):
         return False
+    sphere = (frame.centre, frame.radius)
+
+    def maps_visibility(subset: LightSamples, vpl: np.ndarray, world: np.ndarray,
+                        normal: np.ndarray) -> np.ndarray:
+        ism = gpu.ism
+        prepare_points(ism, kept, geometry, settings, frame.user_seed, stats)
+        kept.ism_atlas.forget()  # these maps overwrite the atlas a frame may keep
+        ism.render(geometry.positions.reshape(-1, 3, 3), subset.position, subset.axis,
+                   settings.ism_resolution, pull_push_levels(settings),
+                   subset.kind == KIND_DIRECTIONAL, sphere)
+        return ism.visibility(vpl, world, normal)
+
     with stats.timed("map check"):
         tracer = upload_triangles(gpu, kept, geometry, stats)
         points = camera_points(frame.camera, geometry, tracer, CHECK_POINTS, settings.seed + 5)
-        prepare_points(gpu.ism, kept, geometry, settings, frame.user_seed, stats)
-        kept.ism_atlas.forget()  # the check's maps overwrite the atlas a frame may keep
-        check = check_maps(gpu.ism, geometry.positions.reshape(-1, 3, 3), frame.vpl_samples,
-                           points, tracer, settings.ism_resolution, pull_push_levels(settings),
-                           (frame.centre, frame.radius),
-                           max(settings.clamp_distance, 1e-6) * frame.radius, limit,
-                           settings.seed)
+        check = check_maps(frame.vpl_samples, points, tracer, 1e-5 * frame.radius,
+                           min_distance, limit, settings.seed, maps_visibility)
     if check is None:
         stats.skipped["map check's verdict"] = "too few pairs of VPLs and camera points lit"
         return False

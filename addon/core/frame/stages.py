@@ -208,13 +208,13 @@ class PlanLightPasses(Stage):
 
     def run(self, frame: FrameState) -> None:
         settings, stats, radius = frame.settings, frame.stats, frame.radius
+        clamp = max(settings.clamp_distance * radius, radius * 1e-6)
         mode = VISIBILITY[settings.visibility]()
-        if mode.uses_ism and frame_traces_vpls(frame, self.gpu, self.kept):
+        if mode.uses_ism and frame_traces_vpls(frame, self.gpu, self.kept, clamp):
             mode = RayTracedVisibility()
         vpl_samples = mode.prepare(frame.vpl_samples)
         vpl_batches = mode.batches(vpl_samples, settings, self.gpu.max_texture)
         passes = self._direct_passes(frame)
-        clamp = max(settings.clamp_distance * radius, radius * 1e-6)
         pattern = indirect_interleave(settings, frame.geometry.has_specular)
         passes += [LightPass("indirect light", b, clamp, mode, pattern) for b in vpl_batches]
         frame.blur_radius = blur_radius(settings.interleave, settings.blur_radius) \

@@ -30,7 +30,7 @@ import numpy as np
 from . import oren_nayar
 from . import sheen as sheens
 from .sheen import NO_SHEEN, Sheen
-from .table_lookup import lerp_2d, lerp_row
+from .table_lookup import lerp_2d, lerp_row, node
 
 E_SIZE = 32  # roughness × cos(view) nodes of the single-scattering albedo E
 S_SIZE = 16  # roughness × cos(view) × IOR nodes of the Fresnel factors s
@@ -180,9 +180,7 @@ def lookup(rough: np.ndarray, mu: np.ndarray, z: np.ndarray) -> tuple[np.ndarray
     rough, mu, z = np.broadcast_arrays(*(np.asarray(a, float) for a in (rough, mu, z)))
     e = lerp_2d(t, ROW_E, rough, mu, E_SIZE)
     e_avg = lerp_row(t, np.full(rough.shape, ROW_EAVG), rough, E_SIZE)
-    f = np.clip(z, 0.0, 1.0) * (S_SIZE - 1)
-    k = np.minimum(np.floor(f).astype(int), S_SIZE - 2)
-    w = f - k
+    k, w = node(z, S_SIZE)
     s_ior = (1 - w) * lerp_2d(t, ROW_S_IOR + k * S_SIZE, rough, mu, S_SIZE) \
         + w * lerp_2d(t, ROW_S_IOR + (k + 1) * S_SIZE, rough, mu, S_SIZE)
     s5 = lerp_2d(t, ROW_S5, rough, mu, S_SIZE)
