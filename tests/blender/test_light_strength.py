@@ -1,14 +1,16 @@
 """A light's strength as Cycles reads it, against Cycles (direct light, 64², 64 samples): its
 Exposure, Temperature, Normalize, Emission node (a constant or Blackbody colour, a constant
-strength or a Light Falloff's Quadratic output) and Soft Falloff (256 samples). Each case
-also renders the light without the feature (the settings at Blender's defaults; for Soft
-Falloff, the light as a sphere), which must miss Cycles by far more, so that the test fails
-without it. Blender 4.2 has no Exposure or Temperature: its cases that need them are
-skipped. The first-bounce VPLs' Soft Falloff is checked in tests/core/test_soft_falloff.py
-(this scene's indirect light is 0.1 % of it).
+strength or a Light Falloff's Quadratic output), Soft Falloff (256 samples) and a spot's
+uneven scale (its cone an ellipse, core/scene/spot_scale.py). Each case also renders the
+light without the feature (the settings at Blender's defaults; for Soft Falloff, the light
+as a sphere; for the scale, a unit one), which must miss Cycles by far more, so that the
+test fails without it. Blender 4.2 has no Exposure or Temperature: its cases that need them
+are skipped. The first-bounce VPLs' Soft Falloff is checked in
+tests/core/test_soft_falloff.py (this scene's indirect light is 0.1 % of it).
 
-Measured (bpy 4.5 and 5.3, llvmpipe): energy within 0.8 %, relRMSE 1.0–5.2 % (the spot's is
-its cone's edge, as without these settings); without the features relRMSE 25–873 %.
+Measured (bpy 4.2, 4.5 and 5.3, llvmpipe): energy within 0.8 %, relRMSE 1.0–5.2 % (the
+spots' is their cones' edges; the stretched spot +0.04 % and 3.8 %); without the features
+relRMSE 25–873 %.
 """
 
 from __future__ import annotations
@@ -86,6 +88,10 @@ def _sphere(data: bpy.types.Light) -> None:
     data.use_soft_falloff = False
 
 
+def _stretched_spot(data: bpy.types.Light) -> None:
+    data.spot_size, data.spot_blend = math.radians(50.0), 0.3
+
+
 def _defaults(data: bpy.types.Light) -> None:
     """The settings the cases change, at Blender's defaults (the light without them)."""
     if HAS_EXPOSURE:
@@ -115,6 +121,7 @@ class Case:
     needs_exposure: bool = True
     bounces: int = 0
     samples: int = 64  # Cycles' samples and VPL GI's light samples
+    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)  # the light object's (unit without)
 
 
 CASES = {
@@ -132,6 +139,9 @@ CASES = {
     "point of radius 0.5 m, 1 m over the box: Soft Falloff":
         Case("POINT", 60.0, (-0.2, 0.1, 1.8), (0, 0, 0), _soft_falloff, _sphere,
              needs_exposure=False, samples=256),
+    "spot of 50°, blend 0.3, scaled (1.8, 0.8, 1.2) and turned: its cone an ellipse":
+        Case("SPOT", 300.0, (0.3, -0.2, 2.4), (15, 0, 30), _stretched_spot, _defaults,
+             needs_exposure=False, scale=(1.8, 0.8, 1.2)),
 }
 
 
@@ -142,6 +152,7 @@ def test_light_strength_matches_cycles(blender, tmp_path, name):
         pytest.skip("this Blender's lights have no Exposure or Temperature")
     light = lamp_over_floor(case.kind, case.power, case.location, case.rotation, SIZE)
     case.setup(light.data)
+    light.scale = case.scale
     scene = bpy.context.scene
     configure_cycles(scene, case.samples, bounces=case.bounces)
     reference = render_linear(scene, "CYCLES", tmp_path / "cycles.exr")[..., :3]
@@ -149,6 +160,7 @@ def test_light_strength_matches_cycles(blender, tmp_path, name):
     scene.vpl_gi.light_samples = case.samples
     ours = render_linear(scene, "VPL_GI", tmp_path / "ours.exr")[..., :3]
     case.without(light.data)
+    light.scale = (1.0, 1.0, 1.0)
     without = render_linear(scene, "VPL_GI", tmp_path / "without.exr")[..., :3]
     assert_near_cycles(name, ours, reference, (0.02, 0.06), without, "without it")
 
