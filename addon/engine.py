@@ -12,6 +12,7 @@ import numpy as np
 from . import ENGINE_ID, bake
 from .blender_compat import pass_name
 from .core.frame.id_passes import crypto_pass_names, metadata
+from .core.frame.light_groups import PASS_PREFIX
 from .core.frame.motion_blur import pass_span
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
@@ -90,10 +91,16 @@ def cryptomatte_passes(layer: object) -> list[str]:
 
 
 def layer_passes(layer: object) -> frozenset[str]:
-    """The optional passes (OPTIONAL_PASSES, Cryptomatte's) the view layer asks for;
-    Combined is always rendered."""
+    """The optional passes (OPTIONAL_PASSES, Cryptomatte's, the light groups') the view
+    layer asks for; Combined is always rendered."""
     return frozenset(name for name, (*_, toggle) in OPTIONAL_PASSES.items()
-                     if toggled(layer, toggle)) | frozenset(cryptomatte_passes(layer))
+                     if toggled(layer, toggle)) | frozenset(cryptomatte_passes(layer)) \
+        | frozenset(light_group_passes(layer))
+
+
+def light_group_passes(layer: object) -> list[str]:
+    """The view layer's light groups' passes (Combined_<group>, as Cycles names them)."""
+    return [PASS_PREFIX + group.name for group in getattr(layer, "lightgroups", ())]
 
 
 @dataclass
@@ -261,6 +268,8 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
                 self.register_pass(scene, renderlayer, pass_name(name), channels, ids, kind)
         for name in cryptomatte_passes(renderlayer):
             self.register_pass(scene, renderlayer, name, 4, "RGBA", "COLOR")
+        for name in light_group_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
 
 
 def register() -> None:

@@ -1240,7 +1240,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
                          bool(getattr(obj, "visible_diffuse", True)), state.identity(obj),
                          linking.receiver_set(obj), linking.receivers_of(obj),
                          bool(getattr(obj, "is_shadow_catcher", False)),
-                         linking.blocker_set(obj), linking.blockers_of(obj)) \
+                         linking.blocker_set(obj), linking.blockers_of(obj),
+                         str(getattr(obj, "lightgroup", ""))) \
                     if state.include(obj) else None
                 entry = placements[memo] = (known, bool(known and known[0].triangle_count))
             elif entry[0]:
@@ -1269,8 +1270,13 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             if motion is not None:
                 result.instances[-1].motion = placed_motion(motion, keys[index])
     cache._entries = state.used
+    lights_before_world = len(result.lights)  # a world's sun disc joins them
     result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
                                 result.lights)
+    world_group = str(getattr(scene_eval.world, "lightgroup", "")) if scene_eval.world else ""
+    result.world = replace(result.world, lightgroup=world_group)  # a bake's world is kept
+    for light in result.lights[lights_before_world:]:
+        light.lightgroup = world_group
     result.warnings.extend(unrendered_objects(skipped))
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),

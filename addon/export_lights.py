@@ -44,7 +44,8 @@ def export_light(obj: bpy.types.Object, matrix: np.ndarray,
     light = Light(obj.name, kind, matrix, color=rgb(data.color),
                   power=float(data.energy), cast_shadow=bool(getattr(data, "use_shadow", True)),
                   visible_to_camera=bool(getattr(obj, "visible_camera", True)),
-                  visible_to_diffuse=bool(getattr(obj, "visible_diffuse", True)))
+                  visible_to_diffuse=bool(getattr(obj, "visible_diffuse", True)),
+                  lightgroup=str(getattr(obj, "lightgroup", "")))
     if kind in (LightKind.POINT, LightKind.SPOT):
         light.radius = float(data.shadow_soft_size)
         light.soft_falloff = bool(getattr(data, "use_soft_falloff", False))

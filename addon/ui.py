@@ -163,6 +163,72 @@ class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
         column.prop(layer, "pass_cryptomatte_depth", text="Levels")
 
 
+class VIEWLAYER_PT_vpl_gi_light_groups(_EnginePanel, bpy.types.Panel):
+    """View Layer Properties > Passes > Light Groups while this engine is selected: the view
+    layer's light groups, whose Combined_<group> passes the engine fills (Blender's panel is
+    Cycles' own)."""
+
+    bl_label = "Light Groups"
+    bl_context = "view_layer"
+    bl_parent_id = "VIEWLAYER_PT_vpl_gi_passes"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = _split(self.layout)
+        layer = context.view_layer
+        row = layout.row()
+        row.column().template_list("UI_UL_list", "lightgroups", layer, "lightgroups", layer,
+                                   "active_lightgroup_index", rows=3)
+        column = row.column(align=True)
+        column.operator("scene.view_layer_add_lightgroup", icon="ADD", text="")
+        column.operator("scene.view_layer_remove_lightgroup", icon="REMOVE", text="")
+        column.separator()
+        column.menu("VIEWLAYER_MT_lightgroup_sync", icon="DOWNARROW_HLT", text="")
+
+
+def draw_light_group(layout: bpy.types.UILayout, owner: bpy.types.ID,
+                     layer: bpy.types.ViewLayer) -> None:
+    """An object's or world's Light Group field, with a button that adds a group of the name
+    typed where the view layer has none (as Cycles draws it)."""
+    row = _split(layout).row(align=True)
+    row.column(align=True).prop_search(owner, "lightgroup", layer, "lightgroups",
+                                       text="Light Group", results_are_suggestions=True)
+    add = row.column(align=True)
+    add.enabled = bool(owner.lightgroup) and owner.lightgroup not in layer.lightgroups
+    add.operator("scene.view_layer_add_lightgroup", icon="ADD", text="").name = owner.lightgroup
+
+
+class OBJECT_PT_vpl_gi_light_group(_EnginePanel, bpy.types.Panel):
+    """Object Properties > Light Group while this engine is selected: the light group whose
+    pass the object's light or emission goes to."""
+
+    bl_label = "Light Group"
+    bl_context = "object"
+    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return super().poll(context) and context.object is not None
+
+    def draw(self, context: bpy.types.Context) -> None:
+        draw_light_group(self.layout, context.object, context.view_layer)
+
+
+class WORLD_PT_vpl_gi_light_group(_EnginePanel, bpy.types.Panel):
+    """World Properties > Light Group while this engine is selected: the light group whose
+    pass the world's light goes to."""
+
+    bl_label = "Light Group"
+    bl_context = "world"
+    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return super().poll(context) and context.world is not None
+
+    def draw(self, context: bpy.types.Context) -> None:
+        draw_light_group(self.layout, context.world, context.view_layer)
+
+
 class OBJECT_PT_vpl_gi_light_linking(_EnginePanel, bpy.types.Panel):
     """Object Properties > Light Linking while this engine is selected, where Blender's own
     panel is Cycles' (4.2; later versions' is any engine's): the receiver collection an
@@ -218,7 +284,8 @@ PANELS: tuple[type, ...] = (RENDER_PT_vpl_gi, *(_section_panel(s) for s in SECTI
 
 
 OWN_PANELS = (RENDER_PT_vpl_gi_motion_blur, OBJECT_PT_vpl_gi_motion_blur,
-              VIEWLAYER_PT_vpl_gi_passes)
+              VIEWLAYER_PT_vpl_gi_passes, VIEWLAYER_PT_vpl_gi_light_groups,
+              OBJECT_PT_vpl_gi_light_group, WORLD_PT_vpl_gi_light_group)
 """Panels drawn for this engine that are not settings sections."""
 
 

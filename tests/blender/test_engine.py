@@ -256,6 +256,77 @@ def test_passes_panel_draws_the_toggles_the_engine_reads(blender):
     assert not toggled(layer, "no_such_group.use_pass_z")
 
 
+class _LightGroupLayout:
+    """Records what the light-group panels draw: the list, the fields and their buttons."""
+
+    def __init__(self, calls: list[tuple]) -> None:
+        self.calls = calls
+        self.use_property_split = self.use_property_decorate = False
+        self.enabled = True
+        self.name = ""
+
+    def row(self, **_kwargs) -> _LightGroupLayout:
+        return _LightGroupLayout(self.calls)
+
+    column = row
+
+    def separator(self) -> None:
+        pass
+
+    def template_list(self, _kind, _id, data, name, active_data, active_name, **_kwargs):
+        self.calls.append(("list", getattr(data, name), getattr(active_data, active_name)))
+
+    def prop_search(self, data, name, search_data, search_name, **_kwargs) -> None:
+        self.calls.append(("field", data, getattr(data, name), getattr(search_data, search_name)))
+
+    def operator(self, idname: str, **_kwargs) -> _LightGroupLayout:
+        self.calls.append(("button", idname, self.enabled))
+        return self
+
+    def menu(self, idname: str, **_kwargs) -> None:
+        self.calls.append(("menu", idname))
+
+
+def test_light_group_panels_draw_the_groups_and_fields(blender):
+    """The view layer's light groups as a list with add, remove and sync; an object's and the
+    world's Light Group field, its add button enabled only for a name the layer lacks."""
+    from types import SimpleNamespace
+
+    from addon.ui import (
+        OBJECT_PT_vpl_gi_light_group,
+        VIEWLAYER_PT_vpl_gi_light_groups,
+        WORLD_PT_vpl_gi_light_group,
+    )
+
+    context = blender.context
+    layer, obj = context.view_layer, context.scene.objects[0]
+    if context.scene.world is None:
+        context.scene.world = blender.data.worlds.new("World")
+    world = context.scene.world
+    blender.ops.scene.view_layer_add_lightgroup(name="Key")
+    try:
+        calls: list[tuple] = []
+        VIEWLAYER_PT_vpl_gi_light_groups.draw(SimpleNamespace(layout=_LightGroupLayout(calls)),
+                                              context)
+        assert calls[0][0] == "list" and [g.name for g in calls[0][1]] == ["Key"]
+        assert [c[1] for c in calls[1:]] == ["scene.view_layer_add_lightgroup",
+                                            "scene.view_layer_remove_lightgroup",
+                                            "VIEWLAYER_MT_lightgroup_sync"]
+        for panel, owner in ((OBJECT_PT_vpl_gi_light_group, obj),
+                             (WORLD_PT_vpl_gi_light_group, world)):
+            for group, enabled in (("Key", False), ("Rim", True), ("", False)):
+                owner.lightgroup = group
+                calls = []
+                fake = SimpleNamespace(layout=_LightGroupLayout(calls))
+                panel.draw(fake, SimpleNamespace(object=obj, world=world, view_layer=layer))
+                assert calls[0][:3] == ("field", owner, group)
+                assert calls[1] == ("button", "scene.view_layer_add_lightgroup", enabled)
+    finally:
+        obj.lightgroup = world.lightgroup = ""
+        blender.ops.scene.view_layer_remove_lightgroup()  # the active group: Key
+        assert not layer.lightgroups
+
+
 def test_settings_that_do_not_apply_are_greyed_out(blender):
     settings = blender.context.scene.vpl_gi
     settings.visibility, settings.interleave, settings.auto_parameters = "classic", "1", "time"

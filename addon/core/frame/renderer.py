@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import moderngl
+import numpy as np
 
 from ..blas_threads import single_threaded_blas
 from ..gpu.blur import GeometryAwareBlur
@@ -24,6 +25,7 @@ from .denoise import Denoise, PlanDenoise
 from .depth_of_field import DepthOfField, PlanDepthOfField
 from .gpu_session import GpuSession
 from .image import RenderImage
+from .light_groups import PASS_PREFIX, group_scene, has_emitters, requested_groups
 from .motion_blur import MotionBlur
 from .progressive import PassReport, merge_stats, render_passes
 from .result import MATTE, Frame, Stats
@@ -82,6 +84,7 @@ class Renderer:
         self._automatic = ChooseParameters(self.gpu, self.kept, self.render)
         self._last_pass = (-1, 0)  # the index of the last pass rendered and its last path + 1
         self._catchers: Renderer | None = None  # renders scenes' shadow catchers alone
+        self._groups: Renderer | None = None  # renders scenes' light groups alone
         self.stages: list[Stage] = [
             CheckInput(self.gpu), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
@@ -111,7 +114,35 @@ class Renderer:
             self._composite_catchers(image, stats, scene, used, report, check,
                                      passes is not None and SHADOW_CATCHER_PASS in passes,
                                      pass_index, first_path)
+        for group in requested_groups(passes):
+            self._light_group(image, stats, scene, used, group, report, check, pass_index,
+                              first_path)
         return image, stats
+
+    def _light_group(self, image: Frame, stats: Stats, scene: Scene, settings: Settings,
+                     group: str, progress: ProgressCallback, cancelled: CancelCallback,
+                     pass_index: int, first_path: int) -> None:
+        """The light group's pass (light_groups.py): a frame of the scene lit by the group's
+        emitters alone, with the settings the scene's frame used, by a renderer of its own;
+        black where nothing in the group emits."""
+        name = PASS_PREFIX + group
+        alone = group_scene(scene, group)
+        if not has_emitters(alone):
+            image.passes[name] = np.zeros((image.height, image.width, 3), np.float32)
+            return
+        if self._groups is None:
+            self._groups = Renderer(self.gpu.ctx, share_programs_of=self)
+
+        def group_progress(fraction: float, message: str) -> None:
+            progress(fraction, f"Light group '{group}'" + (f" | {message}" if message else ""))
+
+        with stats.timed(f"light group '{group}'"):
+            frame, group_stats = self._groups.render(
+                alone, replace(settings, auto_parameters="off"), group_progress, cancelled,
+                frozenset({"Combined"}), pass_index)
+        image.passes[name] = frame.passes["Combined"][..., :3]
+        stats.warnings.extend(f"light group '{group}': {w}" for w in group_stats.warnings
+                              if f"light group '{group}': {w}" not in stats.warnings)
 
     def _composite_catchers(self, image: Frame, stats: Stats, scene: Scene, settings: Settings,
                             progress: ProgressCallback, cancelled: CancelCallback,
@@ -221,6 +252,9 @@ class Renderer:
         if self._catchers is not None:  # first: it shares this renderer's programs
             self._catchers.release()
             self._catchers = None
+        if self._groups is not None:
+            self._groups.release()
+            self._groups = None
         self.gpu.release()
         self.forget_frames()
 
@@ -229,6 +263,8 @@ class Renderer:
         self.kept.forget(anchors=True)
         if self._catchers is not None:
             self._catchers.forget_frames()
+        if self._groups is not None:
+            self._groups.forget_frames()
 
     @property
     def ctx(self) -> moderngl.Context:

@@ -226,6 +226,7 @@ class Instance:
     shadow_catcher: bool = False
     blocker_set: int = 0
     emission_blockers: int = EVERY_RECEIVER_SET
+    lightgroup: str = ""  # its emission's light group (Object.lightgroup): frame/light_groups.py
     motion: tuple[Matrix4, Matrix4] | None = None  # its matrix at Scene.motion's two times
 
     @property
@@ -286,6 +287,7 @@ class Light:
     # (Instance.receiver_set)
     blockers: int = EVERY_RECEIVER_SET  # shadow linking: the blocker sets that cast its
     # shadows (Instance.blocker_set)
+    lightgroup: str = ""  # its light group (Object.lightgroup): frame/light_groups.py
 
     @property
     def area_size(self) -> tuple[float, float]:
@@ -345,6 +347,7 @@ class World:
     environment: EnvironmentMap | None = None
     visible_sun: Light | None = None
     background: EnvironmentMap | None = None
+    lightgroup: str = ""  # its light group (World.lightgroup): frame/light_groups.py
 
     @property
     def radiance(self) -> np.ndarray:
