@@ -197,36 +197,34 @@ def draw_light_group(layout: bpy.types.UILayout, owner: bpy.types.ID,
     add.operator("scene.view_layer_add_lightgroup", icon="ADD", text="").name = owner.lightgroup
 
 
-class OBJECT_PT_vpl_gi_light_group(_EnginePanel, bpy.types.Panel):
-    """Object Properties > Light Group while this engine is selected: the light group whose
-    pass the object's light or emission goes to."""
+class _LightGroupPanel(_EnginePanel):
+    """Mixin: the Light Group field of the context's ``owner`` (its object or world) while
+    this engine is selected (Blender's panels are Cycles' own)."""
 
     bl_label = "Light Group"
+    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+    owner = "object"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return super().poll(context) and getattr(context, cls.owner, None) is not None
+
+    def draw(self, context: bpy.types.Context) -> None:
+        draw_light_group(self.layout, getattr(context, self.owner), context.view_layer)
+
+
+class OBJECT_PT_vpl_gi_light_group(_LightGroupPanel, bpy.types.Panel):
+    """Object Properties > Light Group: the group whose pass the object's light or emission
+    goes to."""
+
     bl_context = "object"
-    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return super().poll(context) and context.object is not None
-
-    def draw(self, context: bpy.types.Context) -> None:
-        draw_light_group(self.layout, context.object, context.view_layer)
 
 
-class WORLD_PT_vpl_gi_light_group(_EnginePanel, bpy.types.Panel):
-    """World Properties > Light Group while this engine is selected: the light group whose
-    pass the world's light goes to."""
+class WORLD_PT_vpl_gi_light_group(_LightGroupPanel, bpy.types.Panel):
+    """World Properties > Light Group: the group whose pass the world's light goes to."""
 
-    bl_label = "Light Group"
     bl_context = "world"
-    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return super().poll(context) and context.world is not None
-
-    def draw(self, context: bpy.types.Context) -> None:
-        draw_light_group(self.layout, context.world, context.view_layer)
+    owner = "world"
 
 
 class OBJECT_PT_vpl_gi_light_linking(_EnginePanel, bpy.types.Panel):

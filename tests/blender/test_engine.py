@@ -317,7 +317,7 @@ def test_light_group_panels_draw_the_groups_and_fields(blender):
             for group, enabled in (("Key", False), ("Rim", True), ("", False)):
                 owner.lightgroup = group
                 calls = []
-                fake = SimpleNamespace(layout=_LightGroupLayout(calls))
+                fake = SimpleNamespace(layout=_LightGroupLayout(calls), owner=panel.owner)
                 panel.draw(fake, SimpleNamespace(object=obj, world=world, view_layer=layer))
                 assert calls[0][:3] == ("field", owner, group)
                 assert calls[1] == ("button", "scene.view_layer_add_lightgroup", enabled)
