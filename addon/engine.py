@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import bpy
 import numpy as np
@@ -18,7 +18,8 @@ from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats
 from .core.gpu.gl import GLUnavailableError, shared_context
-from .core.scene.model import MotionSpan, Scene
+from .core.scene.model import Camera, MotionSpan, Scene
+from .core.scene.render_region import Region, cropped, region_camera, region_of
 from .core.settings import SettingsError
 from .export import export_scene
 from .export_motion import motion_span, sample_motion
@@ -98,6 +99,16 @@ def layer_passes(layer: object) -> frozenset[str]:
         | frozenset(light_group_passes(layer))
 
 
+def render_region(scene: bpy.types.Scene, camera: Camera) -> Region | None:
+    """The scene's render region (Render Region on, a part of the image) in pixels of the
+    camera's image, or None."""
+    render = scene.render
+    if not render.use_border:
+        return None
+    return region_of(camera.width, camera.height, (render.border_min_x, render.border_max_x,
+                                                   render.border_min_y, render.border_max_y))
+
+
 def light_group_passes(layer: object) -> list[str]:
     """The view layer's light groups' passes (Combined_<group>, as Cycles names them)."""
     return [PASS_PREFIX + group.name for group in getattr(layer, "lightgroups", ())]
@@ -146,6 +157,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         self._viewport: ViewportState | None = None
+        self._region: Region | None = None  # the final render's render region, if any
 
     def __del__(self) -> None:
         viewport = getattr(self, "_viewport", None)
@@ -208,14 +220,16 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         span = motion_span(depsgraph.scene, "Vector" in passes)
         first = None if span is None else pass_span(span, 0, settings.passes)
         exported = self._export_at(depsgraph, first)
+        if exported.camera is None:
+            raise RenderError("the scene has no active camera")
+        self._region = render_region(scene, exported.camera)
+        exported = self._in_region(exported)
         scene_at = None
         if first is not span:  # motion blur's shutter split over the passes
             def scene_at(index: int) -> Scene:
                 """Pass ``index`` sees its own part of the shutter (motion_blur.pass_span)."""
-                return exported if index == 0 else \
-                    self._export_at(depsgraph, pass_span(span, index, settings.passes))
-        if exported.camera is None:
-            raise RenderError("the scene has no active camera")
+                return exported if index == 0 else self._in_region(
+                    self._export_at(depsgraph, pass_span(span, index, settings.passes)))
 
         def progress(fraction: float, message: str) -> None:
             self.update_progress(fraction)
@@ -249,10 +263,24 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
             self.report({"WARNING"}, f"VPL GI: {warning}")
         self.update_stats("", f"VPL GI | {stats.summary()}")
 
+    def _in_region(self, scene: Scene) -> Scene:
+        """The scene with a camera that renders only the render region, where there is one
+        and the camera allows it (else the full image renders and is cropped)."""
+        if self._region is None:
+            return scene
+        camera = region_camera(scene.camera, self._region)
+        return scene if camera is None else replace(scene, camera=camera)
+
     def _write_result(self, frame: Frame) -> None:
-        result = self.begin_result(0, 0, frame.width, frame.height)
+        region = self._region
+        if region is None:
+            result, passes = self.begin_result(0, 0, frame.width, frame.height), frame.passes
+        else:  # Blender's result is the region's (its coordinates are the region's)
+            result = self.begin_result(0, 0, region.width, region.height)
+            full = frame.width != region.width or frame.height != region.height
+            passes = cropped(frame.passes, region) if full else frame.passes
         layer = result.layers[0]
-        ours = {pass_name(name): data for name, data in frame.passes.items()}
+        ours = {pass_name(name): data for name, data in passes.items()}
         for render_pass in layer.passes:
             data = ours.get(render_pass.name)
             if data is not None and data.shape[2] == render_pass.channels:
