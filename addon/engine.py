@@ -158,6 +158,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         super().__init__(*args, **kwargs)
         self._viewport: ViewportState | None = None
         self._region: Region | None = None  # the final render's render region, if any
+        self._layer = ""  # the view layer the final render renders
 
     def __del__(self) -> None:
         viewport = getattr(self, "_viewport", None)
@@ -222,6 +223,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         exported = self._export_at(depsgraph, first)
         if exported.camera is None:
             raise RenderError("the scene has no active camera")
+        self._layer = depsgraph.view_layer.name  # this render's; Blender renders each in turn
         self._region = render_region(scene, exported.camera)
         exported = self._in_region(exported)
         scene_at = None
@@ -274,9 +276,10 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
     def _write_result(self, frame: Frame) -> None:
         region = self._region
         if region is None:
-            result, passes = self.begin_result(0, 0, frame.width, frame.height), frame.passes
+            result = self.begin_result(0, 0, frame.width, frame.height, layer=self._layer)
+            passes = frame.passes
         else:  # Blender's result is the region's (its coordinates are the region's)
-            result = self.begin_result(0, 0, region.width, region.height)
+            result = self.begin_result(0, 0, region.width, region.height, layer=self._layer)
             full = frame.width != region.width or frame.height != region.height
             passes = cropped(frame.passes, region) if full else frame.passes
         layer = result.layers[0]
