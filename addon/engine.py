@@ -20,6 +20,7 @@ from .core.frame.result import Frame, Stats
 from .core.gpu.gl import GLUnavailableError, shared_context
 from .core.scene.model import Camera, MotionSpan, Scene
 from .core.scene.render_region import Region, cropped, region_camera, region_of
+from .core.scene.stereo import StereoView, in_view, shift_scale, stereo_view
 from .core.settings import SettingsError
 from .export import export_scene
 from .export_motion import motion_span, sample_motion
@@ -159,6 +160,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         self._viewport: ViewportState | None = None
         self._region: Region | None = None  # the final render's render region, if any
         self._layer = ""  # the view layer the final render renders
+        self._view = StereoView()  # the view (stereoscopy's eye) it renders
 
     def __del__(self) -> None:
         viewport = getattr(self, "_viewport", None)
@@ -225,13 +227,12 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
             raise RenderError("the scene has no active camera")
         self._layer = depsgraph.view_layer.name  # this render's; Blender renders each in turn
         self._region = render_region(scene, exported.camera)
-        exported = self._in_region(exported)
         scene_at = None
         if first is not span:  # motion blur's shutter split over the passes
             def scene_at(index: int) -> Scene:
                 """Pass ``index`` sees its own part of the shutter (motion_blur.pass_span)."""
-                return exported if index == 0 else self._in_region(
-                    self._export_at(depsgraph, pass_span(span, index, settings.passes)))
+                return exported if index == 0 else \
+                    self._export_at(depsgraph, pass_span(span, index, settings.passes))
 
         def progress(fraction: float, message: str) -> None:
             self.update_progress(fraction)
@@ -254,9 +255,16 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
                     else f"/{settings.passes}"
                 self.update_stats("", f"VPL GI | Pass {report.index}{planned}{noise}")
 
-        _, stats = shared_renderer().render_progressive(
-            exported, settings, progress, self._cancelled, passes, on_pass=show,
-            scene_at=scene_at)
+        warnings: list[str] = []
+        for view in self._views(depsgraph, exported.camera, warnings):
+            self._view = view
+            view_scene_at = None if scene_at is None else \
+                (lambda index: self._in_view(scene_at(index)))
+            _, stats = shared_renderer().render_progressive(
+                self._in_view(exported), settings, progress, self._cancelled, passes,
+                on_pass=show, scene_at=view_scene_at)
+            warnings.extend(w for w in stats.warnings if w not in warnings)
+        stats.warnings[:] = warnings
         bake.report(stats, exported.notes)
         monitor.last_stats, monitor.last_warnings = stats, list(stats.warnings)
         for note in stats.notes:
@@ -264,6 +272,32 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
         for warning in stats.warnings:
             self.report({"WARNING"}, f"VPL GI: {warning}")
         self.update_stats("", f"VPL GI | {stats.summary()}")
+
+    def _views(self, depsgraph: bpy.types.Depsgraph, camera: Camera,
+               warnings: list[str]) -> list[StereoView]:
+        """The views the render result has (stereoscopy's eyes, each made active in turn by
+        the caller), or the camera's own view without stereoscopy."""
+        names = [view.name for view in self.get_result().views]
+        if not depsgraph.scene.render.use_multiview or len(names) < 2:
+            return [StereoView()]
+        obj = depsgraph.scene.camera.evaluated_get(depsgraph)
+        if camera.panorama is not None:
+            warnings.append(f"camera '{obj.name}': its stereo views are the eyes' offset "
+                            f"views, not Cycles' spherical stereo")
+        render = depsgraph.scene.render
+        views = []
+        for name in names:
+            self.active_view_set(name)
+            views.append(stereo_view(
+                name, np.array(obj.matrix_world), np.array(self.camera_model_matrix(obj)),
+                self.camera_shift_x(obj) - obj.data.shift_x,
+                shift_scale(obj.data.sensor_fit, camera.width * render.pixel_aspect_x,
+                            camera.height * render.pixel_aspect_y)))
+        return views
+
+    def _in_view(self, scene: Scene) -> Scene:
+        """The scene seen from the view being rendered (stereoscopy's eye)."""
+        return self._in_region(replace(scene, camera=in_view(scene.camera, self._view)))
 
     def _in_region(self, scene: Scene) -> Scene:
         """The scene with a camera that renders only the render region, where there is one
@@ -276,10 +310,12 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
     def _write_result(self, frame: Frame) -> None:
         region = self._region
         if region is None:
-            result = self.begin_result(0, 0, frame.width, frame.height, layer=self._layer)
+            result = self.begin_result(0, 0, frame.width, frame.height, layer=self._layer,
+                                       view=self._view.name)
             passes = frame.passes
         else:  # Blender's result is the region's (its coordinates are the region's)
-            result = self.begin_result(0, 0, region.width, region.height, layer=self._layer)
+            result = self.begin_result(0, 0, region.width, region.height, layer=self._layer,
+                                       view=self._view.name)
             full = frame.width != region.width or frame.height != region.height
             passes = cropped(frame.passes, region) if full else frame.passes
         layer = result.layers[0]
