@@ -419,6 +419,7 @@ def baked_material(material: Material, source: bpy.types.Material, entry: Baked)
     return Material(material.name, (1.0, 1.0, 1.0), emission,
                     base_color_texture=entry.textures["albedo"],
                     emission_texture=emission_texture, pass_index=material.pass_index,
+                    aovs=material.aovs,
                     **bake_tree.specular_constants(source))  # type: ignore[arg-type]
 
 

@@ -16,7 +16,7 @@ from .core.frame.light_groups import PASS_PREFIX
 from .core.frame.motion_blur import pass_span
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
-from .core.frame.result import Frame, Stats
+from .core.frame.result import AOV_COLOR, AOV_VALUE, Frame, Stats, aov_of
 from .core.gpu.gl import GLUnavailableError, shared_context
 from .core.scene.model import Camera, MotionSpan, Scene
 from .core.scene.render_region import Region, cropped, region_camera, region_of
@@ -97,7 +97,20 @@ def layer_passes(layer: object) -> frozenset[str]:
     layer asks for; Combined is always rendered."""
     return frozenset(name for name, (*_, toggle) in OPTIONAL_PASSES.items()
                      if toggled(layer, toggle)) | frozenset(cryptomatte_passes(layer)) \
-        | frozenset(light_group_passes(layer))
+        | frozenset(light_group_passes(layer)) | frozenset(aov_passes(layer))
+
+
+def aov_passes(layer: object) -> list[str]:
+    """The view layer's Shader AOVs' passes (result.AOV_VALUE or AOV_COLOR + the AOV's
+    name; Blender's name is the AOV's)."""
+    return [(AOV_COLOR if aov.type == "COLOR" else AOV_VALUE) + aov.name
+            for aov in getattr(layer, "aovs", ()) if aov.name]
+
+
+def blender_pass_name(name: str) -> str:
+    """Blender's name of a VPL GI pass (pass_name; a Shader AOV's: its AOV's)."""
+    aov = aov_of(name)
+    return pass_name(name) if aov is None else aov[0]
 
 
 def render_region(scene: bpy.types.Scene, camera: Camera) -> Region | None:
@@ -319,7 +332,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
             full = frame.width != region.width or frame.height != region.height
             passes = cropped(frame.passes, region) if full else frame.passes
         layer = result.layers[0]
-        ours = {pass_name(name): data for name, data in passes.items()}
+        ours = {blender_pass_name(name): data for name, data in passes.items()}
         for render_pass in layer.passes:
             data = ours.get(render_pass.name)
             if data is not None and data.shape[2] == render_pass.channels:
@@ -337,6 +350,10 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
             self.register_pass(scene, renderlayer, name, 4, "RGBA", "COLOR")
         for name in light_group_passes(renderlayer):
             self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
+        for name in aov_passes(renderlayer):
+            color = aov_of(name)[1]
+            self.register_pass(scene, renderlayer, blender_pass_name(name), 4 if color else 1,
+                               "RGBA" if color else "X", "COLOR" if color else "VALUE")
 
 
 def register() -> None:

@@ -728,6 +728,33 @@ def _default_surface() -> Material:
     return DEFAULT_PRINCIPLED if DEFAULT_SURFACE_IS_PRINCIPLED else DEFAULT_MATERIAL
 
 
+def material_aovs(material: bpy.types.Material | None, warnings: list[str]
+                  ) -> tuple[tuple[str, tuple[float, float, float, float]], ...]:
+    """The material's AOV Output nodes (Shader AOV passes): each one's name and its Color and
+    Value, constants (a linked input is read at its node's own value, with a warning)."""
+    if material is None or material.node_tree is None or not uses_nodes(material):
+        return ()
+    found = []
+    for node in material.node_tree.nodes:
+        if node.bl_idname != "ShaderNodeOutputAOV" or not node.aov_name or node.mute:
+            continue
+        color, value = node.inputs["Color"], node.inputs["Value"]
+        for socket in (color, value):
+            if socket.is_linked:
+                warnings.append(f"material '{material.name}': AOV '{node.aov_name}''s "
+                                f"{socket.name} is linked: written as its own value "
+                                f"{tuple(round(v, 3) for v in _socket_values(socket))}")
+        found.append((node.aov_name, (*_socket_values(color)[:3],
+                                      _socket_values(value)[0])))
+    return tuple(found)
+
+
+def _socket_values(socket: bpy.types.NodeSocket) -> tuple[float, ...]:
+    """A socket's default value as floats (a colour's channels, or one number)."""
+    value = socket.default_value
+    return tuple(float(v) for v in value) if hasattr(value, "__len__") else (float(value),)
+
+
 def export_material(material: bpy.types.Material | None, warnings: list[str],
                     images: ImageReader | None = None,
                     fallbacks: dict[str, str] | None = None) -> Material:
@@ -1120,6 +1147,9 @@ class _Export:
                                            self.images, self.fallbacks)
                 if slot.material is not None and slot.material.pass_index:
                     exported = replace(exported, pass_index=int(slot.material.pass_index))
+                aovs = material_aovs(slot.material, self.result.warnings)
+                if aovs:
+                    exported = replace(exported, aovs=aovs)
                 self.materials[key] = exported
                 named = bake.named_uv_maps(slot.material)
                 if named:

@@ -163,6 +163,18 @@ class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
         column.prop(layer, "pass_cryptomatte_depth", text="Levels")
 
 
+def draw_layer_list(layout: bpy.types.UILayout, layer: bpy.types.ViewLayer, ui_list: str,
+                    collection: str, active: str, noun: str) -> bpy.types.UILayout:
+    """A view layer's list (light groups, Shader AOVs) with Blender's add and remove
+    buttons (scene.view_layer_add_<noun>, _remove_<noun>); returns the buttons' column."""
+    row = _split(layout).row()
+    row.column().template_list(ui_list, collection, layer, collection, layer, active, rows=3)
+    column = row.column(align=True)
+    column.operator(f"scene.view_layer_add_{noun}", icon="ADD", text="")
+    column.operator(f"scene.view_layer_remove_{noun}", icon="REMOVE", text="")
+    return column
+
+
 class VIEWLAYER_PT_vpl_gi_light_groups(_EnginePanel, bpy.types.Panel):
     """View Layer Properties > Passes > Light Groups while this engine is selected: the view
     layer's light groups, whose Combined_<group> passes the engine fills (Blender's panel is
@@ -173,16 +185,28 @@ class VIEWLAYER_PT_vpl_gi_light_groups(_EnginePanel, bpy.types.Panel):
     bl_parent_id = "VIEWLAYER_PT_vpl_gi_passes"
 
     def draw(self, context: bpy.types.Context) -> None:
-        layout = _split(self.layout)
-        layer = context.view_layer
-        row = layout.row()
-        row.column().template_list("UI_UL_list", "lightgroups", layer, "lightgroups", layer,
-                                   "active_lightgroup_index", rows=3)
-        column = row.column(align=True)
-        column.operator("scene.view_layer_add_lightgroup", icon="ADD", text="")
-        column.operator("scene.view_layer_remove_lightgroup", icon="REMOVE", text="")
+        column = draw_layer_list(self.layout, context.view_layer, "UI_UL_list", "lightgroups",
+                                 "active_lightgroup_index", "lightgroup")
         column.separator()
         column.menu("VIEWLAYER_MT_lightgroup_sync", icon="DOWNARROW_HLT", text="")
+
+
+class VIEWLAYER_PT_vpl_gi_aovs(_EnginePanel, bpy.types.Panel):
+    """View Layer Properties > Passes > Shader AOV while this engine is selected: the view
+    layer's AOVs, whose passes the materials' AOV Output nodes write (Blender's panel is
+    Cycles' and EEVEE's)."""
+
+    bl_label = "Shader AOV"
+    bl_context = "view_layer"
+    bl_parent_id = "VIEWLAYER_PT_vpl_gi_passes"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layer = context.view_layer
+        draw_layer_list(self.layout, layer, "VIEWLAYER_UL_aov", "aovs", "active_aov_index",
+                        "aov")
+        if layer.active_aov is not None and not layer.active_aov.is_valid:
+            self.layout.label(text="Conflicts with another render pass with the same name",
+                              icon="ERROR")
 
 
 def draw_light_group(layout: bpy.types.UILayout, owner: bpy.types.ID,
@@ -283,7 +307,7 @@ PANELS: tuple[type, ...] = (RENDER_PT_vpl_gi, *(_section_panel(s) for s in SECTI
 
 OWN_PANELS = (RENDER_PT_vpl_gi_motion_blur, OBJECT_PT_vpl_gi_motion_blur,
               VIEWLAYER_PT_vpl_gi_passes, VIEWLAYER_PT_vpl_gi_light_groups,
-              OBJECT_PT_vpl_gi_light_group, WORLD_PT_vpl_gi_light_group)
+              VIEWLAYER_PT_vpl_gi_aovs, OBJECT_PT_vpl_gi_light_group, WORLD_PT_vpl_gi_light_group)
 """Panels drawn for this engine that are not settings sections."""
 
 

@@ -288,12 +288,14 @@ class _LightGroupLayout:
 
 
 def test_light_group_panels_draw_the_groups_and_fields(blender):
-    """The view layer's light groups as a list with add, remove and sync; an object's and the
-    world's Light Group field, its add button enabled only for a name the layer lacks."""
+    """The view layer's light groups as a list with add, remove and sync, its Shader AOVs
+    with add and remove; an object's and the world's Light Group field, its add button
+    enabled only for a name the layer lacks."""
     from types import SimpleNamespace
 
     from addon.ui import (
         OBJECT_PT_vpl_gi_light_group,
+        VIEWLAYER_PT_vpl_gi_aovs,
         VIEWLAYER_PT_vpl_gi_light_groups,
         WORLD_PT_vpl_gi_light_group,
     )
@@ -312,6 +314,13 @@ def test_light_group_panels_draw_the_groups_and_fields(blender):
         assert [c[1] for c in calls[1:]] == ["scene.view_layer_add_lightgroup",
                                             "scene.view_layer_remove_lightgroup",
                                             "VIEWLAYER_MT_lightgroup_sync"]
+        layer.aovs.add().name = "mask"
+        calls = []
+        VIEWLAYER_PT_vpl_gi_aovs.draw(SimpleNamespace(layout=_LightGroupLayout(calls)), context)
+        assert calls[0][0] == "list" and [a.name for a in calls[0][1]] == ["mask"]
+        assert [c[1] for c in calls[1:]] == ["scene.view_layer_add_aov",
+                                            "scene.view_layer_remove_aov"]
+        layer.aovs.remove(layer.aovs[0])
         for panel, owner in ((OBJECT_PT_vpl_gi_light_group, obj),
                              (WORLD_PT_vpl_gi_light_group, world)):
             for group, enabled in (("Key", False), ("Rim", True), ("", False)):

@@ -20,6 +20,7 @@ import numpy as np
 from ..scene.geometry import WorldGeometry
 from ..scene.model import DEFAULT_MATERIAL, Material, Scene
 from .compose import central
+from .result import AOV_COLOR, aov_of
 
 if TYPE_CHECKING:  # image.py runs IdPasses among its tile stages
     from .image import FrameGpu, TileWork
@@ -139,6 +140,20 @@ class IdTables:
             self._per_triangle[kind] = self._lookup(kind)
         return np.take(self._per_triangle[kind], triangles)
 
+    def aov(self, name: str, triangles: np.ndarray) -> np.ndarray:
+        """At ``triangles`` (``triangles``' codes), the Shader AOV ``name``'s colour, value
+        and 1 (..., 5) float32 where each one's material writes it; 0 where none does."""
+        key = AOV_COLOR + name
+        if key not in self._per_triangle:
+            rows = [(*dict(m.aovs)[name], 1.0) if name in dict(m.aovs) else (0.0,) * 5
+                    for m in self.geometry.row_materials] or [(0.0,) * 5]
+            owners = self.geometry.triangle_material
+            if owners is None or len(owners) != self.geometry.triangle_count:
+                owners = np.zeros(self.geometry.triangle_count, np.int32)
+            table = np.take(np.asarray(rows, np.float32), owners, axis=0, mode="clip")
+            self._per_triangle[key] = np.concatenate([np.zeros((1, 5), np.float32), table])
+        return np.take(self._per_triangle[key], triangles, axis=0)
+
     def _lookup(self, kind: str) -> np.ndarray:
         """The kind's value per triangle code (entry 0: none)."""
         geometry = self.geometry
@@ -244,7 +259,8 @@ def write_tile(output: dict[str, np.ndarray], tables: IdTables, geometric: np.nd
     """The ID passes in ``output`` of one supersampled tile whose g-buffer geometric layer is
     ``geometric`` (h·aa, w·aa, 4) at supersample (x0, y0): the index passes at each pixel's
     centre (one sample, as Cycles writes them from a pixel's first sample), Cryptomatte over
-    all its supersamples."""
+    all its supersamples, and the Shader AOVs averaged over them (a colour's alpha: the
+    share of them whose material writes it, as Cycles')."""
     triangles = tables.triangles(geometric)
     h, w = triangles.shape[0] // aa, triangles.shape[1] // aa
     region = (slice(y0 // aa, y0 // aa + h), slice(x0 // aa, x0 // aa + w))
@@ -252,6 +268,12 @@ def write_tile(output: dict[str, np.ndarray], tables: IdTables, geometric: np.nd
     for name in INDEX_PASSES:
         if name in output:
             output[name][region] = tables.values(name, centres)
+    for name in output:
+        aov = aov_of(name)
+        if aov is not None:
+            values = tables.aov(aov[0], triangles)  # (h·aa, w·aa, 5): colour, value, written
+            values = values[..., (0, 1, 2, 4)] if aov[1] else values[..., 3:4]
+            output[name][region] = values.reshape(h, aa, w, aa, -1).mean(axis=(1, 3))
     for family in CRYPTO_FAMILIES:
         names = family_passes(output, family)
         if names:
@@ -284,8 +306,8 @@ def is_id_pass(name: str) -> bool:
 
 
 def wants_ids(passes: Mapping[str, np.ndarray] | frozenset[str]) -> bool:
-    """Whether any ID pass is among ``passes``."""
-    return any(is_id_pass(name) for name in passes)
+    """Whether any ID pass (or Shader AOV, looked up the same way) is among ``passes``."""
+    return any(is_id_pass(name) or aov_of(name) is not None for name in passes)
 
 
 class IdPasses:

@@ -18,7 +18,7 @@ from ..scene.model import Camera, Scene
 from ..settings import Settings
 from ..transport.lights import KIND_COSINE, KIND_DIRECTIONAL, NO_SPOT, LightSamples
 from .id_passes import family_of
-from .result import BACKDROP, INTERNAL_PASSES, MATTE, ON_DEMAND_PASSES, PASS_CHANNELS
+from .result import BACKDROP, INTERNAL_PASSES, MATTE, ON_DEMAND_PASSES, PASS_CHANNELS, aov_of
 from .shadow_catcher import has_shadow_catchers
 
 Bounds = tuple[np.ndarray, np.ndarray]  # (lo, hi) corners of an axis-aligned box
@@ -94,8 +94,9 @@ def plan_frame(scene: Scene, geometry: WorldGeometry, settings: Settings,
     every = frozenset(PASS_CHANNELS) - ON_DEMAND_PASSES
     if passes is None:
         wanted = every
-    elif not settings.planner:  # every pass, and those on demand where asked for
-        wanted = every | (frozenset(passes) & ON_DEMAND_PASSES)
+    elif not settings.planner:  # every pass, and those on demand (and AOVs) where asked for
+        wanted = every | (frozenset(passes) & ON_DEMAND_PASSES) \
+            | frozenset(p for p in passes if aov_of(p) is not None)
     else:
         wanted = frozenset(passes) | {"Combined"}
     read: set[str] = set()

@@ -33,14 +33,27 @@ INTERNAL_PASSES = {MATTE: 4, BACKDROP: 3}
 out (shadow_catcher.py): Combined with the catchers as holes, and the background each pixel
 sees."""
 
+AOV_VALUE, AOV_COLOR = "AOV value:", "AOV color:"
+"""Prefixes of a Shader AOV's pass (its name follows): one channel, or RGBA."""
+
 PASS_FILL = {"Shadow Catcher": 1.0}
 """What a pass holds where nothing writes it (others: 0): no catcher, no shadow."""
 
 
 def pass_channels(name: str) -> int:
-    """The channel count of a pass (PASS_CHANNELS, INTERNAL_PASSES; 4 for each Cryptomatte
-    pass)."""
+    """The channel count of a pass (PASS_CHANNELS, INTERNAL_PASSES, a value AOV's 1; 4 for
+    each Cryptomatte pass and a colour AOV)."""
+    if name.startswith(AOV_VALUE):
+        return 1
     return PASS_CHANNELS.get(name) or INTERNAL_PASSES.get(name, 4)
+
+
+def aov_of(name: str) -> tuple[str, bool] | None:
+    """A Shader AOV pass's AOV name and whether it is a colour; None for another pass."""
+    for prefix, color in ((AOV_VALUE, False), (AOV_COLOR, True)):
+        if name.startswith(prefix):
+            return name[len(prefix):], color
+    return None
 
 
 @dataclass

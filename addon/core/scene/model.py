@@ -113,6 +113,8 @@ class Material:
     bump_filter_width: float = 0.1  # its Filter Width in pixels (4.3's default)
     holdout: bool = False  # a Holdout shader: a hole for the camera, black to light
     pass_index: int = 0  # Blender's material Pass Index (the IndexMA pass)
+    aovs: tuple[tuple[str, tuple[float, float, float, float]], ...] = ()  # its AOV Output
+    # nodes' names and (colour, value): frame/aov_passes.py
 
     @property
     def is_cutout(self) -> bool:
