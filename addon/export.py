@@ -26,6 +26,7 @@ from .blender_read import (
     active_uvs,
     constant,
     corner_verts,
+    cycles_output_node,
     int_attribute,
     positions,
     read_array,
@@ -780,14 +781,50 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
                             f"without a Surface, light passes through it (as in Cycles)")
             return replace(CLEAR_VOLUME_ONLY, name=material.name)
         warnings.append(f"material '{material.name}': its Volume shader is not rendered")
+    images = images or ImageReader(warnings)
     try:
-        return _shader(node, material.name, images or ImageReader(warnings))
+        return _displaced(material, _shader(node, material.name, images), images)
     except (UnsupportedNodes, UnsupportedLink) as reason:
         if fallbacks is not None:
             fallbacks[material.name] = str(reason)
         if fallbacks is None or bake.bake_reason(material, str(reason)) is None:
             warnings.append(f"material '{material.name}': {reason}; using its viewport colour")
         return viewport
+
+
+def _displaced(material: bpy.types.Material, exported: Material,
+               images: ImageReader) -> Material:
+    """The material with its Material Output's Displacement as Cycles' default renders it, a
+    bump (Displacement Method Bump Only): a Displacement node's Height from an Image Texture
+    is a bump map of Distance = its Scale (the Bump node's rendering); anything else, a
+    Displacement besides a shader's own normal or bump map, and true displacement (rendered
+    as bump) get a warning."""
+    output = cycles_output_node(material.node_tree)
+    socket = None if output is None else output.inputs.get("Displacement")
+    if socket is None or not socket.is_linked:
+        return exported
+    name = material.name
+    if getattr(material, "displacement_method", "BUMP") != "BUMP":
+        images.warn(f"material '{name}': its displacement is rendered as a bump (Displacement "
+                    f"Method Bump Only)")
+    source = linked_node(socket)
+    reason = None
+    if source.type != "DISPLACEMENT" or source.space != "OBJECT":
+        reason = f"linked to '{source.bl_label}'"
+    elif exported.normal_texture is not None:
+        reason = "besides the shader's own normal or bump map"
+    elif not source.inputs["Height"].is_linked:
+        return exported  # a constant height moves the surface, never bends it
+    else:
+        try:
+            texture = images.color(source, "Height", (0.0, 0.0, 0.0), name)[1]
+        except (UnsupportedNodes, UnsupportedLink) as exc:
+            reason = str(exc)
+    if reason is not None:
+        images.warn(f"material '{name}': its Displacement is not rendered ({reason})")
+        return exported
+    return replace(exported, normal_texture=texture, normal_strength=1.0,
+                   bump_distance=float(constant(source, "Scale", 1.0)))
 
 
 def fallback_reasons(obj: bpy.types.Object,

@@ -50,12 +50,22 @@ def height_image() -> bpy.types.Image:
     return image
 
 
-def bumpy_material(strength: float = 1.0, bump: bool = False) -> bpy.types.Material:
+def bumpy_material(strength: float = 1.0, bump: bool = False,
+                   displacement: bool = False) -> bpy.types.Material:
     """A grey Diffuse BSDF whose Normal is a Normal Map node of ``normal_image`` (Closest), or
-    with ``bump`` a Bump node (Distance 0.1) of ``height_image`` (Linear)."""
+    with ``bump`` a Bump node (Distance 0.1) of ``height_image`` (Linear); with
+    ``displacement`` instead the Material Output's Displacement, a Displacement node (Scale
+    0.1) of that image (Cycles' default Bump Only renders it as a bump)."""
     material = shader_material("Bumpy", "ShaderNodeBsdfDiffuse", Color=(0.8, 0.8, 0.8, 1))
     tree = material.node_tree
     texture = tree.nodes.new("ShaderNodeTexImage")
+    if displacement:
+        texture.image, texture.interpolation = height_image(), "Linear"
+        node = tree.nodes.new("ShaderNodeDisplacement")
+        node.inputs["Scale"].default_value = 0.1
+        tree.links.new(texture.outputs["Color"], node.inputs["Height"])
+        tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Displacement"])
+        return material
     if bump:
         texture.image, texture.interpolation = height_image(), "Linear"
         node = tree.nodes.new("ShaderNodeBump")
@@ -100,17 +110,19 @@ def test_normal_and_bump_maps_export_their_image_strength_and_distance(blender):
                         "(linked to 'Normal'): smooth shading normals"]
 
 
-@pytest.mark.parametrize("layout", ["plain", "turned", "mirrored", "bump"])
+@pytest.mark.parametrize("layout", ["plain", "turned", "mirrored", "bump", "displacement"])
 def test_a_normal_mapped_floor_is_shaded_as_in_cycles(blender, tmp_path, layout):
     """A floor of normals tilted up to 40° (16² texels over 4 m, Closest), under a sun 50°
     high, seen from above, direct light (Cycles 64 samples): each texel's shade follows its
     normal; also with the floor turned 70° about Z and with its UVs mirrored in u (the
-    tangent frame turns and flips with them), and with a bump map of random heights instead.
+    tangent frame turns and flips with them), and with a bump map of random heights instead,
+    by a Bump node or by the Material Output's Displacement.
     Measured (bpy 4.5, llvmpipe): see the printout; the map left out (flat shading): relRMSE
     several times larger."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    floor = add_primitive("plane", bumpy_material(bump=layout == "bump"), size=4,
+    material = bumpy_material(bump=layout == "bump", displacement=layout == "displacement")
+    floor = add_primitive("plane", material, size=4,
                           rotation=(0, 0, math.radians(70 if layout == "turned" else 0)))
     if layout == "mirrored":
         uv = floor.data.uv_layers.active.uv
@@ -123,12 +135,34 @@ def test_a_normal_mapped_floor_is_shaded_as_in_cycles(blender, tmp_path, layout)
     add_camera(scene, SIZE, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0)).data.lens = 40
     reference, ours = cycles_and_ours(scene, tmp_path, 64, 0)
     tree = floor.data.materials[0].node_tree
-    tree.links.remove(tree.nodes["Diffuse BSDF"].inputs["Normal"].links[0])
+    bent = tree.nodes["Material Output" if layout == "displacement" else "Diffuse BSDF"]
+    tree.links.remove(bent.inputs["Displacement" if layout == "displacement" else "Normal"]
+                      .links[0])
     flat = render_linear(scene, "VPL_GI", tmp_path / "flat.exr")
 
     # Cycles 4.2's Bump node (before its Filter Width input) shades the floor a little
     # differently from 4.3's and later, whose default VPL GI follows: measured 4.4 % there
-    older_bump = layout == "bump" and VERSION < (4, 3)
+    older_bump = layout in ("bump", "displacement") and VERSION < (4, 3)
     assert_near_cycles(f"normal-mapped floor ({layout})", ours, reference,
                        (0.02, 0.06 if older_bump else 0.05), flat, "the map left out",
                        factor=2.0 if older_bump else 3.0)
+
+
+def test_a_displacement_is_a_bump_or_named(blender):
+    """A Displacement node's image is exported as a bump map of Distance = its Scale; a
+    procedural height and true displacement (rendered as a bump) each get a warning."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    warnings: list[str] = []
+    displaced = bumpy_material(displacement=True)
+    material = export_material(displaced, warnings)
+    assert material.normal_texture is not None and material.bump_distance == pytest.approx(0.1)
+    assert not warnings
+    displaced.displacement_method = "BOTH"
+    tree = displaced.node_tree
+    tree.links.new(tree.nodes.new("ShaderNodeTexNoise").outputs["Fac"],
+                   tree.nodes["Displacement"].inputs["Height"])
+    material = export_material(displaced, warnings)
+    assert material.normal_texture is None
+    assert warnings[0] == ("material 'Bumpy': its displacement is rendered as a bump "
+                           "(Displacement Method Bump Only)")
+    assert warnings[1].startswith("material 'Bumpy': its Displacement is not rendered (")
