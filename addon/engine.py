@@ -102,9 +102,10 @@ def layer_passes(layer: object) -> frozenset[str]:
 
 def aov_passes(layer: object) -> list[str]:
     """The view layer's Shader AOVs' passes (result.AOV_VALUE or AOV_COLOR + the AOV's
-    name; Blender's name is the AOV's)."""
+    name; Blender's name is the AOV's), but for those whose name another pass has (Blender
+    marks them invalid)."""
     return [(AOV_COLOR if aov.type == "COLOR" else AOV_VALUE) + aov.name
-            for aov in getattr(layer, "aovs", ()) if aov.name]
+            for aov in getattr(layer, "aovs", ()) if aov.name and aov.is_valid]
 
 
 def blender_pass_name(name: str) -> str:
