@@ -144,7 +144,7 @@ class VIEWLAYER_PT_vpl_gi_passes(_EnginePanel, bpy.types.Panel):
     bl_context = "view_layer"
 
     def draw(self, context: bpy.types.Context) -> None:
-        from .engine import CRYPTOMATTE_TOGGLES, OPTIONAL_PASSES, toggle_owner
+        from .layer_passes import CRYPTOMATTE_TOGGLES, OPTIONAL_PASSES, toggle_owner
 
         layout = _split(self.layout)
         column = layout.column(heading="Include", align=True)

@@ -93,8 +93,8 @@ def export_current(size: tuple[int, int]) -> tuple[Scene, Settings, frozenset[st
     view layer asks for (what a final render renders)."""
     import bpy
 
-    from addon.engine import layer_passes
     from addon.export import export_scene
+    from addon.layer_passes import layer_passes
 
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = size

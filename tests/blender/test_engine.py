@@ -221,10 +221,10 @@ def test_settings_panels_draw_every_setting_once(blender):
 def test_passes_panel_draws_the_toggles_the_engine_reads(blender):
     """The Passes panel draws every view-layer toggle of the optional passes once (Cycles'
     Denoising Data among them) and Cryptomatte's with its levels, on the property group
-    engine.toggled reads it from."""
+    layer_passes.toggled reads it from."""
     from types import SimpleNamespace
 
-    from addon.engine import CRYPTOMATTE_TOGGLES, OPTIONAL_PASSES, toggle_owner, toggled
+    from addon.layer_passes import CRYPTOMATTE_TOGGLES, OPTIONAL_PASSES, toggle_owner, toggled
     from addon.ui import VIEWLAYER_PT_vpl_gi_passes
 
     drawn: list[tuple[object, str]] = []
