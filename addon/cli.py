@@ -7,6 +7,8 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -117,6 +119,51 @@ def check_image_size(render) -> None:
                            f"(turn the border off or widen it)")
 
 
+
+
+def view_paths(render, path: Path) -> list[Path]:
+    """The files Blender writes a render to: ``path``, or with stereoscopy and individual
+    views one per view, its suffix (_L, _R, or each view's) before the extension."""
+    if not render.use_multiview or render.image_settings.views_format != "INDIVIDUAL":
+        return [path]
+    suffixes = ["_L", "_R"] if render.views_format == "STEREO_3D" else \
+        [view.file_suffix for view in render.views if view.use]
+    return [path.with_name(path.stem + suffix + path.suffix) for suffix in suffixes]
+
+
+def save_result(image, scene, path: Path, since: float) -> list[Path]:
+    """Save the Render Result to ``path`` (per view_paths); the files written. Blender
+    writes each view's file and then reports the plain path unsaved: that is no error where
+    every view's file was written after ``since``."""
+    paths = view_paths(scene.render, path)
+    if paths == [path]:
+        image.save_render(filepath=str(path.resolve()), scene=scene)
+        return paths
+    try:
+        with quiet_output():  # Blender's own report of the plain path, which is not an error
+            image.save_render(filepath=str(path.resolve()), scene=scene)
+    except RuntimeError as exc:
+        if not all(p.exists() and p.stat().st_mtime >= since for p in paths):
+            raise CliError(f"could not save {path}: {str(exc).strip()}") from None
+    return paths
+
+
+@contextmanager
+def quiet_output() -> Iterator[None]:
+    """The process's standard output and error (Blender's C reports too) sent nowhere
+    while inside."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        for fd, copy in zip((1, 2), saved, strict=True):
+            os.dup2(copy, fd)
+            os.close(copy)
 
 
 class ProgressBar:
@@ -293,13 +340,15 @@ def run_render(args: argparse.Namespace) -> int:
             # PNG (as Blender's -o does) and linear float for EXR.
             saving = time.perf_counter()
             with interrupts.saving:
-                bpy.data.images["Render Result"].save_render(filepath=str(path.resolve()),
-                                                             scene=scene)
-                if getattr(args, "report_saved", None):  # the blender subcommand's lines
-                    args.report_saved(path, time.perf_counter() - start,
-                                      time.perf_counter() - saving)
-                else:
-                    print(f"Saved {path} ({time.perf_counter() - start:.2f} s)", flush=True)
+                written = save_result(bpy.data.images["Render Result"], scene, path,
+                                      time.time() - 1.0)
+                for saved in written:
+                    if getattr(args, "report_saved", None):  # the blender subcommand's lines
+                        args.report_saved(saved, time.perf_counter() - start,
+                                          time.perf_counter() - saving)
+                    else:
+                        print(f"Saved {saved} ({time.perf_counter() - start:.2f} s)",
+                              flush=True)
         return 0
     finally:
         monitor.progress_listeners.clear()

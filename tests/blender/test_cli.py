@@ -114,6 +114,23 @@ def test_image_format_follows_the_extension(tmp_path):
     assert (tmp_path / "x.jpg").read_bytes()[:3] == b"\xff\xd8\xff"  # JPEG
 
 
+def test_a_stereo_scene_writes_each_eye(blender, tmp_path):
+    """Stereoscopy with individual views: each eye's file (_L, _R), and each named, with
+    no error line (Blender reports the plain path unsaved after writing the views)."""
+    scene = open_scene("light_point", 16)
+    scene.render.use_multiview, scene.render.views_format = True, "STEREO_3D"
+    path = tmp_path / "stereo.blend"
+    blender.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    result = run_cli("render", str(path), "-o", str(tmp_path / "eye.png"),
+                     "--set", "vpl_count=8")
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in tmp_path.glob("eye*")) == ["eye_L.png", "eye_R.png"]
+    saved = [line for line in result.stdout.splitlines() if line.startswith("Saved ")]
+    assert [line.split()[1] for line in saved] == [str(tmp_path / "eye_L.png"),
+                                                   str(tmp_path / "eye_R.png")]
+    assert "could not be saved" not in result.stdout + result.stderr
+
+
 @pytest.mark.parametrize("change, message", [
     ("border", "the render border leaves no pixels of the 32x32 at 100 % image"),
     ("empty", "frame 1: the scene camera 'Empty' is not a camera but an object of type Empty"),
