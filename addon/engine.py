@@ -15,6 +15,7 @@ from .core.frame.motion_blur import pass_span
 from .core.frame.progressive import PassReport
 from .core.frame.renderer import RenderCancelled, Renderer, RenderError
 from .core.frame.result import Frame, Stats, aov_of
+from .core.frame.state import labelled
 from .core.gpu.gl import GLUnavailableError, shared_context
 from .core.scene.model import Camera, MotionSpan, Scene
 from .core.scene.render_region import Region, cropped, region_camera, region_of
@@ -193,8 +194,7 @@ class VPLGIRenderEngine(bpy.types.RenderEngine):
             view_scene_at = None if scene_at is None else \
                 (lambda index: self._in_view(scene_at(index)))
             view_progress = progress if len(views) == 1 else \
-                (lambda fraction, message, name=view.name: progress(
-                    fraction, f"view '{name}'" + (f" | {message}" if message else "")))
+                labelled(progress, f"view '{view.name}'")
             _, stats = shared_renderer().render_progressive(
                 self._in_view(exported), settings, view_progress, self._cancelled, passes,
                 on_pass=show, scene_at=view_scene_at)

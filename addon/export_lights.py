@@ -17,7 +17,7 @@ from .blender_read import UnsupportedNodes, constant, rgb, surface_node
 from .core.scene.blackbody import blackbody_rgb
 from .core.scene.ies import IesError, IesProfile, parse_ies
 from .core.scene.model import AreaShape, Light, LightKind
-from .core.scene.spot_scale import stretch_spot
+from .core.transport.spot_scale import stretch_spot
 from .export_images import linked_node
 
 
@@ -38,7 +38,7 @@ def export_light(obj: bpy.types.Object, matrix: np.ndarray,
     Its strength is Cycles': power × 2^Exposure × the shape's area where Normalize is off,
     colour × the Temperature's colour where it is used × the light's Emission node, whose
     Strength may come from an IES profile (a sun's: the profile straight down). A spot scaled
-    unevenly gets its stretched cone (core/scene/spot_scale.py)."""
+    unevenly gets its stretched cone (core/transport/spot_scale.py)."""
     data = obj.data
     kind = LightKind(data.type)
     light = Light(obj.name, kind, matrix, color=rgb(data.color),

@@ -1,7 +1,7 @@
 """A light's strength as Cycles reads it, against Cycles (direct light, 64², 64 samples): its
 Exposure, Temperature, Normalize, Emission node (a constant or Blackbody colour, a constant
 strength or a Light Falloff's Quadratic output), Soft Falloff (256 samples) and a spot's
-uneven scale (its cone an ellipse, core/scene/spot_scale.py). Each case also renders the
+uneven scale (its cone an ellipse, core/transport/spot_scale.py). Each case also renders the
 light without the feature (the settings at Blender's defaults; for Soft Falloff, the light
 as a sphere; for the scale, a unit one), which must miss Cycles by far more, so that the
 test fails without it. Blender 4.2 has no Exposure or Temperature: its cases that need them

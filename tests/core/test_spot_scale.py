@@ -1,4 +1,4 @@
-"""Spot lights under a non-uniform scale (scene/spot_scale.py): the stretched cone's profile
+"""Spot lights under a non-uniform scale (transport/spot_scale.py): the stretched cone's profile
 against Cycles' spot attenuation written out from its kernel's formula, and the round cone
 the light's paths start in. The render against Cycles is in
 tests/blender/test_light_strength.py (an elliptical spot: relRMSE 3.8 %, the round one 113 %)."""
@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from addon.core.scene.model import LightKind
-from addon.core.scene.spot_scale import stretch_spot
 from addon.core.transport.light_profiles import profile_towards
 from addon.core.transport.lights import spot_mask, spot_parameters
+from addon.core.transport.spot_scale import stretch_spot
 from tests.core.builders import light
 
 SCALE = np.array([1.8, 0.8, 1.2])

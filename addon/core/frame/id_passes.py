@@ -147,22 +147,23 @@ class IdTables:
         if key not in self._per_triangle:
             rows = [(*dict(m.aovs)[name], 1.0) if name in dict(m.aovs) else (0.0,) * 5
                     for m in self.geometry.row_materials] or [(0.0,) * 5]
-            owners = self.geometry.triangle_material
-            if owners is None or len(owners) != self.geometry.triangle_count:
-                owners = np.zeros(self.geometry.triangle_count, np.int32)
+            owners = self._owners(self.geometry.triangle_material)
             table = np.take(np.asarray(rows, np.float32), owners, axis=0, mode="clip")
             self._per_triangle[key] = np.concatenate([np.zeros((1, 5), np.float32), table])
         return np.take(self._per_triangle[key], triangles, axis=0)
 
+    def _owners(self, owners: np.ndarray | None) -> np.ndarray:
+        """Each triangle's owner (its material row or instance), 0 for all where the
+        geometry has none per triangle (light shapes)."""
+        if owners is None or len(owners) != self.geometry.triangle_count:
+            return np.zeros(self.geometry.triangle_count, np.int32)
+        return owners
+
     def _lookup(self, kind: str) -> np.ndarray:
         """The kind's value per triangle code (entry 0: none)."""
         geometry = self.geometry
-        if kind in ("IndexMA", "CryptoMaterial"):
-            owners = geometry.triangle_material
-        else:
-            owners = geometry.triangle_instance
-        if owners is None or len(owners) != geometry.triangle_count:
-            owners = np.zeros(geometry.triangle_count, np.int32)  # light shapes: no owners
+        owners = self._owners(geometry.triangle_material if kind in ("IndexMA", "CryptoMaterial")
+                              else geometry.triangle_instance)
         if kind == "IndexOB":
             table = np.array([i.identity.pass_index for i in self.scene.instances] or [0],
                              np.float32)

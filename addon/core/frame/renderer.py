@@ -48,6 +48,7 @@ from .state import (
     RenderCancelled,
     RenderError,
     Stage,
+    labelled,
 )
 from .vpl_stage import MakeVPLs
 
@@ -83,8 +84,8 @@ class Renderer:
         self.kept = KeptProducts()
         self._automatic = ChooseParameters(self.gpu, self.kept, self.render)
         self._last_pass = (-1, 0)  # the index of the last pass rendered and its last path + 1
-        self._catchers: Renderer | None = None  # renders scenes' shadow catchers alone
-        self._groups: Renderer | None = None  # renders scenes' light groups alone
+        self._helpers: dict[str, Renderer] = {}  # renderers of parts of scenes (their
+        # shadow catchers, their light groups) alone, each with its own reuse, by _helper
         self.stages: list[Stage] = [
             CheckInput(self.gpu), FlattenGeometry(self.kept), PlanFrame(self.kept), SampleLights(),
             self._automatic, PlanGather(), MakeVPLs(self.gpu, self.kept),
@@ -115,13 +116,12 @@ class Renderer:
                                      passes is not None and SHADOW_CATCHER_PASS in passes,
                                      pass_index, first_path)
         for group in requested_groups(passes):
-            self._light_group(image, stats, scene, used, group, report, check, pass_index,
-                              first_path)
+            self._light_group(image, stats, scene, used, group, report, check, pass_index)
         return image, stats
 
     def _light_group(self, image: Frame, stats: Stats, scene: Scene, settings: Settings,
                      group: str, progress: ProgressCallback, cancelled: CancelCallback,
-                     pass_index: int, first_path: int) -> None:
+                     pass_index: int) -> None:
         """The light group's pass (light_groups.py): a frame of the scene lit by the group's
         emitters alone, with the settings the scene's frame used, by a renderer of its own;
         black where nothing in the group emits."""
@@ -130,19 +130,21 @@ class Renderer:
         if not has_emitters(alone):
             image.passes[name] = np.zeros((image.height, image.width, 3), np.float32)
             return
-        if self._groups is None:
-            self._groups = Renderer(self.gpu.ctx, share_programs_of=self)
-
-        def group_progress(fraction: float, message: str) -> None:
-            progress(fraction, f"Light group '{group}'" + (f" | {message}" if message else ""))
-
         with stats.timed(f"light group '{group}'"):
-            frame, group_stats = self._groups.render(
-                alone, replace(settings, auto_parameters="off"), group_progress, cancelled,
+            frame, group_stats = self._helper("light groups").render(
+                alone, replace(settings, auto_parameters="off"),
+                labelled(progress, f"Light group '{group}'"), cancelled,
                 frozenset({"Combined"}), pass_index)
         image.passes[name] = frame.passes["Combined"][..., :3]
         stats.warnings.extend(f"light group '{group}': {w}" for w in group_stats.warnings
                               if f"light group '{group}': {w}" not in stats.warnings)
+
+    def _helper(self, job: str) -> Renderer:
+        """The renderer of ``job`` (a part of scenes rendered alone), made on first use on
+        this renderer's context with its programs."""
+        if job not in self._helpers:
+            self._helpers[job] = Renderer(self.gpu.ctx, share_programs_of=self)
+        return self._helpers[job]
 
     def _composite_catchers(self, image: Frame, stats: Stats, scene: Scene, settings: Settings,
                             progress: ProgressCallback, cancelled: CancelCallback,
@@ -150,19 +152,15 @@ class Renderer:
         """Shadow catchers as Cycles composites them (shadow_catcher.py): the catchers alone
         rendered with the settings the scene's frame used (no bounces where they lie in one
         plane), by a renderer of their own (its reuse between frames is theirs)."""
-        if self._catchers is None:
-            self._catchers = Renderer(self.gpu.ctx, share_programs_of=self)
-        render = self._catchers._view_renderer(scene)
-
-        def alone_progress(fraction: float, message: str) -> None:
-            progress(fraction, "Shadow catchers alone" + (f" | {message}" if message else ""))
+        render = self._helper("shadow catchers")._view_renderer(scene)
 
         with stats.timed("shadow catchers alone"):
             bounces = alone_bounces(scene, settings.bounces)
             alone, alone_stats, _ = render(catchers_alone(scene),
                                            replace(settings, auto_parameters="off",
                                                    bounces=bounces),
-                                           alone_progress, cancelled, frozenset({"Combined"}),
+                                           labelled(progress, "Shadow catchers alone"),
+                                           cancelled, frozenset({"Combined"}),
                                            pass_index, first_path)
         composite(image.passes, alone.passes, scene.film_transparent, as_matte)
         stats.warnings.extend(w for w in alone_stats.warnings if w not in stats.warnings)
@@ -249,22 +247,17 @@ class Renderer:
     def release(self) -> None:
         """Release every GPU object (the context stays the caller's)."""
         make_current(self.gpu.ctx)
-        if self._catchers is not None:  # first: it shares this renderer's programs
-            self._catchers.release()
-            self._catchers = None
-        if self._groups is not None:
-            self._groups.release()
-            self._groups = None
+        for helper in self._helpers.values():  # first: they share this renderer's programs
+            helper.release()
+        self._helpers.clear()
         self.gpu.release()
         self.forget_frames()
 
     def forget_frames(self) -> None:
         """Drop everything reused between frames; the next frame starts afresh."""
         self.kept.forget(anchors=True)
-        if self._catchers is not None:
-            self._catchers.forget_frames()
-        if self._groups is not None:
-            self._groups.forget_frames()
+        for helper in self._helpers.values():
+            helper.forget_frames()
 
     @property
     def ctx(self) -> moderngl.Context:

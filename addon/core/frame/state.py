@@ -37,6 +37,14 @@ ProgressCallback = Callable[[float, str], None]
 CancelCallback = Callable[[], bool]
 
 
+def labelled(progress: ProgressCallback, label: str) -> ProgressCallback:
+    """``progress`` with each message put after ``label`` (a part of the render: a light
+    group, the shadow catchers alone, a stereo view)."""
+    def report(fraction: float, message: str) -> None:
+        progress(fraction, label + (f" | {message}" if message else ""))
+    return report
+
+
 @dataclass
 class FrameState:
     """One frame's input and every product a stage makes for the stages after it."""

@@ -80,6 +80,14 @@ class IesProfile:
     def _edge(self, inner: np.ndarray) -> np.ndarray:
         return inner if self.edge == "repeat" else np.zeros_like(inner)
 
+    @staticmethod
+    def direction(h_angle: np.ndarray, cos_v: np.ndarray) -> np.ndarray:
+        """Unit directions (..., 3) in the light's frame at horizontal angles ``h_angle`` and
+        vertical angles of cosine ``cos_v`` (``towards``' angles, inverted)."""
+        sin_v = np.sqrt(np.maximum(0.0, 1.0 - cos_v**2))
+        return np.stack([sin_v * np.sin(h_angle - np.pi), sin_v * np.cos(h_angle - np.pi),
+                         -cos_v], -1)
+
     def towards(self, local: np.ndarray) -> np.ndarray:
         """The profile towards unit directions (n, 3) in the light's own frame (it shines
         along -Z): vertical angle acos(-z), horizontal atan2(x, y) + π, as Cycles."""

@@ -114,7 +114,7 @@ class Material:
     holdout: bool = False  # a Holdout shader: a hole for the camera, black to light
     pass_index: int = 0  # Blender's material Pass Index (the IndexMA pass)
     aovs: tuple[tuple[str, tuple[float, float, float, float]], ...] = ()  # its AOV Output
-    # nodes' names and (colour, value): frame/aov_passes.py
+    # nodes' names and (colour, value): frame/id_passes.py writes them
 
     @property
     def is_cutout(self) -> bool:

@@ -92,7 +92,6 @@ class ProfileSampler:
         row, column = np.divmod(cell, nh)
         cos_v = -1.0 + 2.0 * (row + u[:, 1]) / nz
         h = 2 * np.pi * (column + u[:, 2]) / nh
-        sin_v = np.sqrt(np.maximum(0.0, 1.0 - cos_v**2))
-        local = np.stack([sin_v * np.sin(h - np.pi), sin_v * np.cos(h - np.pi), -cos_v], 1)
+        local = IesProfile.direction(h, cos_v)
         weight = self.profile.at_angles(h, np.arccos(cos_v)) / (4 * np.pi * self.pdf[cell])
         return local, weight

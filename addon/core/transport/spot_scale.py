@@ -1,9 +1,8 @@
 """Spot lights under a non-uniform scale, as Cycles renders them: their cone stretched into an
 elliptical one (Cycles' spot attenuation divides a direction's components along the light's
 axes by the axes' scales before the cone test). VPL GI renders the stretched cone as an IES
-profile of the light's mask (times the light's own profile, if any)
-within the round cone around it, so the shaders, light paths and guidance read it as they
-read any profile."""
+profile of the light's mask (times the light's own profile, if any) within the round cone
+around it, so the shaders, light paths and guidance read it as they read any profile."""
 
 from __future__ import annotations
 
@@ -12,8 +11,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from .ies import IesProfile
-from .model import Light, LightKind
+from ..scene.ies import IesProfile
+from ..scene.model import Light, LightKind
+from .lights import spot_mask, spot_parameters
 
 STRETCH_TOLERANCE = 1e-4  # relative difference of the axes' scales that stretches the cone
 V_STEPS, H_STEPS = 721, 361  # the mask's table: 0.125° vertical over [0°, 90°], 1° horizontal
@@ -37,41 +37,35 @@ def stretch_spot(light: Light) -> Light:
         return light
     ratios = (float(scales[0] / scales[2]), float(scales[1] / scales[2]))
     size = float(np.clip(light.spot_size, 0.0, np.pi))
-    profile = _stretched_mask(ratios, size, float(np.clip(light.spot_blend, 0.0, 1.0)),
-                              light.profile)
+    profile = _stretched_mask(ratios, *spot_parameters(light), light.profile)
     around = 2.0 * float(np.arctan(np.tan(size / 2) * max(ratios))) if size < np.pi else np.pi
     return replace(light, profile=profile, spot_size=around, spot_blend=0.0)
 
 
-def stretched_mask(local: np.ndarray, ratios: tuple[float, float], spot_size: float,
-                   spot_blend: float) -> np.ndarray:
+def stretched_mask(local: np.ndarray, ratios: tuple[float, float], spot_cos: float,
+                   spot_smooth: float) -> np.ndarray:
     """(n,) Cycles' spot mask towards unit directions ``local`` (n, 3) in the light's frame
     (it shines along -Z) for x and y axes ``ratios`` times as long as its z axis: the
-    direction's components divided by them, normalised, its cosine to the axis against
-    the cone's half angle, smoothed over the blend."""
+    direction's components divided by them, normalised, its cosine to the axis masked as the
+    round spot of ``spot_cos`` and ``spot_smooth`` (lights.spot_parameters) masks it."""
     local = np.asarray(local, np.float64)
     scaled = np.stack([local[..., 0] / ratios[0], local[..., 1] / ratios[1], -local[..., 2]],
                       -1)
     length = np.linalg.norm(scaled, axis=-1)
     cosine = np.divide(scaled[..., 2], length, out=np.zeros_like(length), where=length > 0)
-    cos_half = np.cos(spot_size / 2)
-    if spot_blend <= 0 or cos_half >= 1:
-        return (cosine > cos_half).astype(np.float64)
-    x = np.clip((cosine - cos_half) / ((1.0 - cos_half) * spot_blend), 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
+    return spot_mask(cosine, spot_cos, spot_smooth)
 
 
 @lru_cache(maxsize=64)
-def _stretched_mask(ratios: tuple[float, float], spot_size: float, spot_blend: float,
+def _stretched_mask(ratios: tuple[float, float], spot_cos: float, spot_smooth: float,
                     profile: IesProfile | None) -> IesProfile:
     """The profile of a stretched cone (times ``profile``), made once for the same light
     (so what is cached per profile is too)."""
     v = np.linspace(0.0, np.pi / 2, V_STEPS)
     h = np.linspace(0.0, 2 * np.pi, H_STEPS)
     hh, vv = np.meshgrid(h, v, indexing="ij")
-    local = np.stack([np.sin(vv) * np.sin(hh - np.pi), np.sin(vv) * np.cos(hh - np.pi),
-                      -np.cos(vv)], -1)
-    intensity = stretched_mask(local, ratios, spot_size, spot_blend)
+    local = IesProfile.direction(hh, np.cos(vv))
+    intensity = stretched_mask(local, ratios, spot_cos, spot_smooth)
     if profile is not None:
         intensity = intensity * profile.at_angles(hh, vv)
     return IesProfile(h, v, intensity)
