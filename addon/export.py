@@ -62,7 +62,7 @@ from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_hair import hair_systems, read_hair, read_particle_hair
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
 from .export_light_linking import scene_light_linking
-from .export_lights import export_light, is_portal
+from .export_lights import export_light, is_portal, visible_to_camera
 from .export_motion import (
     InstanceKey,
     SampledMotion,
@@ -1282,7 +1282,8 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             elif is_portal(obj):
                 result.portals.append(export_light(obj, matrix))
             else:
-                result.lights.append(export_light(obj, matrix, result.warnings))
+                result.lights.append(export_light(obj, matrix, result.warnings,
+                                                  depsgraph.view_layer))
                 result.lights[-1].receivers = linking.receivers_of(obj)
                 result.lights[-1].blockers = linking.blockers_of(obj)
             continue
@@ -1302,7 +1303,7 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             entry = placements.get(memo)
             if entry is None:
                 made = state.placed(inst, obj) if part == "self" else state.hair(obj)
-                known = (*made, bool(getattr(obj, "visible_camera", True)),
+                known = (*made, visible_to_camera(obj, depsgraph.view_layer),
                          state.holdout(obj), bool(getattr(obj, "visible_shadow", True)),
                          bool(getattr(obj, "visible_diffuse", True)), state.identity(obj),
                          linking.receiver_set(obj), linking.receivers_of(obj),

@@ -28,9 +28,18 @@ def is_portal(obj: bpy.types.Object) -> bool:
     return obj.data.type == "AREA" and bool(getattr(cycles, "is_portal", False))
 
 
+def visible_to_camera(obj: bpy.types.Object, view_layer: bpy.types.ViewLayer | None) -> bool:
+    """The object's Camera ray visibility, off too in the view layer's Indirect Only
+    collections (Cycles shows those only through the light they reflect and block)."""
+    return bool(getattr(obj, "visible_camera", True)) and not (
+        view_layer is not None and obj.original.indirect_only_get(view_layer=view_layer))
+
+
 def export_light(obj: bpy.types.Object, matrix: np.ndarray,
-                 warnings: list[str] | None = None) -> Light:
-    """A light with its ray visibility: camera (area-light shapes) and diffuse are honoured;
+                 warnings: list[str] | None = None,
+                 view_layer: bpy.types.ViewLayer | None = None) -> Light:
+    """A light with its ray visibility (``visible_to_camera`` in ``view_layer``): camera
+    (area-light shapes) and diffuse are honoured;
     glossy is not (its highlights stay), transmission and volume scatter reach only closures
     VPL GI does not render, and
     a light object's shadow visibility changes nothing in Cycles (measured, 4.5).
@@ -43,7 +52,7 @@ def export_light(obj: bpy.types.Object, matrix: np.ndarray,
     kind = LightKind(data.type)
     light = Light(obj.name, kind, matrix, color=rgb(data.color),
                   power=float(data.energy), cast_shadow=bool(getattr(data, "use_shadow", True)),
-                  visible_to_camera=bool(getattr(obj, "visible_camera", True)),
+                  visible_to_camera=visible_to_camera(obj, view_layer),
                   visible_to_diffuse=bool(getattr(obj, "visible_diffuse", True)),
                   lightgroup=str(getattr(obj, "lightgroup", "")))
     if kind in (LightKind.POINT, LightKind.SPOT):
