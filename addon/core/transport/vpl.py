@@ -197,37 +197,59 @@ def light_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
                direction: np.ndarray, t_min: float, blockers: int | np.ndarray,
                every_surface: bool = True
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Where light leaving its emitter arrives (Cycles' shadow rays: objects whose Shadow
-    visibility is off let it through): each ray's first hit, or with shadow linking (the
-    emitter's ``blockers``, per ray or one) every surface up to the first whose blocker set
-    is in them, since the others cast no shadow of it yet receive its light
-    (``every_surface``; else that blocker alone). As (ray, distance, triangle, light let
-    through by clear surfaces on the way (·, 3)), one entry per ray and hit; a miss has
-    distance inf and triangle -1."""
-    hits = tracer.intersect(origin, direction, t_min, np.inf, shadow=True)
+    """Where light leaving its emitter arrives (Cycles' shadow rays): each ray's first hit,
+    or every surface up to the first that casts a shadow of it, since the others let it
+    through yet receive it (``every_surface``; else that surface alone): objects whose
+    Shadow visibility is off (where the light meets their front faces: a bulb round its
+    lamp, whose inside no ray from outside reaches, holds no light), and with shadow linking
+    those not in the emitter's ``blockers`` (per ray or one). As (ray, distance, triangle,
+    light let through by clear surfaces on the way (·, 3)), one entry per ray and hit; a miss
+    has distance inf and triangle -1."""
+    shadowless = geometry.shadowless if every_surface and geometry.shadowless.any() else None
+    stop_at_shadowless = shadowless is not None
+    hits = tracer.intersect(origin, direction, t_min, np.inf, shadow=not stop_at_shadowless)
     current = (np.arange(len(origin)), hits.distance.copy(), hits.triangle.copy(),
                hits.transmittance.astype(np.float64))
     blockers = np.broadcast_to(np.asarray(blockers, np.uint64), current[0].shape)
-    if geometry.blocker_set is None or not np.any(blockers != np.uint64(EVERY_RECEIVER_SET)):
+    linked = geometry.blocker_set is not None and bool(
+        np.any(blockers != np.uint64(EVERY_RECEIVER_SET)))
+    if not linked and shadowless is None:
         return current
     found = []
     for _ in range(PASS_LIMIT):
         ray, distance, triangle, through = current
         hit = np.flatnonzero(triangle >= 0)
-        bit = geometry.blocker_set[triangle[hit]].astype(np.uint64)
-        passing = hit[((blockers[ray[hit]] >> bit) & np.uint64(1)) == 0]
+        passes = np.zeros(len(hit), bool)
+        if linked:
+            bit = geometry.blocker_set[triangle[hit]].astype(np.uint64)
+            passes |= ((blockers[ray[hit]] >> bit) & np.uint64(1)) == 0
+        if shadowless is not None:
+            passes |= shadowless[triangle[hit]]
+        passing = hit[passes]
         if len(passing) == 0:
             break
         stays = np.ones(len(ray), bool)
         stays[passing] = every_surface
+        if shadowless is not None:
+            behind = _back_facing(geometry, triangle[passing], direction[ray[passing]])
+            stays[passing] &= ~(shadowless[triangle[passing]] & behind)
         found.append(tuple(a[stays] for a in current))
         rays = ray[passing]
         again = tracer.intersect(origin[rays], direction[rays], distance[passing], np.inf,
-                                 shadow=True)
+                                 shadow=not stop_at_shadowless)
         current = (rays, again.distance, again.triangle,
                    through[passing] * again.transmittance)
     found.append(current)
     return tuple(np.concatenate(parts) for parts in zip(*found, strict=True))
+
+
+def _back_facing(geometry: WorldGeometry, triangle: np.ndarray, direction: np.ndarray
+                 ) -> np.ndarray:
+    """Whether rays along ``direction`` (m, 3) meet ``triangle`` (m,) from behind (against
+    its winding's normal)."""
+    t = geometry.positions.reshape(-1, 3, 3)[triangle].astype(np.float64)
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    return (normal * direction).sum(axis=1) > 0
 
 
 def lit_hits(triangle: np.ndarray, receivers: int | np.ndarray, geometry: WorldGeometry
