@@ -214,38 +214,43 @@ def _triangulate(mesh: bpy.types.Mesh) -> None:
         work.free()
 
 
-def _bake_uvs(mesh: bpy.types.Mesh, resolution: int) -> bool:
-    """Make the bake's UV map active: the mesh's own active render map when suitable
-    (the mesh is left as Blender tessellates it, as Cycles renders it), else a new xatlas
-    map on the mesh, triangulated first. True if xatlas made it."""
+def _bake_uvs(mesh: bpy.types.Mesh, resolution: int) -> bpy.types.MeshUVLoopLayer | None:
+    """The UV map to bake into: None where the mesh's own active render map suits (the mesh
+    is left as Blender tessellates it, as Cycles renders it), else a new xatlas map on the
+    mesh, triangulated first. The materials' default UVs stay the active render map's (all
+    zero where the mesh had none, as Cycles reads them then)."""
     uvs = active_uvs(mesh)
     if uvs is not None:
         mesh.calc_loop_triangles()
         corners = read_array(mesh.loop_triangles, "loops", len(mesh.loop_triangles) * 3, np.int32)
         if unsuitable(uvs[corners]) is None:
-            mesh.uv_layers.active = next(layer for layer in mesh.uv_layers
-                                         if layer.active_render)
-            return False
+            return None
     _triangulate(mesh)
+    if not mesh.uv_layers:
+        mesh.uv_layers.new(name="UVMap", do_init=False).uv.foreach_set(
+            "vector", np.zeros(2 * len(mesh.loops), np.float32))
+    render_map = next((layer for layer in mesh.uv_layers if layer.active_render), None)
     corners = corner_verts(mesh).reshape(-1, 3)
     layer = mesh.uv_layers.new(name="VPL GI bake", do_init=False)
     if layer is None:
         raise RuntimeError("the mesh has no room for another UV map (8 at most)")
     layer.uv.foreach_set("vector", unwrap(positions(mesh), corners, resolution).ravel())
-    mesh.uv_layers.active = layer
-    layer.active_render = True
-    return True
+    if render_map is not None:
+        render_map.active_render = True
+    return layer
 
 
-def run_bake(scene: bpy.types.Scene, obj: bpy.types.Object, kind: str = "EMIT") -> None:
+def run_bake(scene: bpy.types.Scene, obj: bpy.types.Object, kind: str = "EMIT",
+             uv_map: str = "") -> None:
     """Cycles' bake of ``kind`` (Emit: the surface's colour; Environment: the world in the
     direction of each point) of ``obj`` in the temporary ``scene`` into its materials' active
-    image nodes."""
+    image nodes, laid out by ``uv_map`` (by default the mesh's active one)."""
     with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0],
                                    active_object=obj, object=obj, selected_objects=[obj],
                                    selected_editable_objects=[obj]):
         result = bpy.ops.object.bake(type=kind, margin=BAKE_MARGIN, use_clear=True,
-                                     target="IMAGE_TEXTURES", save_mode="INTERNAL")
+                                     target="IMAGE_TEXTURES", save_mode="INTERNAL",
+                                     uv_layer=uv_map)
     if "FINISHED" not in result:
         raise RuntimeError(f"Cycles' bake returned {result}")
 
@@ -262,6 +267,8 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
     with Temporary() as temporary:
         mesh = _copy(obj, depsgraph, temporary)
         unwrapped = _bake_uvs(mesh, resolution)
+        layout = next(layer.name for layer in mesh.uv_layers if layer.active_render) \
+            if unwrapped is None else unwrapped.name
         scene = temporary.add(bpy.data.scenes, bpy.data.scenes.new("VPL GI bake"))
         scene.render.engine = "CYCLES"
         scene.cycles.device = "CPU"
@@ -280,15 +287,17 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
                 copy = temporary.add(bpy.data.materials, _channel_copy(material, channel))
                 bake_tree.show_channel(copy, channel, image)
                 mesh.materials.append(copy)
-            run_bake(scene, proxy)
+            run_bake(scene, proxy, uv_map=layout)
             pixels = np.empty(resolution * resolution * 4, np.float32)
             image.pixels.foreach_get(pixels)
             pixels = np.nan_to_num(pixels.reshape(resolution, resolution, 4), posinf=0.0)
             textures[channel] = Texture(f"{obj.original.name} ({channel} bake)", pixels)
-        core_mesh = read_mesh(mesh, obj.name) if unwrapped else None
+        if unwrapped is not None:  # the export reads the active render map
+            mesh.uv_layers[layout].active_render = True
+        core_mesh = read_mesh(mesh, obj.name) if unwrapped is not None else None
     nbytes = sum(t.pixels.nbytes for t in textures.values())
     return Baked(textures, core_mesh, time.perf_counter() - start, reasons, nbytes,
-                 mesh_hash(obj.data) if unwrapped else None)
+                 mesh_hash(obj.data) if unwrapped is not None else None)
 
 
 def _bakeable(material: bpy.types.Material | None) -> bool:

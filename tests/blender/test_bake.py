@@ -1,8 +1,10 @@
-"""Material bakes: procedural colours, a texture behind a Mapping node and a mesh without UVs
-(xatlas) against Cycles; the bake cache; the user's data left as it was."""
+"""Material bakes: procedural colours, a texture behind a Mapping node, a mesh without UVs
+(xatlas), and textures on tiled UVs or none behind a colour node (baked on xatlas UVs, read
+on the mesh's own) against Cycles; the bake cache; the user's data left as it was."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from addon import bake
@@ -11,7 +13,7 @@ from tests.blender.rendering import configure_cycles, render_linear
 from tests.blender.test_cli import run_cli
 from tests.blender.test_cycles_direct import errors
 from tests.blender.test_export import add_light, add_mesh, add_plane, new_scene
-from tests.blender.test_textures import byte_image, gradient, with_uvs
+from tests.blender.test_textures import SQUARE_UVS, byte_image, gradient, with_uvs
 from tests.blender.versions import ensure_nodes
 
 SIZE = 48
@@ -23,7 +25,7 @@ CYCLES_SAMPLES = 64
 # energy and 58–300 % in relRMSE, far outside every bound.
 ENERGY_BOUND = 0.03
 RMSE_BOUNDS = {"noise": 0.01, "mapping": 0.01, "generated": 0.05, "mix": 0.04,
-               "named": 0.01, "principled": 0.02}
+               "named": 0.01, "principled": 0.02, "tiled": 0.05, "uvless": 0.05}
 INTERIOR_BOUND = 0.02  # relRMSE away from edges (test_cycles_direct.edge_mask)
 
 
@@ -32,7 +34,8 @@ def procedural_material(bpy, name: str, kind: str, image=None):
     'mapping' (an image through a Mapping node on UVs), 'generated' (a Voronoi texture on
     Generated coordinates mixed with a colour by a Math node), 'mix' (the noise colour's
     Diffuse and an Emission of a Brick texture in a Mix Shader whose Fac is a Wave texture),
-    'named' (an image through a UV Map node naming a map that is not the active render one)."""
+    'named' (an image through a UV Map node naming a map that is not the active render one),
+    'tiled' and 'uvless' (an image on the default UVs through a Gamma node)."""
     material = bpy.data.materials.new(name)
     ensure_nodes(material)
     tree = material.node_tree
@@ -70,6 +73,13 @@ def procedural_material(bpy, name: str, kind: str, image=None):
         texture.image = image
         links.new(uv_map.outputs["UV"], texture.inputs["Vector"])
         links.new(texture.outputs["Color"], shader.inputs["Color"])
+    elif kind in ("tiled", "uvless"):
+        texture = nodes.new("ShaderNodeTexImage")
+        texture.image = image
+        gamma = nodes.new("ShaderNodeGamma")
+        gamma.inputs["Gamma"].default_value = 1.5
+        links.new(texture.outputs["Color"], gamma.inputs["Color"])
+        links.new(gamma.outputs["Color"], shader.inputs["Color"])
     elif kind == "mix":
         procedural = procedural_material(bpy, "Inner", "noise").node_tree
         noise, ramp = (nodes.new(n.bl_idname) for n in (
@@ -119,11 +129,14 @@ def case_scene(bpy, kind: str):
     scene = new_scene(bpy, SIZE, ortho_scale=2.4)
     scene.vpl_gi.bake_resolution = "256"
     scene.vpl_gi.antialiasing = 4
-    if kind == "generated":
+    if kind in ("generated", "uvless"):
         obj = add_box(bpy, "Box", 1.4)
-    else:
-        obj = with_uvs(add_plane(bpy, "Plane", 2.0))
-        # the final render's evaluation differs from the viewport's, where bakes run
+    else:  # "tiled": the image three times across, its UVs outside the unit square
+        obj = with_uvs(add_plane(bpy, "Plane", 2.0), 3.0 * np.asarray(SQUARE_UVS)
+                       if kind == "tiled" else SQUARE_UVS)
+    if kind not in ("generated", "uvless", "tiled"):  # (xatlas bakes hold for the
+        # evaluation they were made on) the final render's differs from the viewport's,
+        # where bakes run
         subdivision = obj.modifiers.new("Subdivision", "SUBSURF")
         subdivision.subdivision_type = "SIMPLE"  # Catmull-Clark smooths UVs and positions
         subdivision.levels, subdivision.render_levels = 0, 2  # differently: see the docs
@@ -131,15 +144,15 @@ def case_scene(bpy, kind: str):
         second = obj.data.uv_layers.new(name="Second")
         second.uv.foreach_set("vector", [0.1, 0.0, 0.6, 0.1, 0.7, 0.6, 0.2, 0.5])
         obj.data.uv_layers["UVMap"].active_render = True
-    image = byte_image(bpy, "Paint", gradient(4, 4, 1)) if kind in ("mapping", "named") \
-        else None
+    image = byte_image(bpy, "Paint", gradient(4, 4, 1)) \
+        if kind in ("mapping", "named", "tiled", "uvless") else None
     obj.data.materials.append(procedural_material(bpy, kind.title(), kind, image))
     add_light(bpy, "SUN", 3.0, angle=0.0)
     return scene
 
 
 @pytest.mark.parametrize("kind", ["noise", "mapping", "generated", "mix",
-                                  "named", "principled"])
+                                  "named", "principled", "tiled", "uvless"])
 def test_baked_materials_match_cycles(blender, tmp_path, kind):
     """Each procedural material renders like Cycles (0 bounces, a sun); the old fallback
     (the viewport colour) is outside the bounds."""
