@@ -159,7 +159,7 @@ def bake_key(obj: bpy.types.Object, resolution: int) -> tuple:
         if shape_keys is not None else ()
     modifiers = tuple(bake_tree.struct_hash(modifier) for modifier in original.modifiers)
     return (original.name_full, slots, mesh_hash(original.data), shapes, modifiers,
-            resolution)
+            tuple(original.color), original.pass_index, resolution)
 
 
 def _valid(entry: Baked | None, obj: bpy.types.Object) -> bool:
@@ -276,6 +276,7 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
         scene.render.bake.margin_type = "EXTEND"
         proxy = temporary.add(bpy.data.objects, bpy.data.objects.new("VPL GI bake", mesh))
         proxy.matrix_world = obj.matrix_world
+        proxy.color, proxy.pass_index = obj.color, obj.pass_index  # Object Info's
         scene.collection.objects.link(proxy)
         textures = {}
         for channel in channels:
@@ -363,6 +364,14 @@ def needed(obj: bpy.types.Object, fallbacks: dict[str, str],
     return found
 
 
+def reads_random(material: bpy.types.Material | None) -> bool:
+    """Whether a material's tree reads Object Info's Random, which a bake cannot give: the
+    bake renders a stand-in object, with a random value of its own."""
+    return material is not None and material.node_tree is not None and any(
+        node.type == "OBJECT_INFO" and node.outputs["Random"].is_linked
+        for node in material.node_tree.nodes)
+
+
 def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
     """Record why the object's bake (``key``) was not made, for the export and the report."""
     CACHE.failed[key] = why
@@ -410,6 +419,7 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
         entry.used = CACHE.generation
         CACHE.entries[key] = entry
         CACHE.baked.append((obj.original.name, entry))
+
     world = depsgraph.scene_eval.world
     CACHE.world_seconds = world_bake.bake_if_needed(world, world_bake_reason(world))
     return CACHE
@@ -469,6 +479,11 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
             f"{'; '.join(sorted(set(reasons.values())))}")
     if note not in notes:
         notes.append(note)
+    random = f"object '{obj.original.name}': Object Info's Random in its bake is not the " \
+             f"object's (a stand-in object's, one value)"
+    if any(reads_random(s) for s in sources if s is not None and s.name in reasons) and \
+            random not in warnings:
+        warnings.append(random)
     return (entry.mesh if entry.mesh is not None else mesh), result
 
 

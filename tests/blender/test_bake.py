@@ -25,7 +25,8 @@ CYCLES_SAMPLES = 64
 # energy and 58–300 % in relRMSE, far outside every bound.
 ENERGY_BOUND = 0.03
 RMSE_BOUNDS = {"noise": 0.01, "mapping": 0.01, "generated": 0.05, "mix": 0.04,
-               "named": 0.01, "principled": 0.02, "tiled": 0.05, "uvless": 0.05}
+               "named": 0.01, "principled": 0.02, "tiled": 0.05, "uvless": 0.05,
+               "object_info": 0.01}
 INTERIOR_BOUND = 0.02  # relRMSE away from edges (test_cycles_direct.edge_mask)
 
 
@@ -35,7 +36,8 @@ def procedural_material(bpy, name: str, kind: str, image=None):
     Generated coordinates mixed with a colour by a Math node), 'mix' (the noise colour's
     Diffuse and an Emission of a Brick texture in a Mix Shader whose Fac is a Wave texture),
     'named' (an image through a UV Map node naming a map that is not the active render one),
-    'tiled' and 'uvless' (an image on the default UVs through a Gamma node)."""
+    'tiled' and 'uvless' (an image on the default UVs through a Gamma node), 'object_info'
+    (the object's colour from Object Info, through a Gamma node)."""
     material = bpy.data.materials.new(name)
     ensure_nodes(material)
     tree = material.node_tree
@@ -79,6 +81,11 @@ def procedural_material(bpy, name: str, kind: str, image=None):
         gamma = nodes.new("ShaderNodeGamma")
         gamma.inputs["Gamma"].default_value = 1.5
         links.new(texture.outputs["Color"], gamma.inputs["Color"])
+        links.new(gamma.outputs["Color"], shader.inputs["Color"])
+    elif kind == "object_info":
+        info = nodes.new("ShaderNodeObjectInfo")
+        gamma = nodes.new("ShaderNodeGamma")
+        links.new(info.outputs["Color"], gamma.inputs["Color"])
         links.new(gamma.outputs["Color"], shader.inputs["Color"])
     elif kind == "mix":
         procedural = procedural_material(bpy, "Inner", "noise").node_tree
@@ -140,6 +147,7 @@ def case_scene(bpy, kind: str):
         subdivision = obj.modifiers.new("Subdivision", "SUBSURF")
         subdivision.subdivision_type = "SIMPLE"  # Catmull-Clark smooths UVs and positions
         subdivision.levels, subdivision.render_levels = 0, 2  # differently: see the docs
+    obj.color = (0.8, 0.3, 0.1, 1.0)  # Object Info's colour ('object_info')
     if kind == "named":
         second = obj.data.uv_layers.new(name="Second")
         second.uv.foreach_set("vector", [0.1, 0.0, 0.6, 0.1, 0.7, 0.6, 0.2, 0.5])
@@ -152,7 +160,8 @@ def case_scene(bpy, kind: str):
 
 
 @pytest.mark.parametrize("kind", ["noise", "mapping", "generated", "mix",
-                                  "named", "principled", "tiled", "uvless"])
+                                  "named", "principled", "tiled", "uvless",
+                                  "object_info"])
 def test_baked_materials_match_cycles(blender, tmp_path, kind):
     """Each procedural material renders like Cycles (0 bounces, a sun); the old fallback
     (the viewport colour) is outside the bounds."""
@@ -247,6 +256,26 @@ def test_cache_and_user_data(blender):
     bake_interrupted(bpy, bake)
     assert datablock_names(bpy) == state
     bake.CACHE.clear()
+
+
+def test_a_bake_names_what_it_cannot_give(blender):
+    """Object Info's Random comes from the bake's stand-in object, not the object: the
+    export says so on every frame, the bake itself is kept."""
+    bpy = blender
+    scene = case_scene(bpy, "object_info")
+    tree = bpy.data.materials["Object_Info"].node_tree
+    info = next(n for n in tree.nodes if n.type == "OBJECT_INFO")
+    tree.links.new(info.outputs["Random"], next(
+        n for n in tree.nodes if n.type == "GAMMA").inputs["Gamma"])
+    bake.CACHE.clear()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert len(bake.bake_scene(depsgraph).baked) == 1
+    for _frame in range(2):
+        warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+        assert warnings == ["object 'Plane': Object Info's Random in its bake is not the "
+                            "object's (a stand-in object's, one value)"]
+    bake.CACHE.clear()
+    assert scene.objects["Plane"].color[0] == np.float32(0.8)
 
 
 def test_missing_bake_and_memory_cap(blender):
