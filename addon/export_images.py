@@ -20,6 +20,9 @@ from .core.scene.model import COVERAGE_ALPHA, COVERAGE_LUMINANCE, EXTENSIONS, Te
 from .core.scene.textures import associate_bytes, missing_texture
 
 RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear"}
+UNREAD_SOURCES = {"SEQUENCE": "an image sequence", "MOVIE": "a movie"}
+"""Image sources whose frames Blender's Python API does not choose: their pixels are the
+frame Blender has loaded, if any."""
 INTERPOLATION = {"Closest": "Closest", "Linear": "Linear", "Cubic": "Cubic", "Smart": "Cubic"}
 
 
@@ -158,7 +161,15 @@ class ImageReader:
             self._pixels[key] = None if pixels is None else \
                 (pixels, srgb, bool((pixels[..., 3] < 1).any()))
         space = image.colorspace_settings.name
-        if self._pixels[key] is None:
+        if self._pixels[key] is None and image.source in UNREAD_SOURCES:
+            self.warn(f"material '{material}': image '{image.name}' is "
+                      f"{UNREAD_SOURCES[image.source]}, which VPL GI does not read: shown in "
+                      f"magenta (1, 0, 1)")
+        elif image.source in UNREAD_SOURCES:
+            self.warn(f"material '{material}': image '{image.name}' is "
+                      f"{UNREAD_SOURCES[image.source]}: rendered with the frame Blender has "
+                      f"loaded, which need not be the scene frame's")
+        elif self._pixels[key] is None:
             self.warn(f"material '{material}': image '{image.name}' is missing or cannot be "
                       f"read ({image.filepath or 'no file'}): shown in magenta (1, 0, 1) as "
                       f"Cycles does")

@@ -196,8 +196,8 @@ def test_image_alpha_colours_like_cycles(blender, tmp_path):
 
 
 def test_external_and_missing_image_files(blender, engine_export, tmp_path):
-    """An image saved to a file renders as the packed one; a missing file gives one warning
-    and magenta, in a finite frame."""
+    """An image saved to a file renders as the packed one; a missing file, or an image
+    sequence, gives one warning and magenta, in a finite frame."""
     bpy = blender
     scene = new_scene(bpy, 16)
     scene.vpl_gi.bounces = 1
@@ -231,6 +231,23 @@ def test_external_and_missing_image_files(blender, engine_export, tmp_path):
     albedo = exported.instances[0].materials[0].base_color_texture.pixels
     np.testing.assert_array_equal(albedo, [[[1, 0, 1, 1]]])
     assert image[8, 8, 1] == pytest.approx(0.0, abs=1e-6) and image[8, 8, 0] > 0.1
+
+    external.filepath = str(path)
+    external.source = "SEQUENCE"  # the frame Blender has loaded, named as such
+    image, _, warnings = engine_export(scene, tmp_path / "sequence.exr")
+    assert warnings == ["material 'Wall': image 'texture.png' is an image sequence: rendered "
+                        "with the frame Blender has loaded, which need not be the scene "
+                        "frame's"]
+    np.testing.assert_allclose(image, first, rtol=1e-5, atol=1e-6)
+    frames = tmp_path / "frame_0001.png"
+    frames.write_bytes(path.read_bytes())
+    unloaded = bpy.data.images.load(str(frames))
+    unloaded.source = "SEQUENCE"  # a numbered file: no frame loaded, magenta
+    texture_node.image = unloaded
+    image, _, warnings = engine_export(scene, tmp_path / "unloaded.exr")
+    assert warnings == ["material 'Wall': image 'frame_0001.png' is an image sequence, which "
+                        "VPL GI does not read: shown in magenta (1, 0, 1)"]
+    assert np.isfinite(image).all() and image[8, 8, 1] == pytest.approx(0.0, abs=1e-6)
 
 
 def bleeding_scene(bpy, textured: bool):
