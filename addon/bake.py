@@ -364,6 +364,14 @@ def needed(obj: bpy.types.Object, fallbacks: dict[str, str],
     return found
 
 
+def view_dependent(material: bpy.types.Material) -> list[str]:
+    """The nodes of a material's surface whose value depends on the viewing ray, which its
+    bake holds as seen along the surface's normal (bake_tree.VIEW_DEPENDENT)."""
+    if material.node_tree is None:
+        return []
+    return bake_tree.view_dependent(surface_node(material.node_tree))
+
+
 def reads_random(material: bpy.types.Material | None) -> bool:
     """Whether a material's tree reads Object Info's Random, which a bake cannot give: the
     bake renders a stand-in object, with a random value of its own."""
@@ -484,6 +492,13 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
     if any(reads_random(s) for s in sources if s is not None and s.name in reasons) and \
             random not in warnings:
         warnings.append(random)
+    for source in sources:
+        viewed = view_dependent(source) if source is not None and source.name in reasons \
+            else []
+        message = (f"material '{source.name}': its bake holds {', '.join(viewed)} as seen "
+                   f"looking straight at the surface, not from the camera") if viewed else ""
+        if viewed and message not in warnings:
+            warnings.append(message)
     return (entry.mesh if entry.mesh is not None else mesh), result
 
 

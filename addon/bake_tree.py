@@ -146,6 +146,35 @@ def linked_inputs(node) -> list[str]:
     return found
 
 
+VIEW_DEPENDENT = {"LAYER_WEIGHT": None, "FRESNEL": None, "LIGHT_PATH": None, "CAMERA": None,
+                  "TEX_COORD": {"Camera", "Window", "Reflection"},
+                  "NEW_GEOMETRY": {"Incoming", "Backfacing"}}
+"""Nodes (and of some, the outputs; None: any) whose value depends on the ray that sees the
+surface, which a bake evaluates once, looking straight at it."""
+
+
+def view_dependent(node) -> list[str]:
+    """Labels of the nodes upstream of ``node`` whose outputs in use depend on the viewing
+    ray (VIEW_DEPENDENT), each once."""
+    found: list[str] = []
+    seen: set[str] = set()
+    pending = [node] if node is not None else []
+    while pending:
+        current = pending.pop()
+        if current.name in seen:
+            continue
+        seen.add(current.name)
+        for socket in current.inputs:
+            for link in socket.links:
+                source = link.from_node
+                outputs = VIEW_DEPENDENT.get(source.type, ())
+                if (outputs is None or link.from_socket.name in outputs) and \
+                        source.bl_label not in found:
+                    found.append(source.bl_label)
+                pending.append(source)
+    return found
+
+
 def specular_constants(material: bpy.types.Material) -> dict[str, object]:
     """The specular inputs of a surface that is one Principled BSDF, where they are
     constants (a baked material keeps them; linked ones keep the Material's defaults)."""

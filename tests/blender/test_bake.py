@@ -259,8 +259,9 @@ def test_cache_and_user_data(blender):
 
 
 def test_a_bake_names_what_it_cannot_give(blender):
-    """Object Info's Random comes from the bake's stand-in object, not the object: the
-    export says so on every frame, the bake itself is kept."""
+    """Object Info's Random comes from the bake's stand-in object, not the object, and a
+    view-dependent node is baked as seen straight on: the export says so on every frame,
+    the bake itself is kept."""
     bpy = blender
     scene = case_scene(bpy, "object_info")
     tree = bpy.data.materials["Object_Info"].node_tree
@@ -274,6 +275,13 @@ def test_a_bake_names_what_it_cannot_give(blender):
         warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
         assert warnings == ["object 'Plane': Object Info's Random in its bake is not the "
                             "object's (a stand-in object's, one value)"]
+    weight = tree.nodes.new("ShaderNodeLayerWeight")  # seen along the normal by the bake
+    tree.links.new(weight.outputs["Facing"], next(
+        n for n in tree.nodes if n.type == "GAMMA").inputs["Gamma"])
+    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
+    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+    assert warnings == ["material 'Object_Info': its bake holds Layer Weight as seen looking "
+                        "straight at the surface, not from the camera"]
     bake.CACHE.clear()
     assert scene.objects["Plane"].color[0] == np.float32(0.8)
 
