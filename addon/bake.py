@@ -145,11 +145,11 @@ def mesh_hash(mesh: bpy.types.Mesh) -> str:
     return digest.hexdigest()
 
 
-def bake_key(obj: bpy.types.Object, resolution: int) -> tuple:
+def bake_key(obj: bpy.types.Object, resolution: int, render: bool = False) -> tuple:
     """The cache key of an evaluated mesh object's bake: its slots' node trees, its original
-    mesh and modifier settings (not the evaluated mesh, which differs between the viewport's
-    evaluation, where bakes run, and a final render's: a bake in the object's own UV map
-    holds for both) and the resolution."""
+    mesh and modifier settings (not the evaluated mesh: a bake in the object's own UV map
+    holds for any evaluation), the resolution, and whether it was made on the mesh as final
+    renders evaluate it (``render``; render_differs)."""
     slots = tuple((slot.material.name_full, bake_tree.tree_hash(slot.material.node_tree))
                   if slot.material is not None and slot.material.node_tree is not None
                   else None for slot in obj.material_slots)
@@ -159,7 +159,7 @@ def bake_key(obj: bpy.types.Object, resolution: int) -> tuple:
         if shape_keys is not None else ()
     modifiers = tuple(bake_tree.struct_hash(modifier) for modifier in original.modifiers)
     return (original.name_full, slots, mesh_hash(original.data), shapes, modifiers,
-            tuple(original.color), original.pass_index, resolution)
+            tuple(original.color), original.pass_index, resolution, render)
 
 
 def _valid(entry: Baked | None, obj: bpy.types.Object) -> bool:
@@ -199,6 +199,44 @@ def _copy(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
     """A new mesh of the evaluated object, every attribute kept."""
     return temporary.add(bpy.data.meshes, bpy.data.meshes.new_from_object(
         obj, preserve_all_data_layers=True, depsgraph=depsgraph))
+
+
+RENDER_LEVELS = frozenset({"SUBSURF", "MULTIRES"})
+"""Modifiers with levels of their own for the viewport and for final renders."""
+
+
+def render_differs(obj: bpy.types.Object) -> bool:
+    """Whether final renders evaluate the object's mesh otherwise than the viewport: a
+    modifier shown in one of them only, or with render levels of its own (Subdivision
+    Surface's default: 1 in the viewport, 2 in renders)."""
+    return any(m.show_viewport != m.show_render or
+               (m.type in RENDER_LEVELS and m.levels != m.render_levels)
+               for m in obj.original.modifiers)
+
+
+def _render_copy(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
+                 temporary: Temporary) -> bpy.types.Mesh:
+    """A new mesh of the object as final renders evaluate it (every attribute kept): a copy
+    of the object whose modifiers show what renders show, at their render levels, evaluated
+    in a scene of its own at the frame (Python evaluates the viewport's settings only)."""
+    twin = temporary.add(bpy.data.objects, obj.original.copy())
+    for modifier in twin.modifiers:
+        modifier.show_viewport = modifier.show_render
+        if modifier.type in RENDER_LEVELS:
+            modifier.levels = modifier.render_levels
+    scene = temporary.add(bpy.data.scenes, bpy.data.scenes.new("VPL GI bake geometry"))
+    scene.frame_current = depsgraph.scene.frame_current
+    scene.collection.objects.link(twin)
+    with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
+        graph = bpy.context.evaluated_depsgraph_get()
+    return temporary.add(bpy.data.meshes, bpy.data.meshes.new_from_object(
+        twin.evaluated_get(graph), preserve_all_data_layers=True, depsgraph=graph))
+
+
+def render_hash(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> str:
+    """mesh_hash of the object's mesh as final renders evaluate it."""
+    with Temporary() as temporary:
+        return mesh_hash(_render_copy(obj, depsgraph, temporary))
 
 
 def _triangulate(mesh: bpy.types.Mesh) -> None:
@@ -256,16 +294,23 @@ def run_bake(scene: bpy.types.Scene, obj: bpy.types.Object, kind: str = "EMIT",
 
 
 def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolution: int,
-                reasons: dict[str, str], channels: list[str]) -> Baked:
+                reasons: dict[str, str], channels: list[str], render: bool = False) -> Baked:
     """Bake ``channels`` (``channels_for`` the object's slots: the diffuse colour, and the
     emission where it is not a constant) of every slot of an evaluated mesh object into
-    ``resolution``² images. RuntimeError if Cycles refuses."""
+    ``resolution``² images, on the mesh as the viewport evaluates it or with ``render`` as
+    final renders do. RuntimeError if Cycles refuses."""
     from .export import read_mesh  # the exporter imports this module
 
     start = time.perf_counter()
     materials = [slot.material for slot in obj.material_slots]
     with Temporary() as temporary:
-        mesh = _copy(obj, depsgraph, temporary)
+        mesh = _render_copy(obj, depsgraph, temporary) if render else \
+            _copy(obj, depsgraph, temporary)
+        evaluated = mesh_hash(mesh) if render else mesh_hash(obj.data)
+        source = obj.original.data  # Generated coordinates span the original mesh's bounds
+        mesh.use_auto_texspace = False
+        mesh.texspace_location, mesh.texspace_size = source.texspace_location, \
+            source.texspace_size
         unwrapped = _bake_uvs(mesh, resolution)
         layout = next(layer.name for layer in mesh.uv_layers if layer.active_render) \
             if unwrapped is None else unwrapped.name
@@ -298,7 +343,7 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
         core_mesh = read_mesh(mesh, obj.name) if unwrapped is not None else None
     nbytes = sum(t.pixels.nbytes for t in textures.values())
     return Baked(textures, core_mesh, time.perf_counter() - start, reasons, nbytes,
-                 mesh_hash(obj.data) if unwrapped is not None else None)
+                 evaluated if unwrapped is not None else None)
 
 
 def _bakeable(material: bpy.types.Material | None) -> bool:
@@ -386,14 +431,16 @@ def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
     CACHE.problems.append(f"object '{obj.original.name}': not baked: {why}")
 
 
-def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
+def bake_scene(depsgraph: bpy.types.Depsgraph, evaluations: tuple[bool, ...] = (False,)
+               ) -> BakeCache:
     """Bake every mesh object of the evaluated scene whose materials need it and whose bake
     is not cached, and the world where its nodes need it (world_bake.py); returns the cache,
-    with this pass's object bakes and problems."""
+    with this pass's object bakes and problems. ``evaluations``: for the viewport's mesh
+    (False) and/or final renders' (True: made apart only where render_differs)."""
     from . import world_bake  # it imports this module
     from .export import fallback_reasons, world_bake_reason  # the exporter imports this module
 
-    resolution, cap = settings_of(depsgraph.scene)
+    resolution = settings_of(depsgraph.scene)[0]
     CACHE.generation += 1
     CACHE.baked, CACHE.problems, CACHE.failed = [], [], {}
     done: set[str] = set()
@@ -408,29 +455,40 @@ def bake_scene(depsgraph: bpy.types.Depsgraph) -> BakeCache:
             slot.material) for slot in obj.material_slots if slot.material is not None})
         if not reasons:
             continue
-        key = bake_key(obj, resolution)
-        if _valid(CACHE.entries.get(key), obj):
-            CACHE.entries[key].used = CACHE.generation
-            continue
-        channels = channels_for([slot.material for slot in obj.material_slots])
-        nbytes = len(channels) * resolution * resolution * TEXEL_BYTES
-        if not CACHE.make_room(nbytes, cap):
-            _failed(obj, key, f"its {nbytes / 2**20:.0f} MiB bake does not fit the bake memory cap "
-                         f"of {cap >> 20} MiB ({CACHE.nbytes / 2**20:.0f} MiB in use): lower "
-                         f"Bake Resolution or raise Bake Memory")
-            continue
-        try:
-            entry = bake_object(obj, depsgraph, resolution, reasons, channels)
-        except (RuntimeError, ValueError) as exc:
-            _failed(obj, key, f"the bake failed: {str(exc).strip()}")
-            continue
-        entry.used = CACHE.generation
-        CACHE.entries[key] = entry
-        CACHE.baked.append((obj.original.name, entry))
+        for render in sorted({r and render_differs(obj) for r in evaluations}):
+            _bake_if_stale(obj, depsgraph, resolution, reasons, render)
 
     world = depsgraph.scene_eval.world
     CACHE.world_seconds = world_bake.bake_if_needed(world, world_bake_reason(world))
     return CACHE
+
+
+def _bake_if_stale(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolution: int,
+                   reasons: dict[str, str], render: bool) -> None:
+    """Bake one evaluation of an object unless its cached bake still fits (a bake in its own
+    UV map fits any)."""
+    cap = settings_of(depsgraph.scene)[1]
+    key = bake_key(obj, resolution, render)
+    entry = CACHE.entries.get(key)
+    if entry is not None and (entry.evaluated is None or entry.evaluated == (
+            render_hash(obj, depsgraph) if render else mesh_hash(obj.data))):
+        entry.used = CACHE.generation
+        return
+    channels = channels_for([slot.material for slot in obj.material_slots])
+    nbytes = len(channels) * resolution * resolution * TEXEL_BYTES
+    if not CACHE.make_room(nbytes, cap):
+        _failed(obj, key, f"its {nbytes / 2**20:.0f} MiB bake does not fit the bake memory cap "
+                     f"of {cap >> 20} MiB ({CACHE.nbytes / 2**20:.0f} MiB in use): lower "
+                     f"Bake Resolution or raise Bake Memory")
+        return
+    try:
+        entry = bake_object(obj, depsgraph, resolution, reasons, channels, render)
+    except (RuntimeError, ValueError) as exc:
+        _failed(obj, key, f"the bake failed: {str(exc).strip()}")
+        return
+    entry.used = CACHE.generation
+    CACHE.entries[key] = entry
+    CACHE.baked.append((obj.original.name, entry))
 
 
 # -- what the export uses -------------------------------------------------------------------
@@ -452,21 +510,33 @@ def baked_material(material: Material, source: bpy.types.Material, entry: Baked)
 
 def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
           fallbacks: dict[str, str], named: dict[str, frozenset[str]], resolution: int,
-          notes: list[str], warnings: list[str], unbaked: set[str]) -> tuple[Mesh, list[Material]]:
+          notes: list[str], warnings: list[str], unbaked: set[str], rendering: bool = False
+          ) -> tuple[Mesh, list[Material]]:
     """An exported object's mesh and materials with its cached bake applied (the bake's UV
     mesh and textures), or unchanged with a warning per material when the bake is missing;
     ``unbaked`` gets the materials whose bake a bake pass would make (not those whose bake
-    failed or cannot be made)."""
+    failed or cannot be made). ``rendering``: the object is a final render's evaluation,
+    whose own bake is made apart where it differs from the viewport's (render_differs); a
+    viewport bake in the object's own UV map fits it too."""
     reasons = needed(obj, fallbacks, named) if mesh.triangle_count else {}
     if not reasons:
         return mesh, materials
-    key = bake_key(obj, resolution) if obj.original.type == "MESH" else None
-    entry = CACHE.entries.get(key)
+    key, entry = None, None
+    if obj.original.type == "MESH":
+        keys = [bake_key(obj, resolution, True), bake_key(obj, resolution)] \
+            if rendering and render_differs(obj) else [bake_key(obj, resolution)]
+        key = next((k for k in keys if _valid(CACHE.entries.get(k), obj)), keys[0])
+        entry = CACHE.entries.get(key)
     if not _valid(entry, obj):
         if key is None:
             why = f"not baked: {obj.original.type.lower()} objects are not baked"
         elif key in CACHE.failed:
             why = f"not baked: {CACHE.failed[key]}"
+        elif rendering and render_differs(obj) and threading.current_thread() is not \
+                threading.main_thread():
+            why = ("not baked: renders started in Blender's window cannot bake, and the "
+                   "viewport's bake, made on its own subdivision levels and modifiers, does "
+                   "not fit the render's mesh; press Bake Materials first")
         else:
             why = NOT_BAKED
             unbaked.update(reasons)
@@ -544,7 +614,7 @@ def _before_render(scene: bpy.types.Scene, *_args) -> None:
         return
     with _bake_turn() as free:
         if free and bpy.context.scene == scene:
-            bake_scene(bpy.context.evaluated_depsgraph_get())
+            bake_scene(bpy.context.evaluated_depsgraph_get(), (True,))
 
 
 class VPLGI_OT_bake_materials(bpy.types.Operator):
@@ -555,7 +625,7 @@ class VPLGI_OT_bake_materials(bpy.types.Operator):
     bl_label = "Bake Materials"
 
     def execute(self, context: bpy.types.Context) -> set[str]:
-        cache = bake_scene(context.evaluated_depsgraph_get())
+        cache = bake_scene(context.evaluated_depsgraph_get(), (False, True))
         for problem in cache.problems:
             self.report({"WARNING"}, f"VPL GI: {problem}")
         seconds = sum(entry.seconds for _, entry in cache.baked) + cache.world_seconds

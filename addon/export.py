@@ -1219,7 +1219,8 @@ class _Export:
         if self.fallbacks or self.named_uvs:
             mesh, materials = bake.apply(obj, mesh, materials, self.fallbacks, self.named_uvs,
                                          self.bake_resolution, self.result.notes,
-                                         self.result.warnings, self.cache.unbaked)
+                                         self.result.warnings, self.cache.unbaked,
+                                         self.rendering)
         return mesh, materials, obj.name
 
 
