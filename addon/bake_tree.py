@@ -8,6 +8,7 @@ bake evaluates the expression with Cycles through an Emission shader of strength
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import bpy
@@ -128,10 +129,8 @@ def check(node) -> None:
                 check(_node_of(socket))
 
 
-def linked_inputs(node) -> list[str]:
-    """Labels of the nodes feeding the closures' colour, strength and mix inputs (the whole
-    chain upstream, e.g. 'Color Ramp' and 'Noise Texture'): what makes a bake necessary."""
-    found: list[str] = []
+def _upstream(node) -> Iterator:
+    """The links into ``node`` and into every node upstream of it, each node's once."""
     seen: set[str] = set()
     pending = [node] if node is not None else []
     while pending:
@@ -139,11 +138,20 @@ def linked_inputs(node) -> list[str]:
         if current.name in seen:
             continue
         seen.add(current.name)
-        if current.type not in _CLOSURES:
-            found.append(current.bl_label)
         for socket in current.inputs:
-            pending += [link.from_node for link in socket.links]
-    return found
+            for link in socket.links:
+                yield link
+                pending.append(link.from_node)
+
+
+def linked_inputs(node) -> list[str]:
+    """Labels of the nodes feeding the closures' colour, strength and mix inputs (the whole
+    chain upstream, e.g. 'Color Ramp' and 'Noise Texture'): what makes a bake necessary."""
+    nodes = {} if node is None or node.type in _CLOSURES else {node.name: node.bl_label}
+    for link in _upstream(node):
+        if link.from_node.type not in _CLOSURES:
+            nodes.setdefault(link.from_node.name, link.from_node.bl_label)
+    return list(nodes.values())
 
 
 VIEW_DEPENDENT = {"LAYER_WEIGHT": None, "FRESNEL": None, "LIGHT_PATH": None, "CAMERA": None,
@@ -157,21 +165,11 @@ def view_dependent(node) -> list[str]:
     """Labels of the nodes upstream of ``node`` whose outputs in use depend on the viewing
     ray (VIEW_DEPENDENT), each once."""
     found: list[str] = []
-    seen: set[str] = set()
-    pending = [node] if node is not None else []
-    while pending:
-        current = pending.pop()
-        if current.name in seen:
-            continue
-        seen.add(current.name)
-        for socket in current.inputs:
-            for link in socket.links:
-                source = link.from_node
-                outputs = VIEW_DEPENDENT.get(source.type, ())
-                if (outputs is None or link.from_socket.name in outputs) and \
-                        source.bl_label not in found:
-                    found.append(source.bl_label)
-                pending.append(source)
+    for link in _upstream(node):
+        outputs = VIEW_DEPENDENT.get(link.from_node.type, ())
+        if (outputs is None or link.from_socket.name in outputs) and \
+                link.from_node.bl_label not in found:
+            found.append(link.from_node.bl_label)
     return found
 
 
