@@ -947,7 +947,20 @@ def export_world(world: bpy.types.World | None, warnings: list[str],
     the nodes are more than that (with a note, and ``lights`` gets the sun disc the bake
     took out; without a bake, one colour and a warning naming why, and ``unbaked`` gets the
     world where a bake pass would make it). Its Volume shader (fog) is left out, with a
-    warning."""
+    warning; a colour × strength that is negative or not finite is black, with a warning."""
+    read = _world_of(world, warnings, notes, unbaked, lights)
+    radiance = read.radiance
+    if world is not None and not (np.isfinite(radiance).all() and radiance.min() >= 0):
+        warnings.append(f"world '{world.original.name}': its colour × strength "
+                        f"{tuple(radiance.round(3).tolist())} is negative or not finite: "
+                        f"rendered black")
+        return World(lightgroup=read.lightgroup)
+    return read
+
+
+def _world_of(world: bpy.types.World | None, warnings: list[str], notes: list[str] | None,
+              unbaked: set[str] | None, lights: list[Light] | None) -> World:
+    """export_world's world before its check."""
     if world is not None and uses_nodes(world) and volume_linked(world.node_tree,
                                                                  "OUTPUT_WORLD"):
         warnings.append(f"world '{world.original.name}': its Volume shader (fog) is not "

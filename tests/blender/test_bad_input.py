@@ -132,6 +132,29 @@ def test_negative_emission_strength_is_rendered_as_0_with_a_warning(blender, tmp
            "0 there" in warnings
 
 
+def test_a_nan_base_colour_or_world_is_black_there_with_a_warning(blender, tmp_path):
+    """A NaN in a material's base colour, or in the world's strength, blackens that alone
+    (before stop 66: the colour silently, the world every pixel, the frame black)."""
+    bpy = blender
+    scene, plane = lit_plane_scene(bpy)
+    material = bpy.data.materials.new("Broken")
+    material.use_nodes = True
+    material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = \
+        (float("nan"), 0.5, 0.5, 1.0)
+    plane.data.materials.append(material)
+    world = bpy.data.worlds.new("Sky")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = float("nan")
+    scene.world = world
+    frame, warnings = render(scene, tmp_path)
+    assert warnings == [
+        "world 'Sky': its colour × strength (nan, nan, nan) is negative or not finite: "
+        "rendered black",
+        "material 'Broken': base colour (nan, 0.5, 0.5) is not finite: rendered as 0 there"]
+    red, green = frame[..., 0].mean(), frame[..., 1].mean()  # the sun on (0, 0.5, 0.5): red
+    assert green > 0.05 and red < 0.5 * green  # only from the Principled BSDF's specular
+
+
 # -- random command lines on random bad scenes (hypothesis) -------------------------------------
 
 # Good values repeat, so that most examples pass the checks and render; hypothesis starts

@@ -438,6 +438,12 @@ def _albedo_table(materials: list[Material], warnings: list[str]) -> np.ndarray:
     """Base colours per material slot, capped to [0, MAX_ALBEDO] with one warning per material
     (Blender allows colours above 1; with them every bounce would add energy)."""
     table = np.array([m.base_color for m in materials], dtype=np.float64)
+    for material, row in zip(materials, table, strict=True):
+        if not np.isfinite(row).all():
+            message = (f"material '{material.name}': base colour {tuple(row.tolist())} is "
+                       f"not finite: rendered as 0 there")
+            if message not in warnings:
+                warnings.append(message)
     table = np.where(np.isfinite(table), table, 0.0)
     for material, row in zip(materials, table, strict=True):
         if row.max() > MAX_ALBEDO or row.min() < 0:
