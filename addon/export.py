@@ -105,11 +105,15 @@ def transform_problems(matrices: np.ndarray, invertible: bool = False) -> list[s
 
 def check_camera(camera_object: bpy.types.Object) -> None:
     """Raise TransformError unless the object can be the scene camera: a camera object with
-    a finite, invertible world matrix."""
+    a finite, invertible world matrix and a clipping range to see in."""
     if camera_object.type != "CAMERA":
         raise TransformError(f"the scene camera '{camera_object.name}' is not a camera but "
                              f"an object of type {camera_object.type.title()} (choose a "
                              f"camera in the scene's properties)")
+    start, end = camera_object.data.clip_start, camera_object.data.clip_end
+    if not start < end:
+        raise TransformError(f"camera '{camera_object.name}' clips everything: its Clip Start "
+                             f"({start:g} m) is not below its Clip End ({end:g} m)")
     problem, = transform_problems(_matrix(camera_object.matrix_world)[None], invertible=True)
     if problem:
         raise TransformError(f"camera '{camera_object.name}' {problem}")

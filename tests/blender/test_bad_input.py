@@ -58,6 +58,8 @@ def test_float_texture_with_nan_and_inf_texels_is_read_as_0_with_one_warning(ble
 @pytest.mark.parametrize("change, message", [
     ("scale 0", "camera 'Camera' has a transform without an inverse (a scale of 0"),
     ("empty", "the scene camera 'Empty' is not a camera but an object of type Empty"),
+    ("clipping", "camera 'Camera' clips everything: its Clip Start (10 m) is not below its "
+                 "Clip End (0.5 m)"),
 ])
 def test_camera_that_cannot_be_rendered_from_is_one_clear_error(blender, tmp_path, change,
                                                                 message):
@@ -65,6 +67,8 @@ def test_camera_that_cannot_be_rendered_from_is_one_clear_error(blender, tmp_pat
     scene, _ = lit_plane_scene(bpy)
     if change == "scale 0":
         scene.camera.scale = (0.0, 0.0, 0.0)
+    elif change == "clipping":  # Cycles renders it black
+        scene.camera.data.clip_start, scene.camera.data.clip_end = 10.0, 0.5
     else:
         empty = bpy.data.objects.new("Empty", None)
         empty.location = (0, 0, 5)
