@@ -122,7 +122,8 @@ def test_negative_or_infinite_light_power_is_left_out_with_a_warning(blender, tm
     np.testing.assert_array_equal(frame, without)
 
 
-def test_negative_emission_strength_is_rendered_as_0_with_a_warning(blender, tmp_path):
+def test_negative_or_huge_emission_strength_is_rendered_0_or_capped_with_a_warning(blender,
+                                                                                 tmp_path):
     bpy = blender
     scene, plane = lit_plane_scene(bpy)
     material = bpy.data.materials.new("Dark")
@@ -134,6 +135,11 @@ def test_negative_emission_strength_is_rendered_as_0_with_a_warning(blender, tmp
     _, warnings = render(scene, tmp_path)
     assert "material 'Dark': emission (-3.0, -3.0, -3.0) is negative or not finite: rendered as " \
            "0 there" in warnings
+    node.inputs["Emission Strength"].default_value = 1e38  # its light overflowed to Inf
+    _, warnings = render(scene, tmp_path)
+    assert [w for w in warnings if "Dark" in w] == [
+        "material 'Dark': emission (9.999999680285692e+37, 9.999999680285692e+37, "
+        "9.999999680285692e+37) capped to 1e+30 (its light would overflow 32-bit floats)"]
 
 
 def test_a_nan_base_colour_or_world_is_black_there_with_a_warning(blender, tmp_path):

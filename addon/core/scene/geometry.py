@@ -432,6 +432,7 @@ def _normal_matrices(linear: np.ndarray) -> np.ndarray:
 
 
 MAX_ALBEDO = 1.0  # a diffuse surface cannot reflect more than it receives
+MAX_EMISSION = 1e30  # radiance a surface may emit: sums of its light stay below float32's max
 
 
 def _albedo_table(materials: list[Material], warnings: list[str]) -> np.ndarray:
@@ -469,6 +470,13 @@ def _material_rows(materials: list[Material], warnings: list[str],
             if message not in warnings:
                 warnings.append(message)
     emission = np.where(np.isfinite(emission), np.maximum(emission, 0), 0)
+    for material, row in zip(materials, emission, strict=True):
+        if row.max() > MAX_EMISSION:
+            message = (f"material '{material.name}': emission {tuple(row.tolist())} capped to "
+                       f"{MAX_EMISSION:g} (its light would overflow 32-bit floats)")
+            if message not in warnings:
+                warnings.append(message)
+    emission = np.minimum(emission, MAX_EMISSION)
     for row, material in enumerate(materials):
         if material.base_color_texture is not None:
             albedo[row] = np.clip(tex.mean_color(material.base_color_texture), 0, MAX_ALBEDO)
