@@ -431,6 +431,21 @@ def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
     CACHE.problems.append(f"object '{obj.original.name}': not baked: {why}")
 
 
+def _mesh_objects(depsgraph: bpy.types.Depsgraph) -> list[bpy.types.Object]:
+    """The original mesh objects the evaluated scene renders, each once: those in the view
+    layer and those only instanced (a collection of assets excluded from the view layer and
+    instanced), not geometry an object's own nodes generate (not baked)."""
+    found: dict[str, bpy.types.Object] = {}
+    for inst in depsgraph.object_instances:
+        original = inst.object.original
+        parent = inst.parent
+        generated = inst.is_instance and parent is not None and \
+            parent.original.as_pointer() == original.as_pointer()
+        if original.type == "MESH" and not generated:
+            found.setdefault(original.name_full, original)
+    return list(found.values())
+
+
 def bake_scene(depsgraph: bpy.types.Depsgraph, evaluations: tuple[bool, ...] = (False,)
                ) -> BakeCache:
     """Bake every mesh object of the evaluated scene whose materials need it and whose bake
@@ -443,14 +458,11 @@ def bake_scene(depsgraph: bpy.types.Depsgraph, evaluations: tuple[bool, ...] = (
     resolution = settings_of(depsgraph.scene)[0]
     CACHE.generation += 1
     CACHE.baked, CACHE.problems, CACHE.failed = [], [], {}
-    done: set[str] = set()
     materials: dict[str, dict[str, str]] = {}  # each material's fallback, exported once
-    for inst in depsgraph.object_instances:
-        obj = inst.object
-        if obj.original.type != "MESH" or inst.is_instance or not obj.data.polygons or \
-                obj.original.name_full in done:
+    for original in _mesh_objects(depsgraph):
+        obj = original.evaluated_get(depsgraph)
+        if not obj.data.polygons:
             continue
-        done.add(obj.original.name_full)
         reasons = needed(obj, fallback_reasons(obj, materials), {slot.material.name: named_uv_maps(
             slot.material) for slot in obj.material_slots if slot.material is not None})
         if not reasons:

@@ -26,7 +26,7 @@ CYCLES_SAMPLES = 64
 ENERGY_BOUND = 0.03
 RMSE_BOUNDS = {"noise": 0.01, "mapping": 0.01, "generated": 0.05, "mix": 0.04,
                "named": 0.01, "principled": 0.02, "tiled": 0.05, "uvless": 0.05,
-               "object_info": 0.01, "subdivided": 0.05}
+               "object_info": 0.01, "subdivided": 0.05, "instanced": 0.05}
 INTERIOR_BOUND = 0.02  # relRMSE away from edges (test_cycles_direct.edge_mask)
 
 
@@ -39,7 +39,8 @@ def procedural_material(bpy, name: str, kind: str, image=None):
     'tiled' and 'uvless' (an image on the default UVs through a Gamma node), 'object_info'
     (the object's colour from Object Info, through a Gamma node); case_scene's 'subdivided'
     is 'generated' on a box subdivided as Blender's modifier does by default (1 level in the
-    viewport, 2 in renders: baked on the render's mesh)."""
+    viewport, 2 in renders: baked on the render's mesh), 'instanced' is it on a box only
+    instanced (its collection excluded from the view layer)."""
     material = bpy.data.materials.new(name)
     ensure_nodes(material)
     tree = material.node_tree
@@ -138,13 +139,22 @@ def case_scene(bpy, kind: str):
     scene = new_scene(bpy, SIZE, ortho_scale=2.4)
     scene.vpl_gi.bake_resolution = "256"
     scene.vpl_gi.antialiasing = 4
-    if kind in ("generated", "uvless", "subdivided"):
+    if kind in ("generated", "uvless", "subdivided", "instanced"):
         obj = add_box(bpy, "Box", 1.4)
     else:  # "tiled": the image three times across, its UVs outside the unit square
         obj = with_uvs(add_plane(bpy, "Plane", 2.0), 3.0 * np.asarray(SQUARE_UVS)
                        if kind == "tiled" else SQUARE_UVS)
     if kind == "subdivided":  # Blender's default: level 1 in the viewport, 2 in renders
         obj.modifiers.new("Subdivision", "SUBSURF")
+    elif kind == "instanced":  # in a collection excluded from the view layer, instanced
+        assets = bpy.data.collections.new("Assets")
+        scene.collection.children.link(assets)
+        scene.collection.objects.unlink(obj)
+        assets.objects.link(obj)
+        bpy.context.view_layer.layer_collection.children["Assets"].exclude = True
+        instancer = bpy.data.objects.new("Instancer", None)
+        instancer.instance_type, instancer.instance_collection = "COLLECTION", assets
+        scene.collection.objects.link(instancer)
     elif kind not in ("generated", "uvless", "tiled"):  # (xatlas bakes hold for the
         # evaluation they were made on) the final render's differs from the viewport's,
         # where bakes run
@@ -159,14 +169,14 @@ def case_scene(bpy, kind: str):
     image = byte_image(bpy, "Paint", gradient(4, 4, 1)) \
         if kind in ("mapping", "named", "tiled", "uvless") else None
     obj.data.materials.append(procedural_material(
-        bpy, kind.title(), "generated" if kind == "subdivided" else kind, image))
+        bpy, kind.title(), "generated" if kind in ("subdivided", "instanced") else kind, image))
     add_light(bpy, "SUN", 3.0, angle=0.0)
     return scene
 
 
 @pytest.mark.parametrize("kind", ["noise", "mapping", "generated", "mix",
                                   "named", "principled", "tiled", "uvless",
-                                  "object_info", "subdivided"])
+                                  "object_info", "subdivided", "instanced"])
 def test_baked_materials_match_cycles(blender, tmp_path, kind):
     """Each procedural material renders like Cycles (0 bounces, a sun); the old fallback
     (the viewport colour) is outside the bounds."""
