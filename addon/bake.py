@@ -145,6 +145,18 @@ def mesh_hash(mesh: bpy.types.Mesh) -> str:
     return digest.hexdigest()
 
 
+def evaluated_hash(obj: bpy.types.Object) -> str:
+    """mesh_hash of an evaluated object's surface (a curve's, text's or metaball's as its
+    mesh)."""
+    if obj.type == "MESH":
+        return mesh_hash(obj.data)
+    mesh = obj.to_mesh()
+    try:
+        return mesh_hash(mesh) if mesh is not None else "no surface"
+    finally:
+        obj.to_mesh_clear()
+
+
 def bake_key(obj: bpy.types.Object, resolution: int, render: bool = False) -> tuple:
     """The cache key of an evaluated mesh object's bake: its slots' node trees, its original
     mesh and modifier settings (not the evaluated mesh: a bake in the object's own UV map
@@ -158,7 +170,9 @@ def bake_key(obj: bpy.types.Object, resolution: int, render: bool = False) -> tu
     shapes = tuple((k.name, k.value, k.mute) for k in shape_keys.key_blocks) \
         if shape_keys is not None else ()
     modifiers = tuple(bake_tree.struct_hash(modifier) for modifier in original.modifiers)
-    return (original.name_full, slots, mesh_hash(original.data), shapes, modifiers,
+    data = mesh_hash(original.data) if original.type == "MESH" else \
+        bake_tree.struct_hash(original.data)  # a curve's splines, a text's body, …
+    return (original.name_full, slots, data, shapes, modifiers,
             tuple(original.color), original.pass_index, resolution, render)
 
 
@@ -166,7 +180,7 @@ def _valid(entry: Baked | None, obj: bpy.types.Object) -> bool:
     """Whether a cached bake fits the evaluated object: a bake in xatlas UVs only on the
     geometry it was made on."""
     return entry is not None and (entry.evaluated is None or
-                                  entry.evaluated == mesh_hash(obj.data))
+                                  entry.evaluated == evaluated_hash(obj))
 
 
 # -- the bake -------------------------------------------------------------------------------
@@ -201,6 +215,8 @@ def _copy(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph,
         obj, preserve_all_data_layers=True, depsgraph=depsgraph))
 
 
+BAKED_TYPES = frozenset({"MESH", "CURVE", "FONT", "SURFACE", "META"})
+"""Object types whose surfaces are baked (the others render as their viewport colour)."""
 RENDER_LEVELS = frozenset({"SUBSURF", "MULTIRES"})
 """Modifiers with levels of their own for the viewport and for final renders."""
 
@@ -261,7 +277,7 @@ def _bake_uvs(mesh: bpy.types.Mesh, resolution: int) -> bpy.types.MeshUVLoopLaye
     if uvs is not None:
         mesh.calc_loop_triangles()
         corners = read_array(mesh.loop_triangles, "loops", len(mesh.loop_triangles) * 3, np.int32)
-        if unsuitable(uvs[corners]) is None:
+        if unsuitable(uvs[corners], positions(mesh)[corner_verts(mesh)[corners]]) is None:
             return None
     _triangulate(mesh)
     if not mesh.uv_layers:
@@ -306,7 +322,7 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
     with Temporary() as temporary:
         mesh = _render_copy(obj, depsgraph, temporary) if render else \
             _copy(obj, depsgraph, temporary)
-        evaluated = mesh_hash(mesh) if render else mesh_hash(obj.data)
+        evaluated = mesh_hash(mesh)
         source = obj.original.data  # Generated coordinates span the original mesh's bounds
         mesh.use_auto_texspace = False
         mesh.texspace_location, mesh.texspace_size = source.texspace_location, \
@@ -432,8 +448,8 @@ def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
 
 
 def _mesh_objects(depsgraph: bpy.types.Depsgraph) -> list[bpy.types.Object]:
-    """The original mesh objects the evaluated scene renders, each once: those in the view
-    layer and those only instanced (a collection of assets excluded from the view layer and
+    """The original objects of BAKED_TYPES the evaluated scene renders, each once: those in
+    the view layer and those only instanced (a collection of assets excluded from the view layer and
     instanced), not geometry an object's own nodes generate (not baked)."""
     found: dict[str, bpy.types.Object] = {}
     for inst in depsgraph.object_instances:
@@ -441,7 +457,7 @@ def _mesh_objects(depsgraph: bpy.types.Depsgraph) -> list[bpy.types.Object]:
         parent = inst.parent
         generated = inst.is_instance and parent is not None and \
             parent.original.as_pointer() == original.as_pointer()
-        if original.type == "MESH" and not generated:
+        if original.type in BAKED_TYPES and not generated:
             found.setdefault(original.name_full, original)
     return list(found.values())
 
@@ -461,7 +477,7 @@ def bake_scene(depsgraph: bpy.types.Depsgraph, evaluations: tuple[bool, ...] = (
     materials: dict[str, dict[str, str]] = {}  # each material's fallback, exported once
     for original in _mesh_objects(depsgraph):
         obj = original.evaluated_get(depsgraph)
-        if not obj.data.polygons:
+        if obj.type == "MESH" and not obj.data.polygons:
             continue
         reasons = needed(obj, fallback_reasons(obj, materials), {slot.material.name: named_uv_maps(
             slot.material) for slot in obj.material_slots if slot.material is not None})
@@ -483,7 +499,7 @@ def _bake_if_stale(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolu
     key = bake_key(obj, resolution, render)
     entry = CACHE.entries.get(key)
     if entry is not None and (entry.evaluated is None or entry.evaluated == (
-            render_hash(obj, depsgraph) if render else mesh_hash(obj.data))):
+            render_hash(obj, depsgraph) if render else evaluated_hash(obj))):
         entry.used = CACHE.generation
         return
     channels = channels_for([slot.material for slot in obj.material_slots])
@@ -534,7 +550,7 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
     if not reasons:
         return mesh, materials
     key, entry = None, None
-    if obj.original.type == "MESH":
+    if obj.original.type in BAKED_TYPES:
         keys = [bake_key(obj, resolution, True), bake_key(obj, resolution)] \
             if rendering and render_differs(obj) else [bake_key(obj, resolution)]
         key = next((k for k in keys if _valid(CACHE.entries.get(k), obj)), keys[0])
