@@ -160,8 +160,9 @@ def evaluated_hash(obj: bpy.types.Object) -> str:
 def bake_key(obj: bpy.types.Object, resolution: int, render: bool = False) -> tuple:
     """The cache key of an evaluated mesh object's bake: its slots' node trees, its original
     mesh and modifier settings (not the evaluated mesh: a bake in the object's own UV map
-    holds for any evaluation), the resolution, and whether it was made on the mesh as final
-    renders evaluate it (``render``; render_differs)."""
+    holds for any evaluation), the object's colour, pass index and custom properties (which
+    Object Info and Attribute nodes read), the resolution, and whether it was made on the
+    mesh as final renders evaluate it (``render``; render_differs)."""
     slots = tuple((slot.material.name_full, bake_tree.tree_hash(slot.material.node_tree))
                   if slot.material is not None and slot.material.node_tree is not None
                   else None for slot in obj.material_slots)
@@ -172,8 +173,18 @@ def bake_key(obj: bpy.types.Object, resolution: int, render: bool = False) -> tu
     modifiers = tuple(bake_tree.struct_hash(modifier) for modifier in original.modifiers)
     data = mesh_hash(original.data) if original.type == "MESH" else \
         bake_tree.struct_hash(original.data)  # a curve's splines, a text's body, …
+    custom = tuple((name, repr(_plain_property(original[name])))
+                   for name in original.keys())  # noqa: SIM118 (an ID, not a dict)
     return (original.name_full, slots, data, shapes, modifiers,
-            tuple(original.color), original.pass_index, resolution, render)
+            tuple(original.color), original.pass_index, custom, resolution, render)
+
+
+def _plain_property(value: object) -> object:
+    """A custom property's value as plain Python (ID property arrays and groups converted)."""
+    for convert in ("to_dict", "to_list"):
+        if hasattr(value, convert):
+            return getattr(value, convert)()
+    return value
 
 
 def _valid(entry: Baked | None, obj: bpy.types.Object) -> bool:
@@ -338,6 +349,8 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
         proxy = temporary.add(bpy.data.objects, bpy.data.objects.new("VPL GI bake", mesh))
         proxy.matrix_world = obj.matrix_world
         proxy.color, proxy.pass_index = obj.color, obj.pass_index  # Object Info's
+        for name in obj.original.keys():  # noqa: SIM118 (an ID) Attribute nodes (Object) read them
+            proxy[name] = obj.original[name]
         scene.collection.objects.link(proxy)
         textures = {}
         for channel in channels:

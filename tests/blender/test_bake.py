@@ -26,7 +26,8 @@ CYCLES_SAMPLES = 64
 ENERGY_BOUND = 0.03
 RMSE_BOUNDS = {"noise": 0.01, "mapping": 0.01, "generated": 0.05, "mix": 0.04,
                "named": 0.01, "principled": 0.02, "tiled": 0.05, "uvless": 0.05,
-               "object_info": 0.01, "subdivided": 0.05, "instanced": 0.05, "text": 0.15}
+               "object_info": 0.01, "subdivided": 0.05, "instanced": 0.05, "text": 0.15,
+               "object_attribute": 0.01}
 INTERIOR_BOUND = 0.02  # relRMSE away from edges (test_cycles_direct.edge_mask)
 
 
@@ -37,7 +38,8 @@ def procedural_material(bpy, name: str, kind: str, image=None):
     Diffuse and an Emission of a Brick texture in a Mix Shader whose Fac is a Wave texture),
     'named' (an image through a UV Map node naming a map that is not the active render one),
     'tiled' and 'uvless' (an image on the default UVs through a Gamma node), 'object_info'
-    (the object's colour from Object Info, through a Gamma node); case_scene's 'subdivided'
+    and 'object_attribute' (the object's colour from Object Info, or a custom property of it
+    from an Attribute node, through a Gamma node); case_scene's 'subdivided'
     is 'generated' on a box subdivided as Blender's modifier does by default (1 level in the
     viewport, 2 in renders: baked on the render's mesh), 'instanced' is it on a box only
     instanced (its collection excluded from the view layer), 'text' on a text object."""
@@ -85,8 +87,11 @@ def procedural_material(bpy, name: str, kind: str, image=None):
         gamma.inputs["Gamma"].default_value = 1.5
         links.new(texture.outputs["Color"], gamma.inputs["Color"])
         links.new(gamma.outputs["Color"], shader.inputs["Color"])
-    elif kind == "object_info":
+    elif kind in ("object_info", "object_attribute"):
         info = nodes.new("ShaderNodeObjectInfo")
+        if kind == "object_attribute":  # a custom property of the object
+            info = nodes.new("ShaderNodeAttribute")
+            info.attribute_type, info.attribute_name = "OBJECT", "tint"
         gamma = nodes.new("ShaderNodeGamma")
         links.new(info.outputs["Color"], gamma.inputs["Color"])
         links.new(gamma.outputs["Color"], shader.inputs["Color"])
@@ -167,6 +172,7 @@ def case_scene(bpy, kind: str):
         subdivision.subdivision_type = "SIMPLE"  # Catmull-Clark smooths UVs and positions
         subdivision.levels, subdivision.render_levels = 0, 2  # differently: see the docs
     obj.color = (0.8, 0.3, 0.1, 1.0)  # Object Info's colour ('object_info')
+    obj["tint"] = (0.2, 0.6, 0.9)  # a custom property ('object_attribute')
     if kind == "named":
         second = obj.data.uv_layers.new(name="Second")
         second.uv.foreach_set("vector", [0.1, 0.0, 0.6, 0.1, 0.7, 0.6, 0.2, 0.5])
@@ -182,7 +188,8 @@ def case_scene(bpy, kind: str):
 
 @pytest.mark.parametrize("kind", ["noise", "mapping", "generated", "mix",
                                   "named", "principled", "tiled", "uvless",
-                                  "object_info", "subdivided", "instanced", "text"])
+                                  "object_info", "subdivided", "instanced", "text",
+                                  "object_attribute"])
 def test_baked_materials_match_cycles(blender, tmp_path, kind):
     """Each procedural material renders like Cycles (0 bounces, a sun); the old fallback
     (the viewport colour) is outside the bounds."""
