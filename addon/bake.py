@@ -537,16 +537,35 @@ def _bake_if_stale(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolu
 def baked_material(material: Material, source: bpy.types.Material, entry: Baked) -> Material:
     """The exported material with the bake's textures for its baked channels, and the
     specular inputs of a Principled surface where they are constants (a Diffuse BSDF or a
-    mix is diffuse: the bake holds the diffuse colour only)."""
+    mix is diffuse: the bake holds the diffuse colour only); its normal or bump map and its
+    cutout stay, their textures where the bake is in the mesh's own UVs (xatlas UVs would
+    misplace them)."""
     emission_constant = bake_tree.constant_channel(source, "emission")
     emission_texture = entry.textures.get("emission") if emission_constant is None else None
     emission = (1.0, 1.0, 1.0) if emission_texture is not None else \
         (emission_constant.constant if emission_constant is not None else (0.0, 0.0, 0.0))
+    own_uvs = entry.mesh is None
     return Material(material.name, (1.0, 1.0, 1.0), emission,
                     base_color_texture=entry.textures["albedo"],
                     emission_texture=emission_texture, pass_index=material.pass_index,
-                    aovs=material.aovs,
+                    aovs=material.aovs, alpha=material.alpha, holdout=material.holdout,
+                    coverage_texture=material.coverage_texture if own_uvs else None,
+                    coverage_mode=material.coverage_mode,
+                    normal_texture=material.normal_texture if own_uvs else None,
+                    normal_strength=material.normal_strength,
+                    bump_distance=material.bump_distance,
+                    bump_filter_width=material.bump_filter_width,
                     **bake_tree.specular_constants(source))  # type: ignore[arg-type]
+
+
+def lost_textures(material: Material, entry: Baked) -> list[str]:
+    """What of an exported material a bake in xatlas UVs leaves out: its normal or bump map
+    and its cutout's texture, which the mesh's own UVs place."""
+    if entry.mesh is None:
+        return []
+    return [what for what, texture in (("normal map", material.normal_texture),
+                                       ("cutout texture", material.coverage_texture))
+            if texture is not None]
 
 
 def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
@@ -588,6 +607,12 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
         return mesh, materials
     entry.used = CACHE.generation
     sources = [slot.material for slot in obj.material_slots]
+    for m, source in zip(materials, sources, strict=True):
+        lost = lost_textures(m, entry) if source is not None and source.name in reasons else []
+        message = (f"material '{m.name}': its {' and '.join(lost)} is not rendered: the mesh "
+                   f"has no UV map a bake can use, and the bake's new one would misplace it")
+        if lost and message not in warnings:
+            warnings.append(message)
     result = [baked_material(m, source, entry) if source is not None and (
         source.name in reasons or (entry.mesh is not None and _bakeable(source) and
         (m.base_color_texture, m.emission_texture) != (None, None))) else m

@@ -793,7 +793,18 @@ def export_material(material: bpy.types.Material | None, warnings: list[str],
             fallbacks[material.name] = str(reason)
         if fallbacks is None or bake.bake_reason(material, str(reason)) is None:
             warnings.append(f"material '{material.name}': {reason}; using its viewport colour")
+        return _with_surface_maps(viewport, node, images)
+
+
+def _with_surface_maps(viewport: Material, node, images: ImageReader) -> Material:
+    """A fallback material with what its surface's own BSDF reads apart from its colour:
+    the normal or bump map, and a Principled BSDF's cutout (a bake keeps them)."""
+    if node is None or node.type not in ("BSDF_PRINCIPLED", "BSDF_DIFFUSE"):
         return viewport
+    fields = _normal_map(node, viewport.name, images)
+    if node.type == "BSDF_PRINCIPLED":
+        fields.update(_principled_alpha(node, viewport.name, images))
+    return replace(viewport, **fields)
 
 
 def _displaced(material: bpy.types.Material, exported: Material,

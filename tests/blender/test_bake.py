@@ -314,6 +314,27 @@ def test_a_bake_names_what_it_cannot_give(blender):
     assert scene.objects["Plane"].color[0] == np.float32(0.8)
 
 
+def test_a_bake_in_new_uvs_names_the_maps_it_leaves_out(blender):
+    """A normal map on tiled UVs, which the bake's xatlas map would misplace: left out with
+    a warning (on the mesh's own UVs a bake keeps it: test_normal_maps.py's 'baked')."""
+    bpy = blender
+    case_scene(bpy, "tiled")
+    tree = bpy.data.materials["Tiled"].node_tree
+    normal_map, texture = tree.nodes.new("ShaderNodeNormalMap"), tree.nodes.new(
+        "ShaderNodeTexImage")
+    texture.image = next(n for n in tree.nodes if n.type == "TEX_IMAGE" and n.image).image
+    tree.links.new(texture.outputs["Color"], normal_map.inputs["Color"])
+    tree.links.new(normal_map.outputs["Normal"], tree.nodes["Diffuse BSDF"].inputs["Normal"])
+    bake.CACHE.clear()
+    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
+    exported = export_scene(bpy.context.evaluated_depsgraph_get())
+    assert exported.warnings == ["material 'Tiled': its normal map is not rendered: the mesh "
+                                 "has no UV map a bake can use, and the bake's new one would "
+                                 "misplace it"]
+    assert exported.instances[0].materials[0].normal_texture is None
+    bake.CACHE.clear()
+
+
 def test_missing_bake_and_memory_cap(blender):
     """Without a bake the material keeps its viewport colour with a warning naming why, and
     the export names it as waiting for a bake; a bake over the memory cap is refused with a

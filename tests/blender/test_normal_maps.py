@@ -110,18 +110,27 @@ def test_normal_and_bump_maps_export_their_image_strength_and_distance(blender):
                         "(linked to 'Normal'): smooth shading normals"]
 
 
-@pytest.mark.parametrize("layout", ["plain", "turned", "mirrored", "bump", "displacement"])
+@pytest.mark.parametrize("layout", ["plain", "turned", "mirrored", "bump", "displacement",
+                                    "baked"])
 def test_a_normal_mapped_floor_is_shaded_as_in_cycles(blender, tmp_path, layout):
     """A floor of normals tilted up to 40° (16² texels over 4 m, Closest), under a sun 50°
     high, seen from above, direct light (Cycles 64 samples): each texel's shade follows its
     normal; also with the floor turned 70° about Z and with its UVs mirrored in u (the
     tangent frame turns and flips with them), and with a bump map of random heights instead,
-    by a Bump node or by the Material Output's Displacement.
+    by a Bump node or by the Material Output's Displacement; and the normal map under a
+    colour Cycles bakes (a Noise Texture's, which stays grey-ish: the map keeps its part).
     Measured (bpy 4.5, llvmpipe): see the printout; the map left out (flat shading): relRMSE
     several times larger."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     material = bumpy_material(bump=layout == "bump", displacement=layout == "displacement")
+    if layout == "baked":  # a colour from nodes: baked in the plane's own UVs
+        tree = material.node_tree
+        noise, ramp = tree.nodes.new("ShaderNodeTexNoise"), tree.nodes.new("ShaderNodeValToRGB")
+        ramp.color_ramp.elements[0].color = (0.6, 0.6, 0.6, 1.0)
+        ramp.color_ramp.elements[1].color = (0.9, 0.85, 0.8, 1.0)
+        tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+        tree.links.new(ramp.outputs["Color"], tree.nodes["Diffuse BSDF"].inputs["Color"])
     floor = add_primitive("plane", material, size=4,
                           rotation=(0, 0, math.radians(70 if layout == "turned" else 0)))
     if layout == "mirrored":
