@@ -635,6 +635,12 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
                    f"looking straight at the surface, not from the camera") if viewed else ""
         if viewed and message not in warnings:
             warnings.append(message)
+        around = bake_tree.scene_dependent(surface_node(source.node_tree)) \
+            if source is not None and source.name in reasons and source.node_tree else []
+        message = (f"material '{source.name}': its bake holds {', '.join(around)} of the "
+                   f"object alone, not of the scene around it") if around else ""
+        if around and message not in warnings:
+            warnings.append(message)
     return (entry.mesh if entry.mesh is not None else mesh), result
 
 

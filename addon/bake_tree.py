@@ -161,6 +161,18 @@ VIEW_DEPENDENT = {"LAYER_WEIGHT": None, "FRESNEL": None, "LIGHT_PATH": None, "CA
 surface, which a bake evaluates once, looking straight at it."""
 
 
+def scene_dependent(node) -> list[str]:
+    """Labels of the nodes upstream of ``node`` that look at the scene around the surface
+    (Ambient Occlusion, unless Only Local), which a bake sees without it, each once."""
+    found: list[str] = []
+    for link in _upstream(node):
+        source = link.from_node
+        if source.type == "AMBIENT_OCCLUSION" and not source.only_local and \
+                source.bl_label not in found:
+            found.append(source.bl_label)
+    return found
+
+
 def view_dependent(node) -> list[str]:
     """Labels of the nodes upstream of ``node`` whose outputs in use depend on the viewing
     ray (VIEW_DEPENDENT), each once."""

@@ -287,9 +287,9 @@ def test_cache_and_user_data(blender):
 
 
 def test_a_bake_names_what_it_cannot_give(blender):
-    """Object Info's Random comes from the bake's stand-in object, not the object, and a
-    view-dependent node is baked as seen straight on: the export says so on every frame,
-    the bake itself is kept."""
+    """Object Info's Random comes from the bake's stand-in object, not the object, a
+    view-dependent node is baked as seen straight on, and Ambient Occlusion sees the object
+    alone: the export says so on every frame, the bake itself is kept."""
     bpy = blender
     scene = case_scene(bpy, "object_info")
     tree = bpy.data.materials["Object_Info"].node_tree
@@ -310,6 +310,16 @@ def test_a_bake_names_what_it_cannot_give(blender):
     warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
     assert warnings == ["material 'Object_Info': its bake holds Layer Weight as seen looking "
                         "straight at the surface, not from the camera"]
+    occlusion = tree.nodes.new("ShaderNodeAmbientOcclusion")  # sees the bake's scene alone
+    tree.links.new(occlusion.outputs["AO"], next(
+        n for n in tree.nodes if n.type == "GAMMA").inputs["Gamma"])
+    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
+    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+    assert warnings == ["material 'Object_Info': its bake holds Ambient Occlusion of the "
+                        "object alone, not of the scene around it"]
+    occlusion.only_local = True  # the object alone is what it asks for
+    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
+    assert export_scene(bpy.context.evaluated_depsgraph_get()).warnings == []
     bake.CACHE.clear()
     assert scene.objects["Plane"].color[0] == np.float32(0.8)
 
