@@ -454,6 +454,18 @@ def reads_random(material: bpy.types.Material | None) -> bool:
         for node in material.node_tree.nodes)
 
 
+def unbakeable_attributes(material: bpy.types.Material | None) -> list[str]:
+    """The Attribute nodes of a material that read what a bake's stand-in object in a scene
+    of its own cannot hold: an instance's attributes (Instancer), the view layer's or scene's
+    (View Layer)."""
+    if material is None or material.node_tree is None:
+        return []
+    return [f"'{node.attribute_name}' ({node.attribute_type.replace('_', ' ').title()})"
+            for node in material.node_tree.nodes if node.type == "ATTRIBUTE"
+            and node.attribute_type in ("INSTANCER", "VIEW_LAYER")
+            and any(output.is_linked for output in node.outputs)]
+
+
 def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
     """Record why the object's bake (``key``) was not made, for the export and the report."""
     CACHE.failed[key] = why
@@ -629,6 +641,12 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
             random not in warnings:
         warnings.append(random)
     for source in sources:
+        attributes = unbakeable_attributes(source) if source is not None and \
+            source.name in reasons else []
+        message = (f"material '{source.name}': its bake cannot read the attributes "
+                   f"{', '.join(attributes)}: rendered as 0") if attributes else ""
+        if attributes and message not in warnings:
+            warnings.append(message)
         viewed = view_dependent(source) if source is not None and source.name in reasons \
             else []
         message = (f"material '{source.name}': its bake holds {', '.join(viewed)} as seen "

@@ -288,8 +288,9 @@ def test_cache_and_user_data(blender):
 
 def test_a_bake_names_what_it_cannot_give(blender):
     """Object Info's Random comes from the bake's stand-in object, not the object, a
-    view-dependent node is baked as seen straight on, and Ambient Occlusion sees the object
-    alone: the export says so on every frame, the bake itself is kept."""
+    view-dependent node is baked as seen straight on, Ambient Occlusion sees the object alone
+    and an instance's attributes are not there: the export says so on every frame, the bake
+    itself is kept."""
     bpy = blender
     scene = case_scene(bpy, "object_info")
     tree = bpy.data.materials["Object_Info"].node_tree
@@ -320,6 +321,13 @@ def test_a_bake_names_what_it_cannot_give(blender):
     occlusion.only_local = True  # the object alone is what it asks for
     assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
     assert export_scene(bpy.context.evaluated_depsgraph_get()).warnings == []
+    attribute = tree.nodes.new("ShaderNodeAttribute")  # each instance's own
+    attribute.attribute_type, attribute.attribute_name = "INSTANCER", "tone"
+    tree.links.new(attribute.outputs["Fac"], occlusion.inputs["Distance"])
+    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
+    assert export_scene(bpy.context.evaluated_depsgraph_get()).warnings == [
+        "material 'Object_Info': its bake cannot read the attributes 'tone' (Instancer): "
+        "rendered as 0"]
     bake.CACHE.clear()
     assert scene.objects["Plane"].color[0] == np.float32(0.8)
 
