@@ -472,7 +472,7 @@ def _failed(obj: bpy.types.Object, key: tuple, why: str) -> None:
     CACHE.problems.append(f"object '{obj.original.name}': not baked: {why}")
 
 
-def _mesh_objects(depsgraph: bpy.types.Depsgraph) -> list[bpy.types.Object]:
+def _baked_objects(depsgraph: bpy.types.Depsgraph) -> list[bpy.types.Object]:
     """The original objects of BAKED_TYPES the evaluated scene renders, each once: those in
     the view layer and those only instanced (a collection of assets excluded from the view layer and
     instanced), not geometry an object's own nodes generate (not baked)."""
@@ -500,7 +500,7 @@ def bake_scene(depsgraph: bpy.types.Depsgraph, evaluations: tuple[bool, ...] = (
     CACHE.generation += 1
     CACHE.baked, CACHE.problems, CACHE.failed = [], [], {}
     materials: dict[str, dict[str, str]] = {}  # each material's fallback, exported once
-    for original in _mesh_objects(depsgraph):
+    for original in _baked_objects(depsgraph):
         obj = original.evaluated_get(depsgraph)
         if obj.type == "MESH" and not obj.data.polygons:
             continue
