@@ -47,19 +47,19 @@ def unsuitable(corner_uvs: np.ndarray | None, corner_positions: np.ndarray | Non
 
 
 OVERLAP_GRID = 128  # texels per side of the grid the overlap test rasterises UVs into
-OVERLAP_WORK = 1 << 24  # texel tests at most (larger maps are tested on fewer texels)
+OVERLAP_WORK = 1 << 21  # texel tests at most (about 0.2 GB; beyond it, the first triangles)
 
 
 def shared_texels(corner_uvs: np.ndarray) -> int:
     """How many texel centres of an OVERLAP_GRID² grid lie strictly inside two or more of
     the UV triangles (T*3, 2): overlaps the area sum does not find (mirrored halves, a front
-    and back face on one island, as text objects have)."""
+    and back face on one island, whose areas fit in the square together)."""
     tri = corner_uvs.reshape(-1, 3, 2).astype(np.float64) * OVERLAP_GRID - 0.5
     lo = np.ceil(tri.min(axis=1)).astype(np.int64).clip(0, OVERLAP_GRID - 1)
     hi = np.floor(tri.max(axis=1)).astype(np.int64).clip(0, OVERLAP_GRID - 1)
     span = np.maximum(hi - lo + 1, 0)
     count = span[:, 0] * span[:, 1]
-    if count.sum() > OVERLAP_WORK:  # a coarser grid would do; keep the test cheap instead
+    if count.sum() > OVERLAP_WORK:  # the first triangles only: the test stays cheap
         keep = np.cumsum(count) <= OVERLAP_WORK
         tri, lo, span, count = tri[keep], lo[keep], span[keep], count[keep]
     owner = np.repeat(np.arange(len(tri)), count)
