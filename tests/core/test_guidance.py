@@ -215,3 +215,21 @@ def test_camera_points_go_through_hidden_objects_and_stop_at_holdouts(tracer) ->
     x, z = points.position[:, 0], points.position[:, 2]
     assert np.all(x < 0.0) and np.abs(z).max() < 1e-5
     assert 100 < len(x) < 156  # the left half of 256 rays
+
+
+def test_camera_points_under_a_clip_range_float32_cannot_hold(tracer) -> None:
+    """A perspective camera 5 m above the floor with Clip Start 0.1 mm and Clip End 100 km, its
+    projection rounded to float32 as Blender computes it: the far plane lies at infinity
+    (−(f + n)/(f − n) rounds to −1), so rays made towards it were NaN and guidance found no
+    camera point (the Cornell box: 16 times the VPLs, 12 times the time, before stop 66)."""
+    near, far = 1e-4, 1e5
+    projection = np.array([[1, 0, 0, 0], [0, 1, 0, 0],
+                           [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
+                           [0, 0, -1, 0]], np.float32).astype(np.float64)
+    assert projection[2, 2] == -1.0
+    camera = replace(top_down_camera(), projection_matrix=projection, is_orthographic=False)
+    geometry = flatten_instances(floor_scene([]), [])
+    tracer.upload(geometry.positions.reshape(-1, 3, 3))
+    points = camera_points(camera, geometry, tracer, 256, 0)
+    assert len(points.position) == 256  # every ray of the 90° view meets the 10 m floor
+    assert np.isfinite(points.position).all() and np.abs(points.position[:, 2]).max() < 1e-5

@@ -123,7 +123,7 @@ def camera_directions(camera: Camera, aa: int, x0: int, y0: int, width: int, hei
     gx, gy = np.meshgrid(x, y)
     inverse = np.linalg.inv(camera.projection_matrix @ camera.view_matrix)
     ends = []
-    for depth in (-1.0, 1.0):
+    for depth in (-1.0, 0.0):  # far plane at infinity where far / near > ~3e7 (float32)
         clip = np.stack([gx, gy, np.full_like(gx, depth), np.ones_like(gx)], axis=-1)
         world = clip @ inverse.T
         ends.append(world[..., :3] / world[..., 3:4])

@@ -91,7 +91,7 @@ def camera_points(camera: Camera, geometry: WorldGeometry, tracer: RayCaster, co
     ndc = cells * 2.0 - 1.0
     clip_to_world = np.linalg.inv(camera.projection_matrix @ camera.view_matrix)
     ends = []
-    for depth in (-1.0, 1.0):
+    for depth in (-1.0, 0.0):  # far plane at infinity where far / near > ~3e7 (float32)
         clip = np.hstack([ndc, np.full((len(ndc), 1), depth), np.ones((len(ndc), 1))])
         world = clip @ clip_to_world.T
         ends.append(world[:, :3] / world[:, 3:4])
