@@ -304,28 +304,27 @@ def test_a_bake_names_what_it_cannot_give(blender):
         warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
         assert warnings == ["object 'Plane': Object Info's Random in its bake is not the "
                             "object's (a stand-in object's, one value)"]
+    gamma = next(n for n in tree.nodes if n.type == "GAMMA").inputs["Gamma"]
+
+    def warnings_once_linked(output, into=gamma) -> list[str]:
+        """The export's warnings once ``output`` feeds ``into`` and the object is baked."""
+        tree.links.new(output, into)
+        assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
+        return export_scene(bpy.context.evaluated_depsgraph_get()).warnings
+
     weight = tree.nodes.new("ShaderNodeLayerWeight")  # seen along the normal by the bake
-    tree.links.new(weight.outputs["Facing"], next(
-        n for n in tree.nodes if n.type == "GAMMA").inputs["Gamma"])
-    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
-    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
-    assert warnings == ["material 'Object_Info': its bake holds Layer Weight as seen looking "
-                        "straight at the surface, not from the camera"]
+    assert warnings_once_linked(weight.outputs["Facing"]) == [
+        "material 'Object_Info': its bake holds Layer Weight as seen looking straight at the "
+        "surface, not from the camera"]
     occlusion = tree.nodes.new("ShaderNodeAmbientOcclusion")  # sees the bake's scene alone
-    tree.links.new(occlusion.outputs["AO"], next(
-        n for n in tree.nodes if n.type == "GAMMA").inputs["Gamma"])
-    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
-    warnings = export_scene(bpy.context.evaluated_depsgraph_get()).warnings
-    assert warnings == ["material 'Object_Info': its bake holds Ambient Occlusion of the "
-                        "object alone, not of the scene around it"]
+    assert warnings_once_linked(occlusion.outputs["AO"]) == [
+        "material 'Object_Info': its bake holds Ambient Occlusion of the object alone, not of "
+        "the scene around it"]
     occlusion.only_local = True  # the object alone is what it asks for
-    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
-    assert export_scene(bpy.context.evaluated_depsgraph_get()).warnings == []
+    assert warnings_once_linked(occlusion.outputs["AO"]) == []
     attribute = tree.nodes.new("ShaderNodeAttribute")  # each instance's own
     attribute.attribute_type, attribute.attribute_name = "INSTANCER", "tone"
-    tree.links.new(attribute.outputs["Fac"], occlusion.inputs["Distance"])
-    assert len(bake.bake_scene(bpy.context.evaluated_depsgraph_get()).baked) == 1
-    assert export_scene(bpy.context.evaluated_depsgraph_get()).warnings == [
+    assert warnings_once_linked(attribute.outputs["Fac"], occlusion.inputs["Distance"]) == [
         "material 'Object_Info': its bake cannot read the attributes 'tone' (Instancer): "
         "rendered as 0"]
     bake.CACHE.clear()
