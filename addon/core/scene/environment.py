@@ -121,14 +121,7 @@ def camera_directions(camera: Camera, aa: int, x0: int, y0: int, width: int, hei
     x = 2 * (x0 + np.arange(width) + 0.5) / full_w - 1
     y = 2 * (y0 + np.arange(height) + 0.5) / full_h - 1
     gx, gy = np.meshgrid(x, y)
-    inverse = np.linalg.inv(camera.projection_matrix @ camera.view_matrix)
-    ends = []
-    for depth in (-1.0, 0.0):  # far plane at infinity where far / near > ~3e7 (float32)
-        clip = np.stack([gx, gy, np.full_like(gx, depth), np.ones_like(gx)], axis=-1)
-        world = clip @ inverse.T
-        ends.append(world[..., :3] / world[..., 3:4])
-    d = ends[1] - ends[0]
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+    return camera.rays(np.stack([gx, gy], axis=-1))[1]
 
 
 def background(world: World, camera: Camera, aa: int, x0: int, y0: int, width: int,

@@ -408,6 +408,20 @@ class Camera:
     def position(self) -> np.ndarray:
         return np.linalg.inv(self.view_matrix)[:3, 3]
 
+    def rays(self, ndc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World origins on the near plane and unit directions (…, 3) of the camera rays
+        through points ``ndc`` (…, 2) of the image in normalised device coordinates. The
+        direction aims at depth 0, not the far plane, which Blender's float32 projection puts
+        at infinity once Clip End / Clip Start passes about 3e7."""
+        clip_to_world = np.linalg.inv(self.projection_matrix @ self.view_matrix)
+        column = (*ndc.shape[:-1], 1)
+        ends = []
+        for depth in (-1.0, 0.0):
+            clip = np.concatenate([ndc, np.full(column, depth), np.ones(column)], axis=-1)
+            world = clip @ clip_to_world.T
+            ends.append(world[..., :3] / world[..., 3:4])
+        return ends[0], unit(ends[1] - ends[0])
+
     @property
     def forward(self) -> np.ndarray:
         """The unit direction the camera looks along (its -Z) in world space."""

@@ -88,14 +88,7 @@ def camera_points(camera: Camera, geometry: WorldGeometry, tracer: RayCaster, co
     rng = np.random.default_rng(seed)
     cells = (np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)
              + rng.random((side * side, 2))) / side
-    ndc = cells * 2.0 - 1.0
-    clip_to_world = np.linalg.inv(camera.projection_matrix @ camera.view_matrix)
-    ends = []
-    for depth in (-1.0, 0.0):  # far plane at infinity where far / near > ~3e7 (float32)
-        clip = np.hstack([ndc, np.full((len(ndc), 1), depth), np.ones((len(ndc), 1))])
-        world = clip @ clip_to_world.T
-        ends.append(world[:, :3] / world[:, 3:4])
-    origin, direction = ends[0], unit(ends[1] - ends[0])
+    origin, direction = camera.rays(cells * 2.0 - 1.0)
     distance, triangle = _first_seen(origin, direction, geometry, tracer)
     hit = np.flatnonzero(triangle >= 0)
     triangle = triangle[hit]
