@@ -438,14 +438,6 @@ def needed(obj: bpy.types.Object, fallbacks: dict[str, str],
     return found
 
 
-def view_dependent(material: bpy.types.Material) -> list[str]:
-    """The nodes of a material's surface whose value depends on the viewing ray, which its
-    bake holds as seen along the surface's normal (bake_tree.VIEW_DEPENDENT)."""
-    if material.node_tree is None:
-        return []
-    return bake_tree.view_dependent(surface_node(material.node_tree))
-
-
 def reads_random(material: bpy.types.Material | None) -> bool:
     """Whether a material's tree reads Object Info's Random, which a bake cannot give: the
     bake renders a stand-in object, with a random value of its own."""
@@ -496,7 +488,7 @@ def bake_scene(depsgraph: bpy.types.Depsgraph, evaluations: tuple[bool, ...] = (
     from . import world_bake  # it imports this module
     from .export import fallback_reasons, world_bake_reason  # the exporter imports this module
 
-    resolution = settings_of(depsgraph.scene)[0]
+    resolution, cap = settings_of(depsgraph.scene)
     CACHE.generation += 1
     CACHE.baked, CACHE.problems, CACHE.failed = [], [], {}
     materials: dict[str, dict[str, str]] = {}  # each material's fallback, exported once
@@ -509,7 +501,7 @@ def bake_scene(depsgraph: bpy.types.Depsgraph, evaluations: tuple[bool, ...] = (
         if not reasons:
             continue
         for render in sorted({r and render_differs(obj) for r in evaluations}):
-            _bake_if_stale(obj, depsgraph, resolution, reasons, render)
+            _bake_if_stale(obj, depsgraph, resolution, cap, reasons, render)
 
     world = depsgraph.scene_eval.world
     CACHE.world_seconds = world_bake.bake_if_needed(world, world_bake_reason(world))
@@ -517,10 +509,9 @@ def bake_scene(depsgraph: bpy.types.Depsgraph, evaluations: tuple[bool, ...] = (
 
 
 def _bake_if_stale(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolution: int,
-                   reasons: dict[str, str], render: bool) -> None:
+                   cap: int, reasons: dict[str, str], render: bool) -> None:
     """Bake one evaluation of an object unless its cached bake still fits (a bake in its own
-    UV map fits any)."""
-    cap = settings_of(depsgraph.scene)[1]
+    UV map fits any), within the bake memory ``cap`` (bytes)."""
     key = bake_key(obj, resolution, render)
     entry = CACHE.entries.get(key)
     if entry is not None and (entry.evaluated is None or entry.evaluated == (
@@ -593,38 +584,35 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
     reasons = needed(obj, fallbacks, named) if mesh.triangle_count else {}
     if not reasons:
         return mesh, materials
+    differs = rendering and render_differs(obj)
     key, entry = None, None
     if obj.original.type in BAKED_TYPES:
-        keys = [bake_key(obj, resolution, True), bake_key(obj, resolution)] \
-            if rendering and render_differs(obj) else [bake_key(obj, resolution)]
-        key = next((k for k in keys if _valid(CACHE.entries.get(k), obj)), keys[0])
-        entry = CACHE.entries.get(key)
-    if not _valid(entry, obj):
+        keys = [bake_key(obj, resolution, True), bake_key(obj, resolution)] if differs \
+            else [bake_key(obj, resolution)]
+        fitting = next((k for k in keys if _valid(CACHE.entries.get(k), obj)), None)
+        key, entry = (keys[0], None) if fitting is None else (fitting, CACHE.entries[fitting])
+    if entry is None:
         if key is None:
             why = f"not baked: {obj.original.type.lower()} objects are not baked"
         elif key in CACHE.failed:
             why = f"not baked: {CACHE.failed[key]}"
-        elif rendering and render_differs(obj) and threading.current_thread() is not \
-                threading.main_thread():
+        elif differs and threading.current_thread() is not threading.main_thread():
             why = ("not baked: renders started in Blender's window cannot bake, and the "
                    "viewport's bake, made on its own subdivision levels and modifiers, does "
                    "not fit the render's mesh; press Bake Materials first")
         else:
             why = NOT_BAKED
             unbaked.update(reasons)
-        for name, reason in reasons.items():
-            message = f"material '{name}': {reason}; using its viewport colour ({why})"
-            if message not in warnings:
-                warnings.append(message)
+        _warn(warnings, [f"material '{name}': {reason}; using its viewport colour ({why})"
+                         for name, reason in reasons.items()])
         return mesh, materials
     entry.used = CACHE.generation
     sources = [slot.material for slot in obj.material_slots]
-    for m, source in zip(materials, sources, strict=True):
-        lost = lost_textures(m, entry) if source is not None and source.name in reasons else []
-        message = (f"material '{m.name}': its {' and '.join(lost)} is not rendered: the mesh "
-                   f"has no UV map a bake can use, and the bake's new one would misplace it")
-        if lost and message not in warnings:
-            warnings.append(message)
+    baked = [(m, source) for m, source in zip(materials, sources, strict=True)
+             if source is not None and source.name in reasons]
+    _warn(warnings, [f"material '{m.name}': its {' and '.join(lost)} is not rendered: the "
+                     f"mesh has no UV map a bake can use, and the bake's new one would "
+                     f"misplace it" for m, _ in baked if (lost := lost_textures(m, entry))])
     result = [baked_material(m, source, entry) if source is not None and (
         source.name in reasons or (entry.mesh is not None and _bakeable(source) and
         (m.base_color_texture, m.emission_texture) != (None, None))) else m
@@ -633,33 +621,31 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
             f"'{obj.original.name}' ({entry.textures['albedo'].pixels.shape[0]} px, "
             f"{entry.seconds:.2f} s{', xatlas UVs' if entry.mesh is not None else ''}): "
             f"{'; '.join(sorted(set(reasons.values())))}")
-    if note not in notes:
-        notes.append(note)
-    random = f"object '{obj.original.name}': Object Info's Random in its bake is not the " \
-             f"object's (a stand-in object's, one value)"
-    if any(reads_random(s) for s in sources if s is not None and s.name in reasons) and \
-            random not in warnings:
-        warnings.append(random)
-    for source in sources:
-        attributes = unbakeable_attributes(source) if source is not None and \
-            source.name in reasons else []
-        message = (f"material '{source.name}': its bake cannot read the attributes "
-                   f"{', '.join(attributes)}: rendered as 0") if attributes else ""
-        if attributes and message not in warnings:
-            warnings.append(message)
-        viewed = view_dependent(source) if source is not None and source.name in reasons \
-            else []
-        message = (f"material '{source.name}': its bake holds {', '.join(viewed)} as seen "
-                   f"looking straight at the surface, not from the camera") if viewed else ""
-        if viewed and message not in warnings:
-            warnings.append(message)
-        around = bake_tree.scene_dependent(surface_node(source.node_tree)) \
-            if source is not None and source.name in reasons and source.node_tree else []
-        message = (f"material '{source.name}': its bake holds {', '.join(around)} of the "
-                   f"object alone, not of the scene around it") if around else ""
-        if around and message not in warnings:
-            warnings.append(message)
+    _warn(notes, [note])
+    if any(reads_random(source) for _, source in baked):
+        _warn(warnings, [f"object '{obj.original.name}': Object Info's Random in its bake is "
+                         f"not the object's (a stand-in object's, one value)"])
+    _warn(warnings, [message for _, source in baked for message in _unbaked_parts(source)])
     return (entry.mesh if entry.mesh is not None else mesh), result
+
+
+def _unbaked_parts(source: bpy.types.Material) -> list[str]:
+    """What a baked material's bake cannot hold, as warnings: Attribute nodes it cannot read,
+    view-dependent nodes seen straight on, Ambient Occlusion of the object alone."""
+    surface = surface_node(source.node_tree) if source.node_tree is not None else None
+    parts = [(unbakeable_attributes(source), "its bake cannot read the attributes {}: "
+              "rendered as 0"),
+             (bake_tree.view_dependent(surface), "its bake holds {} as seen looking straight "
+              "at the surface, not from the camera"),
+             (bake_tree.scene_dependent(surface), "its bake holds {} of the object alone, not "
+              "of the scene around it")]
+    return [f"material '{source.name}': " + text.format(", ".join(found))
+            for found, text in parts if found]
+
+
+def _warn(messages: list[str], new: list[str]) -> None:
+    """Add each of ``new`` to ``messages`` unless it is there already."""
+    messages.extend(m for m in dict.fromkeys(new) if m not in messages)
 
 
 def report(stats: Stats, notes: list[str]) -> None:
