@@ -3,6 +3,7 @@ material-table row per triangle, visible light shapes, and the scene's bounding 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -439,20 +440,26 @@ def _albedo_table(materials: list[Material], warnings: list[str]) -> np.ndarray:
     """Base colours per material slot, capped to [0, MAX_ALBEDO] with one warning per material
     (Blender allows colours above 1; with them every bounce would add energy)."""
     table = np.array([m.base_color for m in materials], dtype=np.float64)
-    for material, row in zip(materials, table, strict=True):
-        if not np.isfinite(row).all():
-            message = (f"material '{material.name}': base colour {tuple(row.tolist())} is "
-                       f"not finite: rendered as 0 there")
-            if message not in warnings:
-                warnings.append(message)
+    _name_rows(materials, table, warnings, lambda row: not np.isfinite(row).all(),
+               "base colour {} is not finite: rendered as 0 there",
+               lambda row: tuple(row.tolist()))
     table = np.where(np.isfinite(table), table, 0.0)
-    for material, row in zip(materials, table, strict=True):
-        if row.max() > MAX_ALBEDO or row.min() < 0:
-            message = (f"material '{material.name}': base colour {tuple(np.round(row, 3))} "
-                       f"capped to [0, {MAX_ALBEDO:g}] (energy would grow with every bounce)")
-            if message not in warnings:
-                warnings.append(message)
+    _name_rows(materials, table, warnings, lambda row: row.max() > MAX_ALBEDO or row.min() < 0,
+               f"base colour {{}} capped to [0, {MAX_ALBEDO:g}] (energy would grow with every "
+               f"bounce)", lambda row: tuple(np.round(row, 3)))
     return np.clip(table, 0.0, MAX_ALBEDO)
+
+
+def _name_rows(materials: list[Material], rows: np.ndarray, warnings: list[str],
+               bad: Callable[[np.ndarray], bool], text: str,
+               shown: Callable[[np.ndarray], object]) -> None:
+    """One warning per material whose row of ``rows`` is ``bad``: ``text`` with the row as
+    ``shown``, after the material's name (each message once)."""
+    for material, row in zip(materials, rows, strict=True):
+        message = f"material '{material.name}': " + text.format(shown(row)) if bad(row) \
+            else None
+        if message is not None and message not in warnings:
+            warnings.append(message)
 
 
 def _material_rows(materials: list[Material], warnings: list[str],
@@ -463,19 +470,14 @@ def _material_rows(materials: list[Material], warnings: list[str],
     ``clamped``."""
     albedo = _albedo_table(materials, warnings)
     emission = np.array([m.emission for m in materials], np.float64)
-    for material, row in zip(materials, emission, strict=True):
-        if not (np.isfinite(row).all() and row.min() >= 0):
-            message = (f"material '{material.name}': emission {tuple(row.tolist())} is "
-                       f"negative or not finite: rendered as 0 there")
-            if message not in warnings:
-                warnings.append(message)
+    _name_rows(materials, emission, warnings,
+               lambda row: not (np.isfinite(row).all() and row.min() >= 0),
+               "emission {} is negative or not finite: rendered as 0 there",
+               lambda row: tuple(row.tolist()))
     emission = np.where(np.isfinite(emission), np.maximum(emission, 0), 0)
-    for material, row in zip(materials, emission, strict=True):
-        if row.max() > MAX_EMISSION:
-            message = (f"material '{material.name}': emission {tuple(row.tolist())} capped to "
-                       f"{MAX_EMISSION:g} (its light would overflow 32-bit floats)")
-            if message not in warnings:
-                warnings.append(message)
+    _name_rows(materials, emission, warnings, lambda row: row.max() > MAX_EMISSION,
+               f"emission {{}} capped to {MAX_EMISSION:g} (its light would overflow 32-bit "
+               f"floats)", lambda row: tuple(row.tolist()))
     emission = np.minimum(emission, MAX_EMISSION)
     for row, material in enumerate(materials):
         if material.base_color_texture is not None:
