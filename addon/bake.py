@@ -62,6 +62,7 @@ class Baked:
     nbytes: int
     evaluated: str | None = None  # with xatlas UVs: the hash of the mesh they were made on
     used: int = 0  # the cache generation that last used it
+    limits: tuple[str, ...] = ()  # what it cannot hold, as warnings (bake_limits)
 
 
 @dataclass
@@ -372,7 +373,8 @@ def bake_object(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, resolutio
         core_mesh = read_mesh(mesh, obj.name) if unwrapped is not None else None
     nbytes = sum(t.pixels.nbytes for t in textures.values())
     return Baked(textures, core_mesh, time.perf_counter() - start, reasons, nbytes,
-                 evaluated if unwrapped is not None else None)
+                 evaluated if unwrapped is not None else None,
+                 limits=bake_limits(obj, materials, reasons))
 
 
 def _bakeable(material: bpy.types.Material | None) -> bool:
@@ -622,11 +624,20 @@ def apply(obj: bpy.types.Object, mesh: Mesh, materials: list[Material],
             f"{entry.seconds:.2f} s{', xatlas UVs' if entry.mesh is not None else ''}): "
             f"{'; '.join(sorted(set(reasons.values())))}")
     _warn(notes, [note])
-    if any(reads_random(source) for _, source in baked):
-        _warn(warnings, [f"object '{obj.original.name}': Object Info's Random in its bake is "
-                         f"not the object's (a stand-in object's, one value)"])
-    _warn(warnings, [message for _, source in baked for message in _unbaked_parts(source)])
+    _warn(warnings, list(entry.limits))
     return (entry.mesh if entry.mesh is not None else mesh), result
+
+
+def bake_limits(obj: bpy.types.Object, materials: list[bpy.types.Material | None],
+                reasons: dict[str, str]) -> tuple[str, ...]:
+    """What an object's bake of the materials named in ``reasons`` cannot hold, as warnings
+    (found once, when it is made: its trees key it): Object Info's Random, and each
+    material's _unbaked_parts."""
+    baked = [m for m in materials if m is not None and m.name in reasons]
+    random = [f"object '{obj.original.name}': Object Info's Random in its bake is not the "
+              f"object's (a stand-in object's, one value)"] if any(map(reads_random, baked)) \
+        else []
+    return (*random, *(message for m in baked for message in _unbaked_parts(m)))
 
 
 def _unbaked_parts(source: bpy.types.Material) -> list[str]:
