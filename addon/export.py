@@ -49,6 +49,7 @@ from .core.scene.model import (
     Identity,
     Instance,
     Light,
+    LightKind,
     Material,
     Mesh,
     Mist,
@@ -1311,10 +1312,14 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
             elif is_portal(obj):
                 result.portals.append(export_light(obj, matrix))
             else:
-                result.lights.append(export_light(obj, matrix, result.warnings,
-                                                  depsgraph.view_layer))
-                result.lights[-1].receivers = linking.receivers_of(obj)
-                result.lights[-1].blockers = linking.blockers_of(obj)
+                light = export_light(obj, matrix, result.warnings, depsgraph.view_layer)
+                if light.kind is LightKind.AREA and light.world_area <= 0:
+                    result.warnings.append(f"area light '{obj.name}' has zero size: it gives "
+                                           f"no light, as in Cycles")
+                    continue
+                light.receivers = linking.receivers_of(obj)
+                light.blockers = linking.blockers_of(obj)
+                result.lights.append(light)
             continue
         hair = False
         if kind == "MESH" and inst.show_particles:

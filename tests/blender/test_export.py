@@ -499,7 +499,7 @@ def _material_without_nodes(bpy):
 def _zero_size_area_light(bpy):
     light = add_light(bpy, "AREA", 20.0, location=(0.5, 0, 1), size=-1.0)
     assert light.data.size == 0.0  # Blender clamps a negative size to 0
-    return "light 'AreaLight' has zero size: it gives no light, as in Cycles"
+    return "area light 'AreaLight' has zero size: it gives no light, as in Cycles"
 
 
 def _zero_scale_light(bpy):

@@ -447,8 +447,6 @@ def light_problem(light: Light) -> str | None:
         return "has a zero-scale transform and was left out"
     if light.power < 0:
         return f"has negative power ({light.power:g} W): rendered as 0 W"
-    if light.kind is LightKind.AREA and min(light.area_size) <= 0:
-        return "has zero size: it gives no light, as in Cycles"
     return None
 
 
@@ -465,6 +463,9 @@ def build_light_samples(scene: Scene, geometry: WorldGeometry, settings: Setting
             continue
         if light.kind is LightKind.AREA and light.spread < MIN_SPREAD:
             warnings.append(f"area light '{light.name}': spread below 1° is rendered as 1°")
+        if light.kind is LightKind.AREA and min(light.area_size) <= 0:
+            warnings.append(f"area light '{light.name}' has zero or negative size: lit as a "
+                            f"point emitter of the same power")
         if include_dark or (light.power != 0 and any(c != 0 for c in light.color)):
             first_row = len(b.rows)
             _add_light(b, light, settings, rng)
