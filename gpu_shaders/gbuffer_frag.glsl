@@ -87,6 +87,19 @@ vec3 bumped_normal(vec3 n, vec4 map) {
 }
 #endif
 
+// The triangle's normal, from the position's screen derivatives; `interpolated` where they
+// are below what float32 resolves this far from the origin (about 100 ulps: a view a few
+// hundred thousandths of its distance from the origin wide, e.g. an orthographic scale of
+// 1e-5 m) and so zero or of no direction.
+vec3 geometric_normal(vec3 interpolated) {
+    vec3 dx = dFdx(v_world), dy = dFdy(v_world);
+    vec3 across = cross(dx, dy);
+    float squared = dot(across, across);
+    float resolvable = 1.0e-5 * length(v_world);
+    return min(length(dx), length(dy)) > resolvable && squared > 0.0
+        ? across * inversesqrt(squared) : interpolated;
+}
+
 layout(location = 0) out vec4 out_position;  // xyz world, w = view-space depth (Blender's Z)
 layout(location = 1) out vec4 out_normal;    // shading normal, w = 1 where there is a surface
 layout(location = 2) out vec4 out_geometric; // geometric normal
@@ -108,9 +121,9 @@ void main() {
     }
 #endif
     vec3 to_camera = u_orthographic ? -u_camera_forward : normalize(u_camera_position - v_world);
-    vec3 geometric = normalize(cross(dFdx(v_world), dFdy(v_world)));
-    if (dot(geometric, to_camera) < 0.0) geometric = -geometric;
     vec3 shading = normalize(v_normal);
+    vec3 geometric = geometric_normal(shading);
+    if (dot(geometric, to_camera) < 0.0) geometric = -geometric;
 #ifdef TEXTURED
     if (material.normal_map.x > 0.5) {
         shading = material.normal_map.z > 0.0 ? bumped_normal(shading, material.normal_map)

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from addon.core.frame.renderer import RenderCancelled, RenderError
 from addon.core.scene.model import Instance, LightKind, Material, Mesh, Scene, World
 from addon.core.settings import Settings, SettingsError
-from tests.core.builders import floor_scene, light, quad, translation
+from tests.core.builders import floor_scene, light, quad, top_down_camera, translation
 
 
 def assert_finite(frame) -> None:
@@ -109,3 +111,18 @@ def test_indirect_light_is_left_out_when_the_scene_does_not_need_it(renderer, ch
     assert stats.skipped["indirect light"] == reason
     assert stats.counts["vpls"] == 0 and np.all(frame.passes["DiffInd"] == 0)
     assert "skipped: indirect light" in stats.summary()
+
+
+def test_a_view_narrower_than_float32_resolves_has_no_nan_rows(renderer):
+    """An orthographic view 10 µm wide, a metre and a half from the origin, of a floor under
+    an area light (shadow-mapped, supersampled): neighbouring supersamples' positions are
+    equal in float32 there, so the geometric normal taken from their differences was NaN
+    (whole rows of pixels, zeroed into dark rows with a warning). The floor is lit evenly."""
+    area = light(LightKind.AREA, translation(1, 1, 2), power=50.0, size_x=0.5)
+    scene = floor_scene([area], size=32)
+    scene.camera = replace(top_down_camera(32, extent=1e-5),
+                           view_matrix=translation(-1.0, -1.0, -5.0))
+    frame, stats = renderer.render(scene, Settings(bounces=0))
+    assert not any("non-finite" in w for w in stats.warnings)
+    direct = frame.passes["DiffDir"][..., :3]
+    assert direct.min() > 0.99 * direct.max() > 0
