@@ -185,8 +185,9 @@ class _Emitter:
 def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
     """A light's emitter of light paths (None for one that emits none)."""
     emitter = _light_emitter(light, centre, radius)
-    if emitter is not None:
-        emitter.receivers, emitter.blockers = light.receivers, light.blockers
+    if emitter is not None:  # a light that casts no shadow: nothing blocks its paths' start
+        emitter.receivers = light.receivers
+        emitter.blockers = light.blockers if light.cast_shadow else 0
     return emitter
 
 
@@ -200,19 +201,22 @@ def light_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
     """Where light leaving its emitter arrives (Cycles' shadow rays): each ray's first hit,
     or every surface up to the first that casts a shadow of it, since the others let it
     through yet receive it (``every_surface``; else that surface alone): objects whose
-    Shadow visibility is off (where the light meets their front faces: a bulb round its
-    lamp, whose inside no ray from outside reaches, holds no light), and with shadow linking
-    those not in the emitter's ``blockers`` (per ray or one). As (ray, distance, triangle,
-    light let through by clear surfaces on the way (·, 3)), one entry per ray and hit; a miss
-    has distance inf and triangle -1."""
+    Shadow visibility is off, those not in the emitter's ``blockers`` (per ray or one:
+    shadow linking) and, for blockers 0 (a light that casts no shadow), every surface.
+    Surfaces met from behind are passed without light where they are shadowless or the
+    light is (a bulb round its lamp, the inside of a closed object: no ray from outside
+    reaches them, and light left there would leak through imperfect shadow maps). As (ray,
+    distance, triangle, light let through by clear surfaces on the way (·, 3)), one entry per
+    ray and hit; a miss has distance inf and triangle -1."""
     shadowless = geometry.shadowless if every_surface and geometry.shadowless.any() else None
     stop_at_shadowless = shadowless is not None
     hits = tracer.intersect(origin, direction, t_min, np.inf, shadow=not stop_at_shadowless)
     current = (np.arange(len(origin)), hits.distance.copy(), hits.triangle.copy(),
                hits.transmittance.astype(np.float64))
     blockers = np.broadcast_to(np.asarray(blockers, np.uint64), current[0].shape)
-    linked = geometry.blocker_set is not None and bool(
-        np.any(blockers != np.uint64(EVERY_RECEIVER_SET)))
+    unblocked = blockers == np.uint64(0)
+    linked = bool(np.any(blockers != np.uint64(EVERY_RECEIVER_SET))) and (
+        geometry.blocker_set is not None or bool(unblocked.any()))
     if not linked and shadowless is None:
         return current
     found = []
@@ -221,7 +225,9 @@ def light_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
         hit = np.flatnonzero(triangle >= 0)
         passes = np.zeros(len(hit), bool)
         if linked:
-            bit = geometry.blocker_set[triangle[hit]].astype(np.uint64)
+            sets = geometry.blocker_set
+            bit = np.zeros(len(hit), np.uint64) if sets is None \
+                else sets[triangle[hit]].astype(np.uint64)
             passes |= ((blockers[ray[hit]] >> bit) & np.uint64(1)) == 0
         if shadowless is not None:
             passes |= shadowless[triangle[hit]]
@@ -230,9 +236,12 @@ def light_hits(tracer: RayCaster, geometry: WorldGeometry, origin: np.ndarray,
             break
         stays = np.ones(len(ray), bool)
         stays[passing] = every_surface
+        unlit_behind = unblocked[ray[passing]]
         if shadowless is not None:
+            unlit_behind = unlit_behind | shadowless[triangle[passing]]
+        if unlit_behind.any():
             behind = _back_facing(geometry, triangle[passing], direction[ray[passing]])
-            stays[passing] &= ~(shadowless[triangle[passing]] & behind)
+            stays[passing] &= ~(unlit_behind & behind)
         found.append(tuple(a[stays] for a in current))
         rays = ray[passing]
         again = tracer.intersect(origin[rays], direction[rays], distance[passing], np.inf,
