@@ -602,6 +602,9 @@ def _shader(node, name: str, images: ImageReader) -> Material:
             if node.type == "MIX_SHADER" else None
         if cutout is not None:
             return cutout
+        layered = _fresnel_mix(node, a, b) if node.type == "MIX_SHADER" else None
+        if layered is not None:
+            return layered
         if node.type == "ADD_SHADER":
             wa = wb = 1.0
         else:
@@ -634,6 +637,44 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                                             + wb * b.specular_ior_level) / weight,
                         **_mixed_maps(node, a, b, wa, wb))
     raise UnsupportedNodes(f"shader '{node.bl_label}' is not supported")
+
+
+def fresnel_ior(fac) -> float | None:
+    """The IOR of a Fresnel node's, or a Layer Weight's Fresnel output's (IOR 1 / (1 −
+    Blend), as Cycles computes it), constant dielectric Fresnel linked to ``fac``; None for
+    anything else (or a Normal input linked: the Fresnel of another normal)."""
+    if not fac.is_linked:
+        return None
+    link = fac.links[0]
+    source = link.from_node
+    if source.inputs.get("Normal") is not None and source.inputs["Normal"].is_linked:
+        return None
+    if source.type == "FRESNEL" and not source.inputs["IOR"].is_linked:
+        return max(float(source.inputs["IOR"].default_value), 1.0)
+    if source.type == "LAYER_WEIGHT" and link.from_socket.name == "Fresnel" \
+            and not source.inputs["Blend"].is_linked:
+        return 1.0 / max(1.0 - float(source.inputs["Blend"].default_value), 1e-5)
+    return None
+
+
+def _fresnel_mix(node, a: Material, b: Material) -> Material | None:
+    """A Mix Shader of a diffuse surface and a Glossy BSDF by their Fresnel (Fac from a
+    Fresnel node or a Layer Weight's Fresnel) — the layered plastic of materials made before
+    the Principled BSDF — as a Principled BSDF of the diffuse colour with a specular layer of
+    that IOR, the glossy roughness and its colour as tint; None for other mixes."""
+    ior = fresnel_ior(node.inputs["Fac"])
+    glossy = _linked_shader(node.inputs[2])
+    if ior is None or glossy is None or glossy.type != "BSDF_GLOSSY":
+        return None
+    diffuse_only = a.metallic == 0.0 and a.specular_ior_level == 0.0 and a.coat_weight == 0.0 \
+        and a.sheen_weight == 0.0 and not a.is_clear and not a.is_cutout
+    if not diffuse_only or b.base_color_texture is not None:
+        return None
+    normal = a if a.normal_texture is not None else b  # mixed normals: one side's map
+    return replace(a, roughness=b.roughness, ior=ior, specular_ior_level=0.5,
+                   specular_tint=b.base_color, normal_texture=normal.normal_texture,
+                   normal_strength=normal.normal_strength, bump_distance=normal.bump_distance,
+                   bump_filter_width=normal.bump_filter_width)
 
 
 def _diffuse_roughness(node, socket_name: str, name: str, warnings: list[str]
