@@ -63,7 +63,7 @@ from .core.scene.textures import MISSING_COLOR, decode_srgb
 from .export_hair import hair_systems, read_hair, read_particle_hair
 from .export_images import ImageReader, UnsupportedLink, linked_node, read_pixels
 from .export_light_linking import scene_light_linking
-from .export_lights import export_light, is_portal, visible_to_camera
+from .export_lights import export_light, is_portal, max_bounces, visible_to_camera
 from .export_motion import (
     InstanceKey,
     SampledMotion,
@@ -1417,9 +1417,11 @@ def export_scene(depsgraph: bpy.types.Depsgraph, cache: ExportCache | None = Non
     result.world = export_world(scene_eval.world, result.warnings, result.notes, cache.unbaked,
                                 result.lights)
     world_group = str(getattr(scene_eval.world, "lightgroup", "")) if scene_eval.world else ""
-    result.world = replace(result.world, lightgroup=world_group)  # a bake's world is kept
+    world_bounces = max_bounces(scene_eval.world)
+    result.world = replace(result.world, lightgroup=world_group,  # a bake's world is kept
+                           max_bounces=world_bounces)
     for light in result.lights[lights_before_world:]:
-        light.lightgroup = world_group
+        light.lightgroup, light.max_bounces = world_group, world_bounces
     result.warnings.extend(unrendered_objects(skipped))
     result.film_transparent = bool(scene_eval.render.film_transparent)
     result.camera = export_camera(depsgraph, scene_eval.camera, *render_size(scene_eval),

@@ -16,7 +16,7 @@ from .blender_compat import IES_SPLINE_EDGE, uses_nodes
 from .blender_read import UnsupportedNodes, constant, rgb, surface_node
 from .core.scene.blackbody import blackbody_rgb
 from .core.scene.ies import IesError, IesProfile, parse_ies
-from .core.scene.model import AreaShape, Light, LightKind
+from .core.scene.model import NO_BOUNCE_LIMIT, AreaShape, Light, LightKind
 from .core.transport.spot_scale import stretch_spot
 from .export_images import linked_node
 
@@ -54,7 +54,8 @@ def export_light(obj: bpy.types.Object, matrix: np.ndarray,
                   power=float(data.energy), cast_shadow=bool(getattr(data, "use_shadow", True)),
                   visible_to_camera=visible_to_camera(obj, view_layer),
                   visible_to_diffuse=bool(getattr(obj, "visible_diffuse", True)),
-                  lightgroup=str(getattr(obj, "lightgroup", "")))
+                  lightgroup=str(getattr(obj, "lightgroup", "")),
+                  max_bounces=max_bounces(data))
     if kind in (LightKind.POINT, LightKind.SPOT):
         light.radius = float(data.shadow_soft_size)
         light.soft_falloff = bool(getattr(data, "use_soft_falloff", False))
@@ -81,6 +82,13 @@ def export_light(obj: bpy.types.Object, matrix: np.ndarray,
     if not getattr(data, "normalize", True):
         light.power *= unnormalized_area(light)
     return stretch_spot(light)
+
+
+def max_bounces(data: bpy.types.Light | bpy.types.World | None) -> int:
+    """Cycles' Max Bounces of a light's or the world's light (its default, no limit, where
+    there is none)."""
+    cycles = getattr(data, "cycles", None)
+    return max(0, int(getattr(cycles, "max_bounces", NO_BOUNCE_LIMIT)))
 
 
 def unnormalized_area(light: Light) -> float:

@@ -19,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from addon.core.scene.model import Instance, LightKind, Material, Scene, World
+from addon.core.scene.model import NO_BOUNCE_LIMIT, Instance, LightKind, Material, Scene, World
 from addon.core.settings import Settings
 from tests.core.builders import icosphere, inside_sphere_camera, light, rotation_x, translation
 
@@ -53,6 +53,37 @@ def test_both_path_terminations_are_unbiased(renderer, termination):
     ratio = indirect_ratio(renderer, rho, bounces=6, vpl_count=512, clamp_distance=0.0,
                            termination=termination, visibility="exact")
     assert ratio == pytest.approx(rho * sum(rho**k for k in range(6)), rel=0.03)
+
+
+@pytest.mark.parametrize("limit", [0, 1, 2])
+@pytest.mark.parametrize("incremental", [False, True])
+def test_a_lights_max_bounces_ends_its_paths(renderer, limit, incremental):
+    """Cycles' Max Bounces of a light: with 4 bounces its light bounces at most ``limit``
+    times (0: direct light only), in final renders and in the viewport's incremental mode."""
+    rho = 0.5
+    scene = sphere_scene(rho)
+    scene.lights[0].max_bounces = limit
+    settings = Settings(antialiasing=1, bounces=4, vpl_count=128, clamp_distance=0.0,
+                        visibility="exact", incremental=incremental)
+    frame, stats = renderer.render(scene, settings)
+    renderer.forget_frames()
+    ratio = frame.passes["DiffInd"][..., 0].mean() / frame.passes["DiffDir"][..., 0].mean()
+    assert ratio == pytest.approx(rho * sum(rho**k for k in range(limit)), rel=0.03, abs=1e-9)
+    assert limit or stats.counts["vpls"] == 0
+
+
+def test_the_worlds_max_bounces_zero_leaves_its_light_direct(renderer):
+    """A ball on a floor under a white world: its light bounces between them, unless the
+    world's Max Bounces is 0."""
+    from tests.core.builders import floor_scene
+
+    ball = Instance(icosphere(0.5, 2), translation(0, 0, 0.5), [Material("ball", (0.8,) * 3)])
+    for limit in (NO_BOUNCE_LIMIT, 0):
+        scene = floor_scene([], extra=[ball], world=World(color=(1.0, 1.0, 1.0),
+                                                             max_bounces=limit))
+        frame, _ = renderer.render(scene, Settings(antialiasing=1, bounces=2))
+        assert (frame.passes["DiffInd"].max() > 0.01) == (limit > 0)
+        assert frame.passes["DiffDir"].max() > 0.1
 
 
 def test_bounces_zero_leaves_indirect_black(renderer):

@@ -211,6 +211,12 @@ class MakeVPLs(Stage):
             frame.stats.warnings.append(
                 "reflective shadow maps cover lights only: the world and emissive surfaces "
                 "add no indirect light with vpl_source rsm")
+        limited = [light.name for light in scene.lights
+                   if 0 < light.max_bounces < settings.bounces]
+        if limited:
+            frame.stats.warnings.append(
+                f"reflective shadow maps do not limit a light's bounces: Max Bounces of "
+                f"{', '.join(repr(name) for name in limited)} not applied with vpl_source rsm")
         samples = rsm_light_samples(scene, settings)
         if len(samples) == 0:
             return VPLs.empty()

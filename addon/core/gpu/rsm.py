@@ -29,10 +29,11 @@ from .shadow_atlas import TileTable, draw_tiles, tile_table
 
 
 def rsm_light_samples(scene: Scene, settings: Settings) -> LightSamples:
-    """Each light as one point seen from: sphere lights and area lights from their centre (area
-    lights keep their cosine emission), suns without their angle."""
+    """Each light whose light bounces (Max Bounces above 0) as one point seen from: sphere
+    lights and area lights from their centre (area lights keep their cosine emission), suns
+    without their angle."""
     lights = [replace(light, radius=0.0, sun_angle=0.0, size_x=0.0, size_y=0.0)
-              for light in scene.lights]
+              for light in scene.lights if light.max_bounces > 0]
     plain = Scene([], lights, World(), scene.camera)
     samples = build_light_samples(plain, empty_geometry(),
                                   replace(settings, light_samples=1), [])

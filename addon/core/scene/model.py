@@ -19,6 +19,8 @@ from .vectors import unit
 Matrix4 = np.ndarray  # (4, 4) float64, column vectors (Blender's convention)
 
 
+NO_BOUNCE_LIMIT = 1024
+"""A light's or the world's Max Bounces by default (Cycles'): no limit in practice."""
 EVERY_RECEIVER_SET = (1 << 64) - 1
 """An emitter's ``receivers`` when light linking leaves it lighting every object: bit s set
 lights the objects of receiver set s (Blender's light linking allows 64 sets, 0 the objects
@@ -283,6 +285,8 @@ class Light:
     cast_shadow: bool = True
     visible_to_camera: bool = True  # area lights: the shape shows in the image (Cycles' default)
     visible_to_diffuse: bool = True  # off: lights no diffuse surface, directly or not (Cycles)
+    max_bounces: int = NO_BOUNCE_LIMIT  # Cycles' Max Bounces: its light bounces at most so
+    # often (0: direct light only)
     profile: IesProfile | None = None  # an IES profile its light is multiplied by (ies.py),
     # towards directions in ``frame`` (point, spot and area lights)
     receivers: int = EVERY_RECEIVER_SET  # light linking: the receiver sets it lights
@@ -350,6 +354,7 @@ class World:
     visible_sun: Light | None = None
     background: EnvironmentMap | None = None
     lightgroup: str = ""  # its light group (World.lightgroup): frame/light_groups.py
+    max_bounces: int = NO_BOUNCE_LIMIT  # Cycles' Max Bounces of the world's light
 
     @property
     def radiance(self) -> np.ndarray:

@@ -41,7 +41,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..scene.geometry import WorldGeometry
-from ..scene.model import Scene
+from ..scene.model import NO_BOUNCE_LIMIT, Scene
 from ..scene.vectors import unit
 from ..settings import Settings
 from .light_domains import (
@@ -153,8 +153,8 @@ class IncrementalVPLs:
         self._key = key
         self._shape_version = shape_version
         n = settings.vpl_count
-        domains = {light.name: d for light in scene.surface_lights
-                   if (d := light_domain(light, centre, radius)) is not None}
+        domains = {light.name: d for light in scene.surface_lights if light.max_bounces > 0
+                   and (d := light_domain(light, centre, radius)) is not None}
         environment = environment_emitters(scene, geometry, centre, radius)
         targets = _allocate(n, [light_emitter(d.light, centre, radius).power
                                 for d in domains.values()]
@@ -175,6 +175,7 @@ class IncrementalVPLs:
         free = np.setdiff1d(np.arange(n), np.concatenate(
             [s.anchors.slot for s in self.lights.values()] + [np.zeros(0, int)]))
         hits: list[tuple[SurfaceHits, np.ndarray]] = []
+        limit = np.full(n, NO_BOUNCE_LIMIT)  # per rank: its emitter's Max Bounces
         permutation = np.random.default_rng(settings.seed).permutation(n)
         for name, domain in domains.items():
             state = self.lights[name]
@@ -185,9 +186,13 @@ class IncrementalVPLs:
             state.anchors = self._redistribute(state.anchors, domain, tracer, geometry, epsilon,
                                                settings)
             hits.append(self._anchor_hits(state.anchors, domain, permutation, geometry))
+            limit[hits[-1][0].rank] = domain.light.max_bounces
         if environment and len(free):
-            hits.append(self._environment_hits(environment, free, n, permutation, tracer,
-                                               geometry, epsilon, settings.seed))
+            found, ids, bounces = self._environment_hits(environment, free, n, permutation,
+                                                         tracer, geometry, epsilon,
+                                                         settings.seed)
+            hits.append((found, ids))
+            limit[found.rank] = bounces
         self.stats.kept = sum(len(s.anchors) for s in self.lights.values()) \
             - self.stats.created - self.stats.redistributed
         if not hits or settings.bounces == 0 or geometry.vertex_count == 0:
@@ -196,7 +201,8 @@ class IncrementalVPLs:
                               for f in SurfaceHits.__dataclass_fields__
                               if f not in ("incoming", "base")))
         directions = scrambled_halton(n, 2 * max(0, settings.bounces - 1), settings.seed)
-        vpls = propagate(first, n, directions, settings, tracer, geometry, radius)
+        vpls = propagate(first, n, directions, settings, tracer, geometry,
+                         radius).within_bounce_limits(limit)
         path_of_rank = np.zeros(n, np.int64)
         path_of_rank[first.rank] = np.concatenate([ids for _, ids in hits])
         vpls.key = path_of_rank[vpls.rank] * GENERATION_STRIDE + vpls.generation
@@ -334,9 +340,11 @@ class IncrementalVPLs:
 
     def _environment_hits(self, emitters: list, slots: np.ndarray, count: int,
                           permutation: np.ndarray, tracer: RayCaster, geometry: WorldGeometry,
-                          epsilon: float, seed: int) -> tuple[SurfaceHits, np.ndarray]:
+                          epsilon: float, seed: int
+                          ) -> tuple[SurfaceHits, np.ndarray, np.ndarray]:
         """First hits of the world's and emissive surfaces' paths: the same seeded path for a
-        slot every frame (ids change only with the geometry or the slot set)."""
+        slot every frame (ids change only with the geometry or the slot set), and each hit's
+        emitter's Max Bounces."""
         u = scrambled_halton(count, START_DIMENSIONS, seed + 7)[slots]
         paths = start_paths(emitters, u)
         found = trace_hits(tracer, geometry, paths.origin, paths.direction, paths.flux,
@@ -347,7 +355,7 @@ class IncrementalVPLs:
         found = found.kept(lit_hits(found.triangle, paths.receivers[found.rank], geometry))
         return (SurfaceHits(found.position, found.normal, found.albedo, found.flux,
                             permutation[slots[found.rank]], found.triangle),
-                self._environment_ids[found.rank])
+                self._environment_ids[found.rank], paths.max_bounces[found.rank])
 
 
 def _worst(coords: np.ndarray) -> tuple[int, float]:

@@ -33,7 +33,7 @@ import numpy as np
 from ..scene import principled
 from ..scene.environment import EnvironmentSampler, lookup
 from ..scene.geometry import WorldGeometry
-from ..scene.model import EVERY_RECEIVER_SET, Light, LightKind, Scene, World
+from ..scene.model import EVERY_RECEIVER_SET, NO_BOUNCE_LIMIT, Light, LightKind, Scene, World
 from ..scene.textures import LUMINANCE
 from ..scene.vectors import triangle_areas, unit
 from ..settings import Settings
@@ -95,6 +95,16 @@ class VPLs:
                             np.full(n, shadow_resolution), self.generation, np.zeros(n, bool),
                             np.zeros((n, 2)), self.glossy)
 
+    def within_bounce_limits(self, limit: np.ndarray) -> VPLs:
+        """The VPLs whose generation is within their path's limit (``limit`` per rank: its
+        emitter's Max Bounces), with their keys."""
+        keep = self.generation <= limit[self.rank]
+        if keep.all():
+            return self
+        kept = self.scaled(keep, 1.0)
+        kept.key = None if self.key is None else self.key[keep]
+        return kept
+
     def scaled(self, keep: np.ndarray | slice, factor: np.ndarray | float) -> VPLs:
         """The VPLs ``keep``, their light (diffuse and glossy) times ``factor`` (per VPL or
         one); without keys."""
@@ -132,6 +142,7 @@ class _Paths:
     soft_radius: float | np.ndarray = 0.0
     receivers: int | np.ndarray = EVERY_RECEIVER_SET
     blockers: int | np.ndarray = EVERY_RECEIVER_SET
+    max_bounces: int | np.ndarray = NO_BOUNCE_LIMIT  # its emitter's (Light.max_bounces)
 
 
 def _frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -172,7 +183,8 @@ def average_reflectance(geometry: WorldGeometry) -> float:
 class _Emitter:
     """One source of light paths: its flux (for allocation), a sampler of start rays, the
     receiver sets it lights and the blocker sets that cast its shadows (light and shadow
-    linking; its paths' own where they carry them)."""
+    linking; its paths' own where they carry them), and how often its light may bounce
+    (Cycles' Max Bounces of a light or the world)."""
 
     def __init__(self, flux: np.ndarray, sample) -> None:
         self.flux = np.asarray(flux, dtype=np.float64)
@@ -180,6 +192,7 @@ class _Emitter:
         self.sample = sample  # (u (n, 5) in [0,1)) -> (_Paths with flux per unit path)
         self.receivers = EVERY_RECEIVER_SET
         self.blockers = EVERY_RECEIVER_SET
+        self.max_bounces = NO_BOUNCE_LIMIT
 
 
 def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter | None:
@@ -188,6 +201,7 @@ def light_emitter(light: Light, centre: np.ndarray, radius: float) -> _Emitter |
     if emitter is not None:  # a light that casts no shadow: nothing blocks its paths' start
         emitter.receivers = light.receivers
         emitter.blockers = light.blockers if light.cast_shadow else 0
+        emitter.max_bounces = light.max_bounces
     return emitter
 
 
@@ -447,16 +461,20 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
 def _emitters(scene: Scene, geometry: WorldGeometry, centre: np.ndarray, radius: float
               ) -> list[_Emitter]:
     found = [light_emitter(light, centre, radius) for light in scene.surface_lights
-             if light.power != 0 and light_problem(light) is None]
+             if light.power != 0 and light.max_bounces > 0 and light_problem(light) is None]
     return [e for e in found if e is not None and e.power > 0] + environment_emitters(
         scene, geometry, centre, radius)
 
 
 def environment_emitters(scene: Scene, geometry: WorldGeometry, centre: np.ndarray,
                          radius: float) -> list[_Emitter]:
-    """The emitters that are not lights: the world and the emissive surfaces (with power)."""
-    found = [_world_emitter(scene, centre, radius), _emission_emitter(geometry)]
-    return [e for e in found if e is not None and e.power > 0]
+    """The emitters that are not lights: the world and the emissive surfaces (with power and
+    bounces allowed)."""
+    world = _world_emitter(scene, centre, radius)
+    if world is not None:
+        world.max_bounces = scene.world.max_bounces
+    found = [world, _emission_emitter(geometry)]
+    return [e for e in found if e is not None and e.power > 0 and e.max_bounces > 0]
 
 
 def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
@@ -473,6 +491,7 @@ def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
     soft_radius = np.zeros(n)
     receivers = np.full(n, EVERY_RECEIVER_SET, np.uint64)
     blockers = np.full(n, EVERY_RECEIVER_SET, np.uint64)
+    max_bounces = np.full(n, NO_BOUNCE_LIMIT)
     for index, emitter in enumerate(emitters):
         rows = np.flatnonzero(choice == index)
         if len(rows):
@@ -483,7 +502,8 @@ def start_paths(emitters: list[_Emitter], u: np.ndarray) -> _Paths:
             receivers[rows] = paths.receivers if np.ndim(paths.receivers) \
                 else emitter.receivers
             blockers[rows] = paths.blockers if np.ndim(paths.blockers) else emitter.blockers
-    return _Paths(origin, direction, flux, soft_radius, receivers, blockers)
+            max_bounces[rows] = emitter.max_bounces
+    return _Paths(origin, direction, flux, soft_radius, receivers, blockers, max_bounces)
 
 
 @dataclass
@@ -638,8 +658,9 @@ class PathSequence:
 def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tracer: RayCaster,
                   centre: np.ndarray, radius: float, sequence: PathSequence | None = None
                   ) -> VPLs:
-    """Trace ``settings.vpl_count`` light paths for up to ``settings.bounces`` hits each, from
-    ``sequence`` (default: from the start of ``settings.seed``'s)."""
+    """Trace ``settings.vpl_count`` light paths for up to ``settings.bounces`` hits each (or
+    their emitter's Max Bounces), from ``sequence`` (default: from the start of
+    ``settings.seed``'s)."""
     emitters = _emitters(scene, geometry, centre, radius)
     if settings.bounces == 0 or not emitters or geometry.vertex_count == 0:
         return VPLs.empty()
@@ -653,4 +674,5 @@ def generate_vpls(scene: Scene, geometry: WorldGeometry, settings: Settings, tra
                        paths.flux[alive], alive, 1e-5 * radius, from_light=True,
                        soft_radius=paths.soft_radius[alive], blockers=paths.blockers[alive])
     first = first.kept(lit_hits(first.triangle, paths.receivers[first.rank], geometry))
-    return propagate(first, n, u[:, START_DIMENSIONS:], settings, tracer, geometry, radius)
+    vpls = propagate(first, n, u[:, START_DIMENSIONS:], settings, tracer, geometry, radius)
+    return vpls.within_bounce_limits(paths.max_bounces)
