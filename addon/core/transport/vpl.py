@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene import principled
+from ..scene.closed_surfaces import outward_sides
 from ..scene.environment import EnvironmentSampler, lookup
 from ..scene.geometry import WorldGeometry
 from ..scene.model import EVERY_RECEIVER_SET, NO_BOUNCE_LIMIT, Light, LightKind, Scene, World
@@ -423,7 +424,8 @@ def _portal_emitter(world: World, portals: list[Light]) -> _Emitter | None:
 
 
 def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
-    """Emissive triangles, two-sided Lambertian: flux 2 π L A each."""
+    """Emissive triangles, two-sided Lambertian (flux 2 π L A each), or one-sided outwards
+    (π L A) on a closed object, whose inner side's light stays inside it."""
     emission = geometry.light_emission.astype(np.float64)
     emitting = np.flatnonzero(emission.max(axis=1) > 0)
     if len(emitting) == 0:
@@ -431,7 +433,10 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
     tri = geometry.positions.reshape(-1, 3, 3)[emitting].astype(np.float64)
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area = 0.5 * np.linalg.norm(cross, axis=1)
-    flux = 2 * np.pi * emission[emitting] * area[:, None]
+    outward = np.zeros(len(emitting), np.int8) if geometry.triangle_instance is None \
+        else outward_sides(tri, geometry.triangle_instance[emitting])
+    flux = np.where(outward == 0, 2.0, 1.0)[:, None] * np.pi * emission[emitting] \
+        * area[:, None]
     power = flux @ LUMINANCE
     if power.sum() <= 0:
         return None
@@ -448,7 +453,7 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
         a, b = np.where(flip, 1 - a, a), np.where(flip, 1 - b, b)
         t = tri[pick]
         origin = t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
-        side = np.where(u[:, 4] < 0.5, 1.0, -1.0)
+        side = np.where(outward[pick] != 0, outward[pick], np.where(u[:, 4] < 0.5, 1.0, -1.0))
         v = np.stack([u[:, 3], (u[:, 4] * 2) % 1.0], axis=1)
         direction = cosine_directions(normal[pick] * side[:, None], v)
         probability = power[pick] / power.sum()
