@@ -12,29 +12,28 @@ def outward_sides(triangles: np.ndarray, group: np.ndarray) -> np.ndarray:
     triangles each): +1 where its winding's normal points out of its group's closed,
     consistently wound surface, -1 where it points in (a surface wound inside out), 0 where
     the group is not closed (an edge without exactly one twin running the other way).
-    Vertices are joined where their positions are equal."""
-    sides = np.zeros(len(triangles), np.int8)
-    for g in np.unique(group):
-        rows = np.flatnonzero(group == g)
-        sides[rows] = _side_of_closed(triangles[rows])
-    return sides
-
-
-def _side_of_closed(triangles: np.ndarray) -> int:
-    """+1 or -1 for a closed, consistently wound surface by its signed volume's sign; 0 for
-    any other."""
-    _, vertex = np.unique(triangles.reshape(-1, 3), axis=0, return_inverse=True)
-    vertex = vertex.reshape(-1, 3)
-    directed = np.concatenate([vertex[:, [0, 1]], vertex[:, [1, 2]], vertex[:, [2, 0]]])
-    if np.any(directed[:, 0] == directed[:, 1]):  # a collapsed edge
-        return 0
+    Vertices of a group are joined where their positions are equal."""
+    n = len(triangles)
+    if n == 0:
+        return np.zeros(0, np.int8)
+    _, groups = np.unique(group, return_inverse=True)
+    positions = np.ascontiguousarray(triangles.reshape(-1, 3), np.float32) + np.float32(0.0)
+    bits = positions.view(np.uint32)  # + 0: -0 and 0 alike
+    corners = np.column_stack([np.repeat(groups, 3).astype(np.uint32), bits])
+    _, vertex = np.unique(np.ascontiguousarray(corners).view("V16").ravel(),
+                          return_inverse=True)  # one 16-byte key per corner: a sort of bytes
+    vertex = vertex.reshape(-1, 3).astype(np.int64)
+    tail = vertex.ravel()
+    head = vertex[:, [1, 2, 0]].ravel()
+    owner = np.repeat(groups, 3)
     count = int(vertex.max()) + 1
-    forward = directed[:, 0].astype(np.int64) * count + directed[:, 1]
-    backward = directed[:, 1].astype(np.int64) * count + directed[:, 0]
-    if len(np.unique(forward)) != len(forward) \
-            or not np.array_equal(np.sort(forward), np.sort(backward)):
-        return 0
+    forward, backward = tail * count + head, head * count + tail
+    keys, counts = np.unique(forward, return_counts=True)
+    open_edge = (tail == head) | ~np.isin(backward, forward) \
+        | (counts[np.searchsorted(keys, forward)] > 1)
+    closed = np.bincount(owner[open_edge], minlength=groups.max() + 1) == 0
     t = triangles.astype(np.float64)
-    t = t - t.reshape(-1, 3).mean(axis=0)
-    volume = float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum())
-    return int(np.sign(volume))
+    centre = np.stack([np.bincount(groups, t[..., k].mean(axis=1)) for k in range(3)], axis=1)
+    t = t - (centre / np.bincount(groups)[:, None])[groups][:, None, :]
+    volume = np.bincount(groups, np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])))
+    return (np.sign(volume) * closed).astype(np.int8)[groups]
