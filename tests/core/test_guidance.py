@@ -139,6 +139,15 @@ def test_acceptance_spends_the_budget_on_contribution() -> None:
     assert np.all(acceptance(contribution, 2000.0) == 1.0)  # fewer candidates than wanted
 
 
+def test_where_no_candidate_lights_the_view_as_many_are_kept_as_without_guidance() -> None:
+    """A view that sees almost nothing (a 170° lens on the Cornell box: its few camera points
+    miss the box) gives no candidate a contribution; each is kept with the same chance, so
+    about ``kept`` remain, each weighted by n / kept. Keeping every one (before stop 67) gave
+    16 times the VPLs: 17 s for a 48² frame."""
+    chance = acceptance(np.zeros(16000), 1000.0)
+    assert np.all(chance == 1000.0 / 16000)
+
+
 def test_candidates_that_light_no_camera_point_take_a_bounded_share() -> None:
     """Where many candidates light no camera point (Sponza: 8700 of 10,400) the least chance
     falls so that they take UNLIT_SHARE of the VPLs kept; where those that light a point are

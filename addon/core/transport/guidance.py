@@ -168,10 +168,14 @@ def least_acceptance(contribution: np.ndarray, kept: float) -> float:
 
 def acceptance(contribution: np.ndarray, kept: float) -> np.ndarray:
     """Chances min(1, Φ / τ), at least :func:`least_acceptance`, with τ set so that they add
-    up to about ``kept`` (all ones when there are no more candidates than that)."""
+    up to about ``kept`` (all ones when there are no more candidates than that; all kept /
+    n where none lights a camera point, as without guidance: keeping every candidate made
+    a view that sees almost nothing, a 170° lens, take 16 times the VPLs)."""
     n = len(contribution)
-    if n <= kept or not np.any(contribution > 0):
+    if n <= kept:
         return np.ones(n)
+    if not np.any(contribution > 0):
+        return np.full(n, kept / n)
     least = least_acceptance(contribution, kept)
     low, high = 1e-30, float(contribution.max()) * n
     for _ in range(100):  # bisection on log τ: the expected count falls as τ grows
