@@ -68,6 +68,7 @@ from .export_motion import (
     InstanceKey,
     SampledMotion,
     at_home,
+    camera_view,
     deformed_mesh,
     instance_key,
     placed_motion,
@@ -1091,7 +1092,7 @@ def export_camera(depsgraph: bpy.types.Depsgraph, camera_object: bpy.types.Objec
     projection = cam.calc_matrix_camera(depsgraph, x=width, y=height,
                                         scale_x=render.pixel_aspect_x,
                                         scale_y=render.pixel_aspect_y)
-    view = _matrix(cam.matrix_world.inverted())
+    view = camera_view(_matrix(cam.matrix_world))
     return Camera(view, _matrix(projection), width, height,
                   is_orthographic=cam.data.type == "ORTHO", aperture=aperture,
                   panorama=panorama)

@@ -214,6 +214,19 @@ def _view(matrix_world) -> np.ndarray | None:
     if not np.isfinite(world).all():
         return None
     try:
-        return np.linalg.inv(world)
+        return camera_view(world)
     except np.linalg.LinAlgError:
         return None
+
+
+def camera_view(matrix_world: np.ndarray) -> np.ndarray:
+    """The view matrix of a camera placed at ``matrix_world`` (4, 4), its scale left out as
+    Cycles leaves it out (measured, 4.5: a camera scaled by 0.01, 100 or (1, 2, 1) renders as
+    unscaled; a negative scale still mirrors the image): each axis column made unit length.
+    LinAlgError where the placement is singular."""
+    placement = np.array(matrix_world, np.float64)
+    lengths = np.linalg.norm(placement[:3, :3], axis=0)
+    if not np.all(lengths > 0):
+        raise np.linalg.LinAlgError("a camera axis of zero length")
+    placement[:3, :3] /= lengths
+    return np.linalg.inv(placement)

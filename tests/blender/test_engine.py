@@ -13,7 +13,7 @@ from addon.core.frame.result import ON_DEMAND_PASSES, PASS_CHANNELS
 from addon.core.scene.model import LightKind
 from addon.core.settings import Settings
 from addon.export import export_scene
-from tests.blender.rendering import open_scene, render_linear
+from tests.blender.rendering import against, open_scene, render_linear
 from tests.blender.versions import compositor_output
 
 PASS_TOGGLES = ("use_pass_z", "use_pass_normal", "use_pass_diffuse_direct",
@@ -88,6 +88,23 @@ def test_sample_scene_exports_lights_camera_and_materials(blender):
     assert colours["Orange"] == pytest.approx((0.8, 0.4, 0.1))
     assert scene.world.radiance == pytest.approx([0.05, 0.06, 0.08])
     assert sum(inst.mesh.triangle_count for inst in scene.instances) > 500
+
+
+@pytest.mark.parametrize("scale", [(100.0, 100.0, 100.0), (1.0, 2.0, 1.0), (-1.0, 1.0, 1.0)])
+def test_a_cameras_scale_is_left_out_as_cycles_leaves_it_out(blender, tmp_path, scale):
+    """Cycles renders a camera scaled by 100 or (1, 2, 1) as unscaled, and one scaled by -1
+    mirrored (measured, 4.5). VPL GI took the scale into its view: 100 put the box beyond
+    the clip range (a black frame, silently), (1, 2, 1) squeezed the image (energy −50 %)."""
+    scene = open_scene("cornell_box", 24)
+    scene.vpl_gi.bounces = 0
+    unscaled = render_linear(scene, "VPL_GI", tmp_path / "unscaled.exr")
+    scene.camera.scale = scale
+    scaled = render_linear(scene, "VPL_GI", tmp_path / "scaled.exr")
+    if scale[0] > 0:
+        np.testing.assert_allclose(scaled, unscaled, atol=1e-4)
+    else:  # the mirror image (its light samples and supersamples fall elsewhere)
+        energy, error = against(scaled[..., :3], unscaled[:, ::-1, :3])
+        assert abs(energy) < 0.01 and error < 0.1
 
 
 def test_passes_compose_into_combined(blender):
