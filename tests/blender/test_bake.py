@@ -1,8 +1,12 @@
 """Material bakes: procedural colours, a texture behind a Mapping node, a mesh without UVs
-(xatlas), and textures on tiled UVs or none behind a colour node (baked on xatlas UVs, read
-on the mesh's own) against Cycles; the bake cache; the user's data left as it was."""
+(xatlas), and textures on tiled UVs or none behind a colour node, or a UDIM image's tiles
+(baked on xatlas UVs, read on the mesh's own) against Cycles; the bake cache; the user's
+data left as it was."""
 
 from __future__ import annotations
+
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,7 +31,7 @@ ENERGY_BOUND = 0.03
 RMSE_BOUNDS = {"noise": 0.01, "mapping": 0.01, "generated": 0.05, "mix": 0.04,
                "named": 0.01, "principled": 0.02, "tiled": 0.05, "uvless": 0.05,
                "object_info": 0.01, "subdivided": 0.05, "instanced": 0.05, "text": 0.15,
-               "object_attribute": 0.01}
+               "object_attribute": 0.01, "udim": 0.05}
 INTERIOR_BOUND = 0.02  # relRMSE away from edges (test_cycles_direct.edge_mask)
 
 
@@ -37,7 +41,8 @@ def procedural_material(bpy, name: str, kind: str, image=None):
     Generated coordinates mixed with a colour by a Math node), 'mix' (the noise colour's
     Diffuse and an Emission of a Brick texture in a Mix Shader whose Fac is a Wave texture),
     'named' (an image through a UV Map node naming a map that is not the active render one),
-    'tiled' and 'uvless' (an image on the default UVs through a Gamma node), 'object_info'
+    'tiled' and 'uvless' (an image on the default UVs through a Gamma node), 'udim' (a UDIM
+    image of four tiles on UVs across them, straight into the colour), 'object_info'
     and 'object_attribute' (the object's colour from Object Info, or a custom property of it
     from an Attribute node, through a Gamma node); case_scene's 'subdivided'
     is 'generated' on a box subdivided as Blender's modifier does by default (1 level in the
@@ -79,6 +84,10 @@ def procedural_material(bpy, name: str, kind: str, image=None):
         texture = nodes.new("ShaderNodeTexImage")
         texture.image = image
         links.new(uv_map.outputs["UV"], texture.inputs["Vector"])
+        links.new(texture.outputs["Color"], shader.inputs["Color"])
+    elif kind == "udim":  # the image straight into the colour: read, it repeated one tile
+        texture = nodes.new("ShaderNodeTexImage")
+        texture.image = image
         links.new(texture.outputs["Color"], shader.inputs["Color"])
     elif kind in ("tiled", "uvless"):
         texture = nodes.new("ShaderNodeTexImage")
@@ -140,6 +149,22 @@ def add_box(bpy, name: str, size: float):
     return obj
 
 
+def udim_image(bpy):
+    """A UDIM image of tiles 1001, 1002, 1011 and 1012, 4×4 sRGB gradients of their own,
+    saved as files in Blender's temporary directory and loaded as Blender finds them."""
+    folder = Path(bpy.app.tempdir or tempfile.gettempdir())
+    for seed, tile in enumerate((1001, 1002, 1011, 1012)):
+        tile_image = byte_image(bpy, f"Tile{tile}", gradient(4, 4, seed + 2), pack=False)
+        tile_image.filepath_raw = str(folder / f"paint.{tile}.png")
+        tile_image.file_format = "PNG"
+        tile_image.save()
+        bpy.data.images.remove(tile_image)
+    image = bpy.data.images.load(str(folder / "paint.1001.png"))
+    image.source = "TILED"
+    assert sorted(t.number for t in image.tiles) == [1001, 1002, 1011, 1012]
+    return image
+
+
 def case_scene(bpy, kind: str):
     scene = new_scene(bpy, SIZE, ortho_scale=2.4)
     scene.vpl_gi.bake_resolution = "256"
@@ -151,9 +176,10 @@ def case_scene(bpy, kind: str):
         obj.data.body, obj.data.extrude, obj.data.size = "H", 0.1, 3.0  # a broad glyph
         obj.data.align_x, obj.data.align_y = "CENTER", "CENTER"
         scene.collection.objects.link(obj)
-    else:  # "tiled": the image three times across, its UVs outside the unit square
-        obj = with_uvs(add_plane(bpy, "Plane", 2.0), 3.0 * np.asarray(SQUARE_UVS)
-                       if kind == "tiled" else SQUARE_UVS)
+    else:  # "tiled": the image three times across, its UVs outside the unit square; "udim":
+        # across four tiles
+        scale = {"tiled": 3.0, "udim": 2.0}.get(kind, 1.0)
+        obj = with_uvs(add_plane(bpy, "Plane", 2.0), scale * np.asarray(SQUARE_UVS))
     if kind == "subdivided":  # Blender's default: level 1 in the viewport, 2 in renders
         obj.modifiers.new("Subdivision", "SUBSURF")
     elif kind == "instanced":  # in a collection excluded from the view layer, instanced
@@ -165,7 +191,7 @@ def case_scene(bpy, kind: str):
         instancer = bpy.data.objects.new("Instancer", None)
         instancer.instance_type, instancer.instance_collection = "COLLECTION", assets
         scene.collection.objects.link(instancer)
-    elif kind not in ("generated", "uvless", "tiled", "text"):  # (xatlas bakes hold for the
+    elif kind not in ("generated", "uvless", "tiled", "text", "udim"):  # (xatlas bakes hold for the
         # evaluation they were made on) the final render's differs from the viewport's,
         # where bakes run
         subdivision = obj.modifiers.new("Subdivision", "SUBSURF")
@@ -178,7 +204,8 @@ def case_scene(bpy, kind: str):
         second.uv.foreach_set("vector", [0.1, 0.0, 0.6, 0.1, 0.7, 0.6, 0.2, 0.5])
         obj.data.uv_layers["UVMap"].active_render = True
     image = byte_image(bpy, "Paint", gradient(4, 4, 1)) \
-        if kind in ("mapping", "named", "tiled", "uvless") else None
+        if kind in ("mapping", "named", "tiled", "uvless") else udim_image(bpy) \
+        if kind == "udim" else None
     obj.data.materials.append(procedural_material(
         bpy, kind.title(), "generated" if kind in ("subdivided", "instanced", "text") else kind,
         image))
@@ -189,7 +216,7 @@ def case_scene(bpy, kind: str):
 @pytest.mark.parametrize("kind", ["noise", "mapping", "generated", "mix",
                                   "named", "principled", "tiled", "uvless",
                                   "object_info", "subdivided", "instanced", "text",
-                                  "object_attribute"])
+                                  "object_attribute", "udim"])
 def test_baked_materials_match_cycles(blender, tmp_path, kind):
     """Each procedural material renders like Cycles (0 bounces, a sun); the old fallback
     (the viewport colour) is outside the bounds."""
