@@ -126,15 +126,16 @@ class ImageReader:
     def texture(self, node, material: str) -> Texture:
         """The node's image as a Texture with the node's interpolation and extension; magenta,
         with a warning, when it cannot be read; UnsupportedLink for a UDIM image of several
-        tiles (Python reads its first tile only: the material is baked by Cycles instead)."""
+        tiles (Python reads its first tile only) or a projection other than Flat: the
+        material is baked by Cycles instead."""
         image = node.image
         label = f"image '{image.name}'" if image is not None else "an image texture"
         if image is not None and image.source == "TILED" and len(image.tiles) > 1:
             raise UnsupportedLink(f"{label} is a UDIM image of {len(image.tiles)} tiles, "
                                   f"which VPL GI reads only through a bake")
         if node.projection != "FLAT":
-            self.warn(f"material '{material}': {label}: projection "
-                      f"{node.projection.title()} not supported (rendered as Flat)")
+            raise UnsupportedLink(f"{label}: its projection {node.projection.title()} is read "
+                                  f"only through a bake")
         if image is None:
             self.warn(f"material '{material}': an image texture has no image: shown in "
                       f"magenta (1, 0, 1) as Cycles does")

@@ -31,7 +31,7 @@ ENERGY_BOUND = 0.03
 RMSE_BOUNDS = {"noise": 0.01, "mapping": 0.01, "generated": 0.05, "mix": 0.04,
                "named": 0.01, "principled": 0.02, "tiled": 0.05, "uvless": 0.05,
                "object_info": 0.01, "subdivided": 0.05, "instanced": 0.05, "text": 0.15,
-               "object_attribute": 0.01, "udim": 0.05}
+               "object_attribute": 0.01, "udim": 0.05, "sphere": 0.05}
 INTERIOR_BOUND = 0.02  # relRMSE away from edges (test_cycles_direct.edge_mask)
 
 
@@ -42,7 +42,8 @@ def procedural_material(bpy, name: str, kind: str, image=None):
     Diffuse and an Emission of a Brick texture in a Mix Shader whose Fac is a Wave texture),
     'named' (an image through a UV Map node naming a map that is not the active render one),
     'tiled' and 'uvless' (an image on the default UVs through a Gamma node), 'udim' (a UDIM
-    image of four tiles on UVs across them, straight into the colour), 'object_info'
+    image of four tiles on UVs across them, straight into the colour), 'sphere' (an image
+    projected as a sphere from the default UVs), 'object_info'
     and 'object_attribute' (the object's colour from Object Info, or a custom property of it
     from an Attribute node, through a Gamma node); case_scene's 'subdivided'
     is 'generated' on a box subdivided as Blender's modifier does by default (1 level in the
@@ -85,9 +86,11 @@ def procedural_material(bpy, name: str, kind: str, image=None):
         texture.image = image
         links.new(uv_map.outputs["UV"], texture.inputs["Vector"])
         links.new(texture.outputs["Color"], shader.inputs["Color"])
-    elif kind == "udim":  # the image straight into the colour: read, it repeated one tile
+    elif kind in ("udim", "sphere"):  # the image straight into the colour: read, it
+        # repeated one tile, or was projected Flat
         texture = nodes.new("ShaderNodeTexImage")
         texture.image = image
+        texture.projection = "SPHERE" if kind == "sphere" else "FLAT"
         links.new(texture.outputs["Color"], shader.inputs["Color"])
     elif kind in ("tiled", "uvless"):
         texture = nodes.new("ShaderNodeTexImage")
@@ -191,9 +194,9 @@ def case_scene(bpy, kind: str):
         instancer = bpy.data.objects.new("Instancer", None)
         instancer.instance_type, instancer.instance_collection = "COLLECTION", assets
         scene.collection.objects.link(instancer)
-    elif kind not in ("generated", "uvless", "tiled", "text", "udim"):  # (xatlas bakes hold for the
-        # evaluation they were made on) the final render's differs from the viewport's,
-        # where bakes run
+    elif kind not in ("generated", "uvless", "tiled", "text", "udim", "sphere"):
+        # (xatlas bakes hold for the evaluation they were made on) the final render's
+        # differs from the viewport's, where bakes run
         subdivision = obj.modifiers.new("Subdivision", "SUBSURF")
         subdivision.subdivision_type = "SIMPLE"  # Catmull-Clark smooths UVs and positions
         subdivision.levels, subdivision.render_levels = 0, 2  # differently: see the docs
@@ -204,7 +207,7 @@ def case_scene(bpy, kind: str):
         second.uv.foreach_set("vector", [0.1, 0.0, 0.6, 0.1, 0.7, 0.6, 0.2, 0.5])
         obj.data.uv_layers["UVMap"].active_render = True
     image = byte_image(bpy, "Paint", gradient(4, 4, 1)) \
-        if kind in ("mapping", "named", "tiled", "uvless") else udim_image(bpy) \
+        if kind in ("mapping", "named", "tiled", "uvless", "sphere") else udim_image(bpy) \
         if kind == "udim" else None
     obj.data.materials.append(procedural_material(
         bpy, kind.title(), "generated" if kind in ("subdivided", "instanced", "text") else kind,
@@ -216,7 +219,7 @@ def case_scene(bpy, kind: str):
 @pytest.mark.parametrize("kind", ["noise", "mapping", "generated", "mix",
                                   "named", "principled", "tiled", "uvless",
                                   "object_info", "subdivided", "instanced", "text",
-                                  "object_attribute", "udim"])
+                                  "object_attribute", "udim", "sphere"])
 def test_baked_materials_match_cycles(blender, tmp_path, kind):
     """Each procedural material renders like Cycles (0 bounces, a sun); the old fallback
     (the viewport colour) is outside the bounds."""

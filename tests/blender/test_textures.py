@@ -315,15 +315,17 @@ def test_textured_wall_bleeds_its_texels_colours(blender):
 
 
 def test_unsupported_texture_settings_warn_once_per_material(blender):
-    """Closest/Clip is exported as such, silently; Box projection is rendered as Flat with one
-    warning; a texture in a Mix Shader or behind a Mapping node falls back to the viewport
-    colour; UVs are read per corner from the active render UV map."""
+    """Closest/Clip is exported as such, silently; a Box projection, a texture in a Mix
+    Shader or behind a Mapping node fall back to the viewport colour where no bake runs (one
+    warning each); UVs are read per corner from the active render UV map."""
     bpy = blender
     new_scene(bpy)
     image = byte_image(bpy, "Tiles", gradient(2, 2, 5))
     closest = textured_material(bpy, "Closest", image)
     node = next(n for n in closest.node_tree.nodes if n.type == "TEX_IMAGE")
-    node.interpolation, node.extension, node.projection = "Closest", "CLIP", "BOX"
+    node.interpolation, node.extension = "Closest", "CLIP"
+    boxed = textured_material(bpy, "Boxed", image)
+    next(n for n in boxed.node_tree.nodes if n.type == "TEX_IMAGE").projection = "BOX"
     mixed = textured_material(bpy, "Mixed", image)
     tree = mixed.node_tree
     principled = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
@@ -335,12 +337,14 @@ def test_unsupported_texture_settings_warn_once_per_material(blender):
     mapped.node_tree.links.new(mapped.node_tree.nodes.new("ShaderNodeMapping").outputs[0],
                                node.inputs["Vector"])
     uvs = [(0.1, 0.2), (0.3, 0.4), (0.5, 0.6), (0.7, 0.8)]
-    for i, material in enumerate([closest, closest, mixed, mapped]):
+    for i, material in enumerate([closest, closest, mixed, mapped, boxed]):
         obj = with_uvs(add_plane(bpy, f"P{i}", 0.5, x=i - 1.5), uvs)
         obj.data.materials.append(material)
     scene = export_scene(bpy.context.evaluated_depsgraph_get())
     assert sorted(scene.warnings) == [
-        "material 'Closest': image 'Tiles': projection Box not supported (rendered as Flat)",
+        "material 'Boxed': image 'Tiles': its projection Box is read only through a bake "
+        "(nodes: Image Texture); using its viewport colour (not baked: bakes run before "
+        "background renders, in the viewport and by Bake Materials)",
         "material 'Mapped': input 'Vector' of 'Image Texture' is linked to 'Mapping' (nodes: "
         "Image Texture, Mapping); using its viewport colour (not baked: bakes run before "
         "background renders, in the viewport and by Bake Materials)",
