@@ -7,6 +7,7 @@ round its lamp); and objects diffuse bounces pass (Diffuse off)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import bpy
 import numpy as np
@@ -182,6 +183,18 @@ def test_a_lamp_inside_a_bulb_that_casts_no_shadow_lights_the_room_as_in_cycles(
     assert casting_energy < -0.5
 
 
+def shadowless_cornell(tmp_path, make_shadowless: Callable[[], None], rows: slice
+                       ) -> tuple[float, float, float]:
+    """The Cornell box at 48² after ``make_shadowless``, two bounces, against Cycles (64
+    samples): VPL GI's energy, relRMSE and the energy of the image's ``rows`` (bottom-up)."""
+    scene = open_scene("cornell_box", 48)
+    make_shadowless()
+    reference, ours = cycles_and_ours(scene, tmp_path, 64, 2)
+    assert np.isfinite(ours).all()
+    energy, error = against(ours[..., :3], reference[..., :3])
+    return energy, error, against(ours[rows, :, :3], reference[rows, :, :3])[0]
+
+
 def test_a_block_that_casts_no_shadow_still_reflects_its_light_as_in_cycles(blender,
                                                                           tmp_path):
     """The Cornell box with its tall block's Shadow visibility off, two bounces (Cycles 64
@@ -190,14 +203,11 @@ def test_a_block_that_casts_no_shadow_still_reflects_its_light_as_in_cycles(blen
     relRMSE 11.2 %, the image's top fifth (the ceiling) −0.5 %; with no light on the block's
     faces from lights passing them (before stop 66): energy −10.2 %, relRMSE 21.0 %, the
     ceiling −31.9 %."""
-    scene = open_scene("cornell_box", 48)
-    bpy.data.objects["TallBlock"].visible_shadow = False
-    reference, ours = cycles_and_ours(scene, tmp_path, 64, 2)
+    def shadowless() -> None:
+        bpy.data.objects["TallBlock"].visible_shadow = False
 
-    assert np.isfinite(ours).all()
-    energy, error = against(ours[..., :3], reference[..., :3])
-    top = slice(-len(ours) // 5, None)  # rows bottom-up: the image's top
-    ceiling = against(ours[top, :, :3], reference[top, :, :3])[0]
+    # rows bottom-up: the image's top fifth
+    energy, error, ceiling = shadowless_cornell(tmp_path, shadowless, slice(-48 // 5, None))
     print(f"shadowless block vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; the ceiling "
           f"{ceiling:+.4f}")
     assert abs(energy) < 0.04
@@ -212,14 +222,11 @@ def test_a_light_that_casts_no_shadow_lights_what_lies_behind_blockers_as_in_cyc
     bounces too. Measured (bpy 4.5, llvmpipe, 48²): energy −0.3 %, relRMSE 10.7 %, the image's
     bottom third +0.9 %; light paths that stopped at the first surface (before stop 67):
     energy −4.6 %, the bottom third −8.2 %."""
-    scene = open_scene("cornell_box", 48)
-    bpy.data.objects["Light.Area"].data.use_shadow = False
-    reference, ours = cycles_and_ours(scene, tmp_path, 64, 2)
+    def shadowless() -> None:
+        bpy.data.objects["Light.Area"].data.use_shadow = False
 
-    assert np.isfinite(ours).all()
-    energy, error = against(ours[..., :3], reference[..., :3])
-    bottom = slice(0, len(ours) // 3)  # rows bottom-up: the image's bottom
-    low = against(ours[bottom, :, :3], reference[bottom, :, :3])[0]
+    # rows bottom-up: the image's bottom third
+    energy, error, low = shadowless_cornell(tmp_path, shadowless, slice(0, 48 // 3))
     print(f"shadowless light vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; the bottom "
           f"third {low:+.4f}")
     assert abs(energy) < 0.025
