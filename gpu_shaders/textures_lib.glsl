@@ -1,6 +1,6 @@
-// Image textures packed by core/scene/textures.py: one layer per texture, the image in the
-// layer's lower-left corner; a sizes table holds (width, height, sRGB flag, mode) per layer,
-// mode = interpolation (0 Closest, 1 Linear, 2 Cubic) + 4 × extension (0 Repeat, 1 Extend,
+// Image textures packed by core/gpu/texture_array.py: each image in a rectangle of its own in
+// the pages of one array texture; a table holds per texture (width, height, sRGB flag, mode)
+// in row 0 and its rectangle's (x, y, page) in row 1, mode = interpolation (0 Closest, 1 Linear, 2 Cubic) + 4 × extension (0 Repeat, 1 Extend,
 // 2 Clip, 3 Mirror). Sampled as Cycles samples (the CPU twin is textures.sample): values
 // interpolated as stored, then colour decoded from sRGB (alpha is linear). texture_color
 // samples the g-buffer's arrays (u_textures, u_texture_sizes); texture_sample any pair.
@@ -47,9 +47,10 @@ vec4 cubic_weights(float t) {
                 3.0 * s * s * s - 6.0 * s * s + 4.0, t * t * t) / 6.0;
 }
 
-// Decoded colour and alpha of a layer at uv.
+// Decoded colour and alpha of texture ``layer`` at uv.
 vec4 texture_sample(sampler2DArray textures, sampler2D sizes, int layer, vec2 uv) {
     vec4 info = texelFetch(sizes, ivec2(layer, 0), 0);
+    ivec3 origin = ivec3(texelFetch(sizes, ivec2(layer, 1), 0).xyz);
     ivec2 size = ivec2(info.xy);
     int mode = int(info.w + 0.5);
     int interpolation = mode % 4;
@@ -83,7 +84,7 @@ vec4 texture_sample(sampler2DArray textures, sampler2D sizes, int layer, vec2 uv
         for (int a = 0; a < taps; ++a) {
             int x = texture_wrap(first.x + a, size.x, extension);
             if (x >= 0 && y >= 0) {
-                c += wx[a] * wy[b] * texelFetch(textures, ivec3(x, y, layer), 0);
+                c += wx[a] * wy[b] * texelFetch(textures, origin + ivec3(x, y, 0), 0);
             }
         }
     }

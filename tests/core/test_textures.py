@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from addon.core.frame.renderer import Renderer
+from addon.core.gpu.texture_array import pack
 from addon.core.scene import textures as tex
 from addon.core.scene.geometry import flatten_instances
 from addon.core.scene.model import (
@@ -137,6 +138,46 @@ def test_gbuffer_samples_every_mode_like_the_cpu(renderer):
     for a in range(len(colours)):  # every mode differs from every other one somewhere
         for b in range(a):
             assert np.abs(colours[a] - colours[b]).max() > 0.05, (modes[a], modes[b])
+
+
+def test_packing_keeps_images_apart_and_within_their_pages():
+    """Shelves of rectangles in pages no larger than the limit: inside their page, none
+    overlapping another, a second page where one is full; an image larger than the limit is
+    refused."""
+    rng = np.random.default_rng(3)
+    sizes = [(int(w), int(h)) for w, h in rng.integers(1, 40, size=(60, 2))]
+    places, (width, height, pages) = pack(sizes, 64)
+    assert width <= 64 and height <= 64 and pages > 1
+    cover = np.zeros((pages, height, width), int)
+    for (w, h), (x, y, page) in zip(sizes, places, strict=True):
+        assert x + w <= width and y + h <= height
+        cover[page, y:y + h, x:x + w] += 1
+    assert cover.max() == 1 and cover.sum() == sum(w * h for w, h in sizes)
+    with pytest.raises(ValueError, match="larger than this GPU's textures"):
+        pack([(65, 2)], 64)
+
+
+def test_textures_of_other_sizes_sample_like_the_cpu(renderer):
+    """Three images of different sizes in one frame (each in its own rectangle of the packed
+    pages), with UVs from −0.8 to 1.9: each repeats, mirrors or extends within its own
+    texels, as the CPU sampler does (a texel of a neighbour would show)."""
+    size, extent, half = 96, 6.0, 0.6
+    textures = [Texture("wide", image(2, 3, 17), True, "Linear", "REPEAT"),
+                Texture("tall", image(3, 11, 2), True, "Cubic", "MIRROR"),
+                Texture("small", image(4, 2, 3), False, "Closest", "EXTEND")]
+    mesh = quad(half, half)
+    mesh.uvs = ((mesh.positions[:, :2] / half + 1) / 2 * 2.7 - 0.8).astype(np.float32)
+    centres = [(-1.5, 0.0), (0.0, 0.0), (1.5, 0.0)]
+    instances = [Instance(mesh, translation(x, y, 0), [Material(t.name, base_color_texture=t)])
+                 for t, (x, y) in zip(textures, centres, strict=True)]
+    scene = Scene(instances, [], camera=top_down_camera(size, extent))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
+    x, y = pixel_centres(size, extent)
+    for texture, (cx, cy) in zip(textures, centres, strict=True):
+        inside = (np.abs(x - cx) < half - 0.03) & (np.abs(y - cy) < half - 0.03)
+        uv = (np.stack([x[inside] - cx, y[inside] - cy], axis=1) / half + 1) / 2 * 2.7 - 0.8
+        np.testing.assert_allclose(frame.passes["DiffCol"][inside], tex.sample(texture, uv),
+                                   atol=filter_tolerance(renderer.ctx), err_msg=texture.name)
 
 
 def test_gbuffer_samples_albedo_and_emission_like_the_cpu():

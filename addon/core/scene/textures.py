@@ -9,11 +9,11 @@ smoothing spline: it does not pass through the texel values). Extension: Repeat 
 clamps to the edge texel, Mirror reflects (the edge texel repeated), Clip reads transparent
 black outside the image (so Linear and Cubic fade to black across the edge).
 
-Packing: one ``sampler2DArray`` whose layers are as large as the largest image; each image
-lies unresampled in its layer's lower-left corner and the shader interpolates it itself
-(``texelFetch``), so there is no precision loss, at the cost of memory when sizes differ
-(layers × largest width × largest height × 16 bytes, float32 RGBA). Interpolation is done on
-the stored values and sRGB images are decoded afterwards, as Cycles does.
+Packing (``gpu/texture_array.py``): the images lie unresampled on shelves in the pages of one
+``sampler2DArray`` (float32 RGBA, 16 bytes a texel), each in a rectangle of its own, and the
+shader interpolates them itself (``texelFetch`` within the rectangle), so there is no
+precision loss and no texel of a neighbour is read. Interpolation is done on the stored
+values and sRGB images are decoded afterwards, as Cycles does.
 """
 
 from __future__ import annotations
