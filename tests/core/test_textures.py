@@ -8,7 +8,7 @@ import moderngl
 import numpy as np
 import pytest
 
-from addon.core.frame.renderer import Renderer
+from addon.core.frame.renderer import Renderer, RenderError
 from addon.core.gpu.texture_array import pack
 from addon.core.scene import textures as tex
 from addon.core.scene.geometry import flatten_instances
@@ -316,3 +316,16 @@ def test_bad_normal_maps_render_finite(renderer):
         frame, _ = renderer.render(scene, Settings(bounces=1, antialiasing=1, vpl_count=64))
         assert all(np.isfinite(p).all() for p in frame.passes.values())
         assert frame.passes["DiffDir"].min() > 0  # lit everywhere: no texel turns it away
+
+
+def test_an_image_larger_than_the_gpus_textures_is_one_clear_error(renderer):
+    """An image one texel wider than the GPU's largest texture: a RenderError that says so,
+    not a failed upload."""
+    limit = int(renderer.ctx.info["GL_MAX_TEXTURE_SIZE"])
+    mesh = quad(1, 1)
+    mesh.uvs = ((mesh.positions[:, :2] + 1) / 2).astype(np.float32)
+    huge = Texture("huge", np.ones((1, limit + 1, 4), np.float32))
+    scene = Scene([Instance(mesh, np.eye(4), [Material("m", base_color_texture=huge)])], [],
+                  camera=top_down_camera(16))
+    with pytest.raises(RenderError, match="larger than this GPU's textures"):
+        renderer.render(scene, Settings(bounces=0, antialiasing=1))
