@@ -10,7 +10,7 @@
 #include "common_lib.glsl"
 #include "textures_lib.glsl"
 
-float surface_coverage(sampler2DArray textures, sampler2D sizes, vec4 cutout, vec2 uv) {
+float surface_coverage(usampler2DArray textures, sampler2D sizes, vec4 cutout, vec2 uv) {
     float coverage = 1.0 - cutout.y;
     if (cutout.x > 0.5) {
         vec4 s = texture_sample(textures, sizes, int(cutout.x + 0.5) - 1, uv);

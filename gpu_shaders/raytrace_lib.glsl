@@ -66,7 +66,7 @@ struct RtCutout {
     vec4 cutout;
 };
 layout(std430, binding = RT_BINDING_CUTOUTS) readonly buffer RtCutouts { RtCutout rt_cutouts[]; };
-layout(binding = RT_UNIT_TEXTURES) uniform sampler2DArray rt_textures;
+layout(binding = RT_UNIT_TEXTURES) uniform usampler2DArray rt_textures;
 layout(binding = RT_UNIT_TEXTURE_SIZES) uniform sampler2D rt_texture_sizes;
 
 float rt_coverage(RtTriangle tri, vec2 barycentric) {

@@ -1,13 +1,15 @@
 // Image textures packed by core/gpu/texture_array.py: each image in a rectangle of its own in
-// the pages of one array texture; a table holds per texture (width, height, sRGB flag, mode)
-// in row 0 and its rectangle's (x, y, page) in row 1, mode = interpolation (0 Closest, 1 Linear, 2 Cubic) + 4 × extension (0 Repeat, 1 Extend,
+// the pages of one RGBA32UI array texture, a texel as four float32 bit patterns or, for an
+// 8-bit image, four texels in one (RGBA8 each, texel x in word x % 4 of texel x / 4); a table
+// holds per texture (width, height, sRGB flag, mode) in row 0 and its rectangle's (x, y,
+// page, 1 for 8-bit) in row 1, mode = interpolation (0 Closest, 1 Linear, 2 Cubic) + 4 × extension (0 Repeat, 1 Extend,
 // 2 Clip, 3 Mirror). Sampled as Cycles samples (the CPU twin is textures.sample): values
 // interpolated as stored, then colour decoded from sRGB (alpha is linear). texture_color
 // samples the g-buffer's arrays (u_textures, u_texture_sizes); texture_sample any pair.
 #ifndef TEXTURES_LIB_GLSL
 #define TEXTURES_LIB_GLSL
 
-uniform sampler2DArray u_textures;
+uniform usampler2DArray u_textures;
 uniform sampler2D u_texture_sizes;
 
 const vec3 LUMINANCE = vec3(0.2126, 0.7152, 0.0722);  // a colour as a float (Rec. 709)
@@ -47,10 +49,21 @@ vec4 cubic_weights(float t) {
                 3.0 * s * s * s - 6.0 * s * s + 4.0, t * t * t) / 6.0;
 }
 
+// Texel (x, y) of the texture at ``origin`` (``bytes``: an 8-bit image, four texels a word).
+vec4 texel_at(usampler2DArray textures, ivec3 origin, bool bytes, int x, int y) {
+    if (bytes) {
+        uvec4 words = texelFetch(textures, origin + ivec3(x / 4, y, 0), 0);
+        return unpackUnorm4x8(words[x % 4]);
+    }
+    return uintBitsToFloat(texelFetch(textures, origin + ivec3(x, y, 0), 0));
+}
+
 // Decoded colour and alpha of texture ``layer`` at uv.
-vec4 texture_sample(sampler2DArray textures, sampler2D sizes, int layer, vec2 uv) {
+vec4 texture_sample(usampler2DArray textures, sampler2D sizes, int layer, vec2 uv) {
     vec4 info = texelFetch(sizes, ivec2(layer, 0), 0);
-    ivec3 origin = ivec3(texelFetch(sizes, ivec2(layer, 1), 0).xyz);
+    vec4 place = texelFetch(sizes, ivec2(layer, 1), 0);
+    ivec3 origin = ivec3(place.xyz);
+    bool bytes = place.w > 0.5;
     ivec2 size = ivec2(info.xy);
     int mode = int(info.w + 0.5);
     int interpolation = mode % 4;
@@ -84,7 +97,7 @@ vec4 texture_sample(sampler2DArray textures, sampler2D sizes, int layer, vec2 uv
         for (int a = 0; a < taps; ++a) {
             int x = texture_wrap(first.x + a, size.x, extension);
             if (x >= 0 && y >= 0) {
-                c += wx[a] * wy[b] * texelFetch(textures, origin + ivec3(x, y, 0), 0);
+                c += wx[a] * wy[b] * texel_at(textures, origin, bytes, x, y);
             }
         }
     }

@@ -1,6 +1,7 @@
-"""The frame's image textures as one float32 RGBA array texture for the g-buffer and the ray
-tracer (see ``scene/textures.py`` for how they are sampled): packed on shelves into pages,
-each image unresampled in a rectangle of its own."""
+"""The frame's image textures as one array texture for the g-buffer and the ray tracer (see
+``scene/textures.py`` for how they are sampled): packed on shelves into pages, each image
+unresampled in a rectangle of its own, 8-bit images as such (16 bytes a texel for float
+images, 4 for 8-bit ones)."""
 
 from __future__ import annotations
 
@@ -40,22 +41,52 @@ def pack(sizes: list[tuple[int, int]], limit: int
     return places, (width, height, page + 1)
 
 
+BYTE_TOLERANCE = 1e-3  # of a value × 255 from its nearest integer: an 8-bit image's texel
+
+
+def byte_codes(pixels: np.ndarray) -> np.ndarray | None:
+    """An image's (h, w, 4) values as 8-bit codes (k / 255, as Blender reads byte images), or
+    None where some value is not one (a float image)."""
+    if not np.isfinite(pixels).all():
+        return None
+    scaled = pixels * np.float32(255.0)
+    codes = np.rint(scaled)
+    if not np.all((codes >= 0) & (codes <= 255) & (np.abs(scaled - codes) < BYTE_TOLERANCE)):
+        return None
+    return codes.astype(np.uint8)
+
+
 def upload(ctx: moderngl.Context, textures: list[Texture]
            ) -> tuple[moderngl.TextureArray, moderngl.Texture]:
-    """The textures packed into the pages of one float32 RGBA array texture (``pack``), and a
-    (layers × 2) table: per texture its width, height, sRGB flag and sampling mode
-    (``textures.mode_code``; row 0) and where it lies, x, y and page (row 1). ValueError for
-    an image larger than the GPU's textures."""
+    """The textures packed into the pages of one RGBA32UI array texture (``pack``): a float
+    image's texel as its four float32 bit patterns, an 8-bit image's four texels in one
+    (RGBA8 each: a quarter of the memory); and a (layers × 2) table: per texture its width,
+    height, sRGB flag and sampling mode (``textures.mode_code``; row 0) and where it lies, x,
+    y, page and 1 for an 8-bit image (row 1). ValueError for an image larger than the GPU's
+    textures."""
+    codes = [byte_codes(t.pixels) for t in textures]
     sizes = [(t.pixels.shape[1], t.pixels.shape[0]) for t in textures]
-    places, (width, height, pages) = pack(sizes, int(ctx.info["GL_MAX_TEXTURE_SIZE"]))
-    layers = np.zeros((pages, height, width, 4), np.float32)
+    spans = [(-(-w // 4) if c is not None else w, h) for (w, h), c in zip(sizes, codes,
+                                                                          strict=True)]
+    limit = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
+    if any(w > limit for w, _ in sizes):
+        raise ValueError(f"an image of {max(w for w, _ in sizes)} pixels across is larger "
+                         f"than this GPU's textures ({limit}×{limit})")
+    places, (width, height, pages) = pack(spans, limit)
+    words = np.zeros((pages, height, width, 4), np.uint32)
     table = np.zeros((2, len(textures), 4), np.float32)
     for k, (texture, (x, y, page)) in enumerate(zip(textures, places, strict=True)):
-        w, h = sizes[k]
-        layers[page, y:y + h, x:x + w] = texture.pixels
+        (w, h), (span, _) = sizes[k], spans[k]
+        if codes[k] is None:
+            words[page, y:y + h, x:x + w] = np.ascontiguousarray(texture.pixels,
+                                                                 np.float32).view(np.uint32)
+        else:  # RGBA8 texels, four to a word: texel i in word i % 4 of texel i // 4
+            padded = np.zeros((h, 4 * span, 4), np.uint8)
+            padded[:, :w] = codes[k]
+            words[page, y:y + h, x:x + span] = padded.view(np.uint32).reshape(h, span, 4)
         table[0, k] = (w, h, float(texture.srgb), mode_code(texture))
-        table[1, k, :3] = (x, y, page)
-    array = ctx.texture_array((width, height, pages), 4, layers.tobytes(), dtype="f4")
+        table[1, k] = (x, y, page, float(codes[k] is not None))
+    array = ctx.texture_array((width, height, pages), 4, words.tobytes(), dtype="u4")
     array.filter = moderngl.NEAREST, moderngl.NEAREST
     table_texture = ctx.texture((len(textures), 2), 4, table.tobytes(), dtype="f4")
     table_texture.filter = moderngl.NEAREST, moderngl.NEAREST

@@ -10,9 +10,10 @@ clamps to the edge texel, Mirror reflects (the edge texel repeated), Clip reads 
 black outside the image (so Linear and Cubic fade to black across the edge).
 
 Packing (``gpu/texture_array.py``): the images lie unresampled on shelves in the pages of one
-``sampler2DArray`` (float32 RGBA, 16 bytes a texel), each in a rectangle of its own, and the
-shader interpolates them itself (``texelFetch`` within the rectangle), so there is no
-precision loss and no texel of a neighbour is read. Interpolation is done on the stored
+``usampler2DArray``, each in a rectangle of its own (float images as float32 RGBA, 16 bytes a
+texel; 8-bit images as RGBA8, 4 bytes), and the shader interpolates them itself
+(``texelFetch`` within the rectangle), so there is no precision loss and no texel of a
+neighbour is read. Interpolation is done on the stored
 values and sRGB images are decoded afterwards, as Cycles does.
 """
 
