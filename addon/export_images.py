@@ -153,7 +153,8 @@ class ImageReader:
         if mode not in self._textures:
             if associate:
                 pixels = self._associated.setdefault(key, associate_bytes(pixels))
-            self._textures[mode] = Texture(image.name, pixels, srgb, interpolation, extension)
+            self._textures[mode] = Texture(image.name, pixels, srgb, interpolation, extension,
+                                           eight_bit=not image.is_float)
         return self._textures[mode]
 
     def _read(self, image, material: str) -> tuple[np.ndarray, bool, bool] | None:

@@ -116,7 +116,7 @@ def test_gbuffer_samples_every_mode_like_the_cpu(renderer):
     size, extent, half, spacing = 96, 6.0, 0.6, 1.5  # spacing: 24 pixels
     pixels = image(7, 3, 5)
     modes = [(i, e) for i in INTERPOLATIONS for e in EXTENSIONS]
-    textures = [Texture(f"{i} {e}", pixels, True, i, e) for i, e in modes]
+    textures = [Texture(f"{i} {e}", pixels, True, i, e, eight_bit=True) for i, e in modes]
     mesh = quad(half, half)
     mesh.uvs = ((mesh.positions[:, :2] / half + 1) / 2 * 2.7 - 0.8).astype(np.float32)
     centres = [((k % 4 - 1.5) * spacing, (k // 4 - 1) * spacing) for k in range(len(modes))]
@@ -159,12 +159,13 @@ def test_packing_keeps_images_apart_and_within_their_pages():
 
 def test_textures_of_other_sizes_sample_like_the_cpu(renderer):
     """Three images of different sizes in one frame (each in its own rectangle of the packed
-    pages), with UVs from −0.8 to 1.9: each repeats, mirrors or extends within its own
-    texels, as the CPU sampler does (a texel of a neighbour would show)."""
+    pages; two 8-bit, held as bytes, one as floats), with UVs from −0.8 to 1.9: each repeats,
+    mirrors or extends within its own texels, as the CPU sampler does (a texel of a
+    neighbour would show)."""
     size, extent, half = 96, 6.0, 0.6
-    textures = [Texture("wide", image(2, 3, 17), True, "Linear", "REPEAT"),
+    textures = [Texture("wide", image(2, 3, 17), True, "Linear", "REPEAT", eight_bit=True),
                 Texture("tall", image(3, 11, 2), True, "Cubic", "MIRROR"),
-                Texture("small", image(4, 2, 3), False, "Closest", "EXTEND")]
+                Texture("small", image(4, 2, 3), False, "Closest", "EXTEND", eight_bit=True)]
     mesh = quad(half, half)
     mesh.uvs = ((mesh.positions[:, :2] / half + 1) / 2 * 2.7 - 0.8).astype(np.float32)
     centres = [(-1.5, 0.0), (0.0, 0.0), (1.5, 0.0)]

@@ -6,6 +6,7 @@ images, 4 for 8-bit ones)."""
 from __future__ import annotations
 
 import math
+from weakref import WeakKeyDictionary
 
 import moderngl
 import numpy as np
@@ -41,19 +42,18 @@ def pack(sizes: list[tuple[int, int]], limit: int
     return places, (width, height, page + 1)
 
 
-BYTE_TOLERANCE = 1e-3  # of a value × 255 from its nearest integer: an 8-bit image's texel
+_CODES: WeakKeyDictionary[Texture, np.ndarray] = WeakKeyDictionary()
 
 
-def byte_codes(pixels: np.ndarray) -> np.ndarray | None:
-    """An image's (h, w, 4) values as 8-bit codes (k / 255, as Blender reads byte images), or
-    None where some value is not one (a float image)."""
-    if not np.isfinite(pixels).all():
+def byte_codes(texture: Texture) -> np.ndarray | None:
+    """An 8-bit texture's (h, w, 4) byte codes (its values × 255, rounded; kept while the
+    texture lives, as the passes of a render upload it again), None for a float one."""
+    if not texture.eight_bit:
         return None
-    scaled = pixels * np.float32(255.0)
-    codes = np.rint(scaled)
-    if not np.all((codes >= 0) & (codes <= 255) & (np.abs(scaled - codes) < BYTE_TOLERANCE)):
-        return None
-    return codes.astype(np.uint8)
+    if texture not in _CODES:
+        codes = np.rint(np.clip(np.nan_to_num(texture.pixels), 0.0, 1.0) * np.float32(255.0))
+        _CODES[texture] = codes.astype(np.uint8)
+    return _CODES[texture]
 
 
 def upload(ctx: moderngl.Context, textures: list[Texture]
@@ -64,7 +64,7 @@ def upload(ctx: moderngl.Context, textures: list[Texture]
     height, sRGB flag and sampling mode (``textures.mode_code``; row 0) and where it lies, x,
     y, page and 1 for an 8-bit image (row 1). ValueError for an image larger than the GPU's
     textures."""
-    codes = [byte_codes(t.pixels) for t in textures]
+    codes = [byte_codes(t) for t in textures]
     sizes = [(t.pixels.shape[1], t.pixels.shape[0]) for t in textures]
     spans = [(-(-w // 4) if c is not None else w, h) for (w, h), c in zip(sizes, codes,
                                                                           strict=True)]

@@ -38,13 +38,15 @@ class Texture:
 
     ``pixels`` are as Blender stores them, rows bottom-up (UV (0, 0) is the first texel);
     with ``srgb`` they are sRGB-encoded and decoded after interpolation, as Cycles does with
-    byte images (measured: tests/blender/test_textures.py)."""
+    byte images (measured: tests/blender/test_textures.py). ``eight_bit``: every value is a
+    byte's code / 255 (an 8-bit image), which the GPU holds as bytes."""
 
     name: str
     pixels: np.ndarray  # (h, w, 4) float32 RGBA
     srgb: bool = False
     interpolation: str = "Linear"
     extension: str = "REPEAT"
+    eight_bit: bool = False
 
     def __post_init__(self) -> None:
         if self.interpolation not in INTERPOLATIONS or self.extension not in EXTENSIONS:
