@@ -12,6 +12,7 @@ import numpy as np
 from . import oren_nayar, principled
 from . import sheen as sheens
 from . import textures as tex
+from .closed_surfaces import outward_sides
 from .model import (
     DEFAULT_MATERIAL,
     EVERY_RECEIVER_SET,
@@ -189,6 +190,19 @@ class WorldGeometry:
     def emission(self) -> np.ndarray:
         """Each triangle's emitted radiance, (T, 3) float32."""
         return self._per_triangle(4)
+
+    @cached_property
+    def emission_sides(self) -> np.ndarray:
+        """Per triangle, the side its light leaves by: +1 / -1 (along / against its winding's
+        normal) on an emissive object that is closed (``closed_surfaces.outward_sides``, by
+        instance), 0 (both sides) elsewhere and for geometry not made from instances, (T,)
+        int8; found once per geometry, as every set of light paths reads it."""
+        sides = np.zeros(self.triangle_count, np.int8)
+        emitting = np.flatnonzero(self.light_emission.max(axis=1) > 0)
+        if len(emitting) and self.triangle_instance is not None:
+            sides[emitting] = outward_sides(self.positions.reshape(-1, 3, 3)[emitting],
+                                            self.triangle_instance[emitting])
+        return sides
 
     @cached_property
     def light_emission(self) -> np.ndarray:

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene import principled
-from ..scene.closed_surfaces import outward_sides
 from ..scene.environment import EnvironmentSampler, lookup
 from ..scene.geometry import WorldGeometry
 from ..scene.model import EVERY_RECEIVER_SET, NO_BOUNCE_LIMIT, Light, LightKind, Scene, World
@@ -433,8 +432,7 @@ def _emission_emitter(geometry: WorldGeometry) -> _Emitter | None:
     tri = geometry.positions.reshape(-1, 3, 3)[emitting].astype(np.float64)
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area = 0.5 * np.linalg.norm(cross, axis=1)
-    outward = np.zeros(len(emitting), np.int8) if geometry.triangle_instance is None \
-        else outward_sides(tri, geometry.triangle_instance[emitting])
+    outward = geometry.emission_sides[emitting]
     flux = np.where(outward == 0, 2.0, 1.0)[:, None] * np.pi * emission[emitting] \
         * area[:, None]
     power = flux @ LUMINANCE
