@@ -640,7 +640,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
     raise UnsupportedNodes(f"shader '{node.bl_label}' is not supported")
 
 
-def fresnel_ior(fac) -> float | None:
+def _fresnel_ior(fac) -> float | None:
     """The IOR of a Fresnel node's, or a Layer Weight's Fresnel output's (IOR 1 / (1 −
     Blend), as Cycles computes it), constant dielectric Fresnel linked to ``fac``; None for
     anything else (or a Normal input linked: the Fresnel of another normal)."""
@@ -663,7 +663,7 @@ def _fresnel_mix(node, a: Material, b: Material) -> Material | None:
     Fresnel node or a Layer Weight's Fresnel) — the layered plastic of materials made before
     the Principled BSDF — as a Principled BSDF of the diffuse colour with a specular layer of
     that IOR, the glossy roughness and its colour as tint; None for other mixes."""
-    ior = fresnel_ior(node.inputs["Fac"])
+    ior = _fresnel_ior(node.inputs["Fac"])
     glossy = _linked_shader(node.inputs[2])
     if ior is None or glossy is None or glossy.type != "BSDF_GLOSSY":
         return None

@@ -2,8 +2,8 @@
 // the pages of one RGBA32UI array texture, a texel as four float32 bit patterns or, for an
 // 8-bit image, four texels in one (RGBA8 each, texel x in word x % 4 of texel x / 4); a table
 // holds per texture (width, height, sRGB flag, mode) in row 0 and its rectangle's (x, y,
-// page, 1 for 8-bit) in row 1, mode = interpolation (0 Closest, 1 Linear, 2 Cubic) + 4 × extension (0 Repeat, 1 Extend,
-// 2 Clip, 3 Mirror). Sampled as Cycles samples (the CPU twin is textures.sample): values
+// page, 1 for 8-bit) in row 1, mode = interpolation (0 Closest, 1 Linear, 2 Cubic) + 4 ×
+// extension (0 Repeat, 1 Extend, 2 Clip, 3 Mirror). Sampled as Cycles samples (the CPU twin is textures.sample): values
 // interpolated as stored, then colour decoded from sRGB (alpha is linear). texture_color
 // samples the g-buffer's arrays (u_textures, u_texture_sizes); texture_sample any pair.
 #ifndef TEXTURES_LIB_GLSL
