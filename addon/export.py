@@ -345,12 +345,11 @@ def _emissive(name: str, base, base_texture, color, color_texture, strength: flo
 
 
 AS_DIFFUSE = {
-    "BSDF_TRANSLUCENT": "(its light reflected on the lit side, not let through to the other)",
     "SUBSURFACE_SCATTERING": "of its colour (no light scattered under the surface)",
     "BSDF_HAIR": "of its colour (no highlights along the fibres)",
 }
-"""Shaders rendered as a Diffuse BSDF of their Color, with what that leaves out (a leaf's
-translucency, skin's or wax's subsurface scattering): nearer than the viewport colour."""
+"""Shaders rendered as a Diffuse BSDF of their Color, with what that leaves out (skin's or
+wax's subsurface scattering, hair's highlights): nearer than the viewport colour."""
 
 
 def _principled_hair(node, name: str, warnings: list[str]) -> Material:
@@ -574,6 +573,10 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         return Material(name, base, roughness=float(constant(node, "Roughness", 0.5)),
                         metallic=1.0, base_color_texture=texture,
                         **_normal_map(node, name, images))
+    if node.type == "BSDF_TRANSLUCENT":  # diffuse light let through to the other side
+        base, texture = images.color(node, "Color", (0.8,) * 3, name)
+        return Material(name, base, roughness=1.0, base_color_texture=texture,
+                        translucency=(1.0, 1.0, 1.0), **_normal_map(node, name, images))
     if node.type in ("BSDF_DIFFUSE", *AS_DIFFUSE):
         if node.type in AS_DIFFUSE:
             images.warn(f"material '{name}': {node.bl_label} rendered as a Diffuse BSDF "
@@ -615,6 +618,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                ((a.base_color, b.base_color), (a.emission, b.emission),
                 (a.transmission, b.transmission))]
         weight = max(wa + wb, 1e-30)
+        maps = _mixed_maps(node, a, b, wa, wb)
         glossy = a if a.specular_ior_level >= b.specular_ior_level else b
         coated = a if a.coat_weight >= b.coat_weight else b
         sheened = a if a.sheen_weight >= b.sheen_weight else b
@@ -636,7 +640,7 @@ def _shader(node, name: str, images: ImageReader) -> Material:
                         ior=glossy.ior, specular_tint=glossy.specular_tint,
                         specular_ior_level=(wa * a.specular_ior_level
                                             + wb * b.specular_ior_level) / weight,
-                        **_mixed_maps(node, a, b, wa, wb))
+                        translucency=_mixed_translucency(a, b, wa, wb, mix[0]), **maps)
     raise UnsupportedNodes(f"shader '{node.bl_label}' is not supported")
 
 
@@ -734,6 +738,21 @@ def _mixed_maps(node, a: Material, b: Material, wa: float, wb: float) -> dict[st
         return {**maps, "alpha": wa * a.alpha + wb * b.alpha,
                 "coverage_texture": a.coverage_texture, "coverage_mode": a.coverage_mode}
     raise UnsupportedNodes(f"an Alpha texture on one side of '{label}' is not supported")
+
+
+def _mixed_translucency(a: Material, b: Material, wa: float, wb: float,
+                        base: tuple[float, ...]) -> tuple[float, float, float]:
+    """The translucency of a mix of two shaders with weights ``wa`` and ``wb`` whose mixed
+    base colour is ``base``: per channel, the share of the mix's diffuse light either lets
+    through (of one base colour texture both use, the weights' mix)."""
+    if a.base_color_texture is not None:  # _mixed_maps: both use it
+        share = (wa * np.array(a.translucency) + wb * np.array(b.translucency)) \
+            / max(wa + wb, 1e-30)
+    else:
+        through = wa * np.array(a.base_color) * a.translucency \
+            + wb * np.array(b.base_color) * b.translucency
+        share = np.divide(through, base, out=np.zeros(3), where=np.array(base) > 0)
+    return tuple(float(v) for v in np.clip(share, 0.0, 1.0))
 
 
 def _is_transparent(material: Material) -> bool:

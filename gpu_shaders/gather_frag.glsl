@@ -17,6 +17,10 @@
 // With ROUGH_DIFFUSE (some material has a rough diffuse layer) each sample's diffuse light
 // is weighted by the pixel's Oren-Nayar lobe over Lambert's (oren_nayar_lib.glsl), read from
 // its triangle's material row.
+// With TRANSLUCENT (some material lets diffuse light through) a pixel whose triangle does
+// gathers the far side's light too (the normal reversed; its shadows by rays, the hints
+// being the near side's) and mixes the two by its translucency; bias compensation's hits
+// likewise.
 // With LIGHT_LINKING the draw's samples light only the surfaces of some receiver sets
 // (light_linking_lib.glsl): elsewhere, and at bias compensation's hits elsewhere, they add
 // nothing. With RT_SHADOW_LINKING (ray-traced samples whose shadows some objects do not
@@ -38,9 +42,10 @@ uniform sampler2D u_lobe_b;
 uniform sampler2D u_lobe_c;
 layout(location = 1) out vec4 out_glossy;
 #endif
-#if defined(COAT) || defined(SHEEN) || defined(ROUGH_DIFFUSE)
+#if defined(COAT) || defined(SHEEN) || defined(ROUGH_DIFFUSE) || defined(TRANSLUCENT)
 #include "materials_lib.glsl"
 #endif
+bool g_far_side = false;  // gathering the far side of a translucent surface
 #ifdef ROUGH_DIFFUSE
 #include "oren_nayar_lib.glsl"
 #endif
@@ -111,7 +116,7 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
          i += interleave_stride()) {
         LightSample s = light_sample(i);
 #ifdef SHADOW_HINTS
-        g_hint_bit = interleave_size() > 1 ? 0 : i;
+        g_hint_bit = g_far_side ? -1 : interleave_size() > 1 ? 0 : i;
 #endif
 #ifdef SPREAD_EDGE_RAYS
         g_spread_index = i;
@@ -167,6 +172,14 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
     return irradiance * weight;
 }
 
+// The translucency of a triangle (-1: none), 0 without TRANSLUCENT.
+vec3 translucency_at(int triangle) {
+#ifdef TRANSLUCENT
+    if (triangle >= 0) return translucency_of(triangle);
+#endif
+    return vec3(0.0);
+}
+
 #ifdef BIAS_COMPENSATION
 #include "raytrace_lib.glsl"
 #include "materials_lib.glsl"
@@ -175,18 +188,30 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
 uniform int u_bias_samples;
 uniform int u_max_generation;  // light that may bounce once more at y
 
+// The diffuse light at a point, without a glossy lobe: the near side's (around `normal`),
+// mixed with the far side's by `through` (a translucent surface's share).
+vec3 both_sides(vec3 world, vec3 normal, vec3 geometric, int max_generation, vec3 through) {
+    vec3 unused;
+    vec3 near = gather(world, normal, geometric, max_generation, NO_LOBE, unused);
+    if (through == vec3(0.0)) return near;
+    g_far_side = true;
+    vec3 far = gather(world, -normal, -geometric, max_generation, NO_LOBE, unused);
+    g_far_side = false;
+    return mix(near, far, through);
+}
+
 // The hit's radiance: this batch's light gathered there, reflected by its albedo.
 bool hit_radiance(vec3 origin, vec3 dir, float t, int triangle, out vec3 radiance) {
     vec3 n_y = facing_normal(triangle, dir);
-    vec3 unused;
 #ifdef LIGHT_LINKING
     if (!lights_triangle(triangle)) {
         radiance = vec3(0.0);
         return true;
     }
 #endif
+    vec3 y = origin + dir * t;
     radiance = material_of(triangle).albedo.rgb / PI
-               * gather(origin + dir * t, n_y, n_y, u_max_generation, NO_LOBE, unused);
+               * both_sides(y, n_y, n_y, u_max_generation, translucency_at(triangle));
     return true;
 }
 
@@ -250,8 +275,12 @@ void main() {
     }
 #endif
 #endif
+    vec3 through = translucency_at(int(geometric_texel.w + 0.5) - 1);
 #ifdef BIAS_COMPENSATION
     out_light = vec4(compensation(world, normal.xyz, geometric), 0.0);
+    if (through != vec3(0.0)) {
+        out_light.rgb = mix(out_light.rgb, compensation(world, -normal.xyz, -geometric), through);
+    }
 #else
 #ifdef LIGHT_LINKING
     if (!lights_triangle(int(geometric_texel.w + 0.5) - 1)) discard;
@@ -261,6 +290,13 @@ void main() {
 #endif
     vec3 glossy;
     out_light = vec4(gather(world, normal.xyz, geometric, 1 << 30, lobe, glossy) / PI, 0.0);
+    if (through != vec3(0.0)) {
+        g_far_side = true;
+        vec3 unused;
+        vec3 far = gather(world, -normal.xyz, -geometric, 1 << 30, NO_LOBE, unused) / PI;
+        g_far_side = false;
+        out_light.rgb = mix(out_light.rgb, far, through);
+    }
 #ifdef GLOSSY
     out_glossy = vec4(glossy, 0.0);
 #endif

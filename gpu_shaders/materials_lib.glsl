@@ -1,11 +1,12 @@
 // The material table of core/geometry.py and each triangle's row in it, as textures
 // (core/scene_buffers.py; OpenGL 4.1 has no storage buffers): entry i of a table is texel
-// (i % width, i / width). A material row is ten texels: albedo, emission, texture attribute,
+// (i % width, i / width). A material row is eleven texels: albedo, emission, texture attribute,
 // the specular parameters (roughness, metallic, eta, s_avg), (F0 x tint, glossy flag), the
 // clear coat (weight, roughness, eta, the diffuse roughness: core/scene/oren_nayar.py) and
-// its tint (rgb, whether the sheen is layered),
-// the sheen (weight x tint, roughness) (core/scene/principled.py's specular_row), the cutout (coverage_lib.glsl) and
-// the normal map (gbuffer_frag.glsl).
+// its tint (rgb, whether the sheen is layered), the sheen (weight x tint, roughness)
+// (core/scene/principled.py's specular_row), the cutout (coverage_lib.glsl), the normal map
+// (gbuffer_frag.glsl) and the translucency (rgb: the share of the diffuse light let through
+// to the other side; gather_frag.glsl).
 // Vertex shaders pass the triangle index (gl_VertexID / 3, which instanced draws do not reset).
 #ifndef MATERIALS_LIB_GLSL
 #define MATERIALS_LIB_GLSL
@@ -24,6 +25,7 @@ struct Material {
     vec4 sheen;
     vec4 cutout;
     vec4 normal_map;  // layer + 1 (0: none), strength, a bump map's filter width, its distance
+    vec4 translucency;
 };
 
 vec4 material_texel(int i) {
@@ -34,12 +36,20 @@ vec4 material_texel(int i) {
 Material material_of(int triangle) {
     int width = textureSize(u_triangle_materials, 0).x;
     int row = texelFetch(u_triangle_materials, ivec2(triangle % width, triangle / width), 0).r;
-    int first = 10 * row;
+    int first = 11 * row;
     return Material(material_texel(first), material_texel(first + 1),
                     material_texel(first + 2), material_texel(first + 3),
                     material_texel(first + 4), material_texel(first + 5),
                     material_texel(first + 6), material_texel(first + 7),
-                    material_texel(first + 8), material_texel(first + 9));
+                    material_texel(first + 8), material_texel(first + 9),
+                    material_texel(first + 10));
+}
+
+// The share of the diffuse light a triangle lets through to its other side (Translucent BSDF).
+vec3 translucency_of(int triangle) {
+    int width = textureSize(u_triangle_materials, 0).x;
+    int row = texelFetch(u_triangle_materials, ivec2(triangle % width, triangle / width), 0).r;
+    return material_texel(11 * row + 10).rgb;
 }
 
 #endif

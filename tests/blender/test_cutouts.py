@@ -149,16 +149,16 @@ def translucent_leaf() -> bpy.types.Material:
 
 
 def test_mixes_keep_a_shared_texture_and_mix_their_alphas(blender):
-    """A plant library's leaf is a textured cutout (its Translucent BSDF reflects, with one
-    warning); Mix Shaders mix constant alphas by their weights; an Alpha texture on one side
-    of a mix only is not rendered (the viewport colour, with a warning)."""
+    """A plant library's leaf is a textured cutout letting through the Translucent BSDF's
+    share of its diffuse light; Mix Shaders mix constant alphas by their weights; an Alpha
+    texture on one side of a mix only is not rendered (the viewport colour, with a
+    warning)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     warnings: list[str] = []
     leaf = export_material(translucent_leaf(), warnings)
     assert leaf.base_color_texture is not None and leaf.coverage_texture is not None
     assert leaf.coverage_mode == COVERAGE_ALPHA and leaf.alpha == 1.0
-    assert warnings == ["material 'Leaf': Translucent BSDF rendered as a Diffuse BSDF (its "
-                        "light reflected on the lit side, not let through to the other)"]
+    assert leaf.translucency == pytest.approx((0.3,) * 3) and not warnings
     material = shader_material("Veil", "ShaderNodeBsdfPrincipled", Alpha=0.5)
     tree = material.node_tree
     mix = tree.nodes.new("ShaderNodeMixShader")

@@ -181,6 +181,8 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
                             u_tile_size=gbuffer.textures["position"].size)
         if scene is not None and scene.has_rough_diffuse:
             defines.update(ROUGH_DIFFUSE=1)
+        if scene is not None and scene.has_translucency:
+            defines.update(TRANSLUCENT=1)
         if gbuffer.glossy:
             defines.update(GLOSSY=1)
             for unit, name in zip(LOBE_UNITS, GLOSSY_LAYERS, strict=True):
@@ -210,7 +212,7 @@ def gather(ctx: moderngl.Context, programs: ProgramCache, light_pass: LightPass,
         if compensation is not None:  # the surfaces rays reach: positions and materials
             scene.positions.bind_to_storage_buffer(SURFACE_VERTICES_BINDING)
             scene.bind_materials(program)
-        elif {"COAT", "SHEEN", "ROUGH_DIFFUSE"} & defines.keys():  # the pixels' layers
+        elif {"COAT", "SHEEN", "ROUGH_DIFFUSE", "TRANSLUCENT"} & defines.keys():  # pixel layers
             for shader in shaders:
                 scene.bind_materials(shader)
         elif "LIGHT_LINKING" in defines:

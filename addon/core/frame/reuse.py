@@ -58,8 +58,8 @@ class SceneVersions:
         linking = tuple(np.zeros(0) if a is None else a
                         for a in (geometry.receiver_set, geometry.emission_receivers,
                                   geometry.emission_blockers))
-        arrays = (*shape, geometry.albedo, geometry.emission, *_texture_state(geometry),
-                  *linking)
+        arrays = (*shape, geometry.albedo, geometry.emission, geometry.materials,
+                  geometry.triangle_material, *_texture_state(geometry), *linking)
         before = self._arrays
         same = [k < len(before) and a.shape == before[k].shape and np.array_equal(a, before[k])
                 for k, a in enumerate(arrays)]

@@ -54,7 +54,7 @@ class SceneBuffers:
                 if column is not None:
                     rows = np.concatenate([rows, column[:, None]], axis=1)
             self.triangle_material = self._own(table_texture(ctx, rows, rows.shape[1], "i4"))
-            table = geometry.materials.reshape(-1, 4)  # ten RGBA texels a row
+            table = geometry.materials.reshape(-1, 4)  # eleven RGBA texels a row
             self.materials = self._own(table_texture(ctx, table, 4, "f4"))
             self.uv = None if geometry.uv is None else self._own(ctx.buffer(geometry.uv))
             self.textures = tuple(self._own(t) for t in upload_textures(ctx, geometry.textures)) \
@@ -63,6 +63,7 @@ class SceneBuffers:
             self.has_coat = geometry.has_coat
             self.has_sheen = geometry.has_sheen
             self.has_rough_diffuse = geometry.has_rough_diffuse
+            self.has_translucency = geometry.has_translucency
             self.has_cutouts = bool(geometry.cutout.any())
             self.ggx_tables = None
             if self.has_specular:

@@ -29,8 +29,9 @@ MAX_SHAPE_RADIANCE = 1e30  # a near-zero-area light's shape radiance stays a fin
 UNIT_TOLERANCE = 1e-5  # relative: unit normals and similarity maps, within float32 rounding
 
 
-MATERIAL_COLUMNS = 40  # albedo, hidden, emission, holdout, texture attribute, shadowless,
-# specular (with the coat and sheen), cutout, diffuse-hidden, normal map: ten texels
+MATERIAL_COLUMNS = 44  # albedo, hidden, emission, holdout, texture attribute, shadowless,
+# specular (with the coat and sheen), cutout, diffuse-hidden, normal map, translucency:
+# eleven texels
 HIDDEN = 3  # 1 in the rows of instances the camera does not see (gbuffer_frag.glsl)
 HOLDOUT = 7  # 1 in the rows of holdout instances (gbuffer_frag.glsl, combined_frag.glsl)
 SHADOWLESS = 11  # 1 in the rows of instances shadow rays pass (shadow_frag.glsl)
@@ -41,6 +42,7 @@ ROUGH_DIFFUSE = SPECULAR + principled.DIFFUSE_ROUGHNESS_COLUMN  # the diffuse ro
 CUTOUT = 32  # first column of the cutout texel (TextureSet.cutout, coverage_lib.glsl)
 DIFFUSE_HIDDEN = 35  # 1 in the rows of instances diffuse bounces pass (cutout_lib.glsl)
 NORMAL_MAP = 36  # first column of the normal-map texel (TextureSet.normal, gbuffer_frag.glsl)
+TRANSLUCENCY = 40  # the translucency (Material.translucency) per channel (gather_frag.glsl)
 NO_TEXTURE_ATTRIBUTE = (tex.NO_TEXTURE, tex.NO_TEXTURE, 0.0)
 NO_MATERIAL = [DEFAULT_MATERIAL]  # the material list of an instance without slots
 NO_LINKING = (0, EVERY_RECEIVER_SET, 0, EVERY_RECEIVER_SET)  # Instance.linking's defaults
@@ -55,13 +57,13 @@ class WorldGeometry:
     A material row holds the albedo (base colour), the emission, the texture attribute (albedo
     layer, emission layer — NO_TEXTURE for none — and the strength the emission texture is
     multiplied by) and the Principled BSDF's specular parameters (principled.specular_row),
-    the cutout texel (TextureSet.cutout) and the normal map's (TextureSet.normal), laid out
-    as ten RGBA texels
-    (gpu_shaders/materials_lib.glsl). Textured materials
-    have their textures' average colour as albedo and emission (the per-triangle values light
-    sampling and path termination use); ``uv`` (per vertex) is set only when some material has
-    a texture. ``albedo`` and ``albedo_at`` are what light paths keep at a bounce: the base
-    colour, or for materials with a specular layer its cosine-weighted total reflectance."""
+    the cutout texel (TextureSet.cutout), the normal map's (TextureSet.normal) and the
+    translucency, laid out as eleven RGBA texels (gpu_shaders/materials_lib.glsl). Textured
+    materials have their textures' average colour as albedo and emission (the per-triangle
+    values light sampling and path termination use); ``uv`` (per vertex) is set only when some
+    material has a texture. ``albedo`` and ``albedo_at`` are what light paths keep at a
+    bounce: the base colour, or for materials with a specular layer its cosine-weighted total
+    reflectance."""
 
     positions: np.ndarray  # (V, 3) C-contiguous float32
     normals: np.ndarray  # (V, 3) C-contiguous float32
@@ -185,6 +187,18 @@ class WorldGeometry:
     def has_sheen(self) -> bool:
         """Whether some material has a sheen (the shaders' SHEEN path)."""
         return bool(np.any(self.materials[:, SHEEN:SHEEN + 3] > 0))
+
+    @property
+    def has_translucency(self) -> bool:
+        """Whether some material lets diffuse light through (the shaders' TRANSLUCENT
+        path)."""
+        return bool(np.any(self.materials[:, TRANSLUCENCY:TRANSLUCENCY + 3] > 0))
+
+    def translucency(self, triangle: np.ndarray) -> np.ndarray:
+        """The share of the diffuse light let through (m, 3) of triangles
+        (Material.translucency)."""
+        return self.materials[self.triangle_material[triangle],
+                              TRANSLUCENCY:TRANSLUCENCY + 3].astype(np.float64)
 
     @cached_property
     def emission(self) -> np.ndarray:
@@ -503,6 +517,8 @@ def _material_rows(materials: list[Material], warnings: list[str],
     rows[:, 8:11] = [textures.columns(m) for m in materials]
     rows[:, CUTOUT:CUTOUT + 4] = [textures.cutout(m) for m in materials]
     rows[:, NORMAL_MAP:NORMAL_MAP + 4] = [textures.normal(m) for m in materials]
+    translucency = np.array([m.translucency for m in materials], np.float64).reshape(-1, 3)
+    rows[:, TRANSLUCENCY:TRANSLUCENCY + 3] = np.clip(np.nan_to_num(translucency), 0.0, 1.0)
     for row, m in enumerate(materials):
         values = np.array([m.roughness, m.metallic, m.ior, m.specular_ior_level,
                            *m.specular_tint, m.coat_weight, m.coat_roughness, m.coat_ior,

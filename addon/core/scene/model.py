@@ -71,10 +71,11 @@ class Material:
     the Principled BSDF's inputs; with level 0, metallic 0 and no coat (the defaults here, as
     for a Diffuse BSDF) the material is pure Lambert. A coat (``coat_weight`` above 0) is a
     dielectric GGX layer of its own roughness and IOR over the others, a sheen (``sheen_weight``
-    above 0) a soft reflection over all of them. ``transmission`` is
-    the colour of the light it lets straight through (Transparent, Glass and Refraction
-    BSDFs, a Principled BSDF's Alpha and Transmission); a material that does nothing else is
-    clear (``is_clear``).
+    above 0) a soft reflection over all of them. ``translucency`` (per channel) of the diffuse
+    light leaves the other side of the surface (a Translucent BSDF's: a leaf, a lampshade).
+    ``transmission`` is the colour of the light it lets straight through (Transparent, Glass
+    and Refraction BSDFs, a Principled BSDF's Alpha and Transmission); a material that does
+    nothing else is clear (``is_clear``).
 
     A cutout (a leaf, a fence: ``is_cutout``) is there in part: ``alpha`` of it, times, with
     ``coverage_texture``, that texture's alpha (``coverage_mode`` COVERAGE_ALPHA) or its
@@ -104,6 +105,8 @@ class Material:
     sheen_dims_cast_light: bool = False  # and the light its emission casts (Blender 5.x)
     diffuse_roughness: float = 0.0  # Oren–Nayar (core/scene/oren_nayar.py)
     diffuse_multiscatter: int = 2  # its multiple-scattering term (oren_nayar.py's modes)
+    translucency: tuple[float, float, float] = (0.0, 0.0, 0.0)  # per channel, the share of
+    # the diffuse light let through to the other side (a Translucent BSDF's), not reflected
     base_color_texture: Texture | None = None
     emission_texture: Texture | None = None
     transmission: tuple[float, float, float] = (0.0, 0.0, 0.0)

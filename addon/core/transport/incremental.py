@@ -67,7 +67,8 @@ from .vpl import (
     trace_hits,
 )
 
-GENERATION_STRIDE = 128  # VPL key = path id * stride + generation (bounces <= 64)
+FAR_SIDE = 128  # added to the key of a VPL on the far side of a translucent surface
+GENERATION_STRIDE = 2 * FAR_SIDE  # VPL key = path id * stride + generation (bounces <= 64)
 
 
 @dataclass
@@ -206,6 +207,8 @@ class IncrementalVPLs:
         path_of_rank = np.zeros(n, np.int64)
         path_of_rank[first.rank] = np.concatenate([ids for _, ids in hits])
         vpls.key = path_of_rank[vpls.rank] * GENERATION_STRIDE + vpls.generation
+        if vpls.far_side is not None:
+            vpls.key += FAR_SIDE * vpls.far_side
         reused = np.isin(vpls.key, self._previous_keys)
         self.stats.reused_vpls, self.stats.new_vpls = int(reused.sum()), int((~reused).sum())
         self._previous_keys = vpls.key.copy()

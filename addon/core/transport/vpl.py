@@ -18,6 +18,11 @@ Weights (flux Φ is RGB):
   (n_k = round(ρ̄^k N), ρ̄ the scene's average reflectance); with Russian roulette
   q = min(1, max(ρ(y))) per path. Both keep the estimator unbiased.
 
+At a translucent surface (Material.translucency t) the diffuse reflectance ρ splits: the VPL
+emits ρ (1 − t) on the side the light came from, and a second VPL on the far side ρ t
+(the Translucent BSDF's light); a path continuing diffusely crosses to the far side with the
+luminance share of ρ t, weighted by its chance.
+
 A path continuing through the glossy lobe leaves its next VPL at the next hit, which carries
 two or more bounces; the glossy emission at y is the single glossy bounce y → receiver, so no
 path is counted twice. Its lobe's multiple-scattering compensation is taken at the incoming
@@ -79,6 +84,8 @@ class VPLs:
     # (alpha 0: no glossy lobe), and a rough diffuse lobe's (Φ c, σ), (Φ c m (1 − E(μ)), 0)
     # (WorldGeometry.rough_lobes; σ 0: smooth); all zero for a Lambertian VPL; None when no
     # VPL emits directionally
+    far_side: np.ndarray | None = None  # (n,) bool: on the far side of a translucent surface
+    # from its light (its own key in Incremental IR); None where none is
 
     def __len__(self) -> int:
         return len(self.generation)
@@ -115,7 +122,8 @@ class VPLs:
             glossy[:, FLUX_TEXELS, :3] *= factor[:, None, None]
         return VPLs(self.position[keep], self.normal[keep],
                     self.intensity[keep] * factor[:, None], self.generation[keep],
-                    self.rank[keep], glossy=glossy)
+                    self.rank[keep], glossy=glossy,
+                    far_side=None if self.far_side is None else self.far_side[keep])
 
     @classmethod
     def concatenate(cls, parts: list[VPLs]) -> VPLs:
@@ -124,9 +132,13 @@ class VPLs:
         if any(p.glossy is not None for p in parts):
             glossy = np.concatenate([p.glossy if p.glossy is not None
                                      else np.zeros((len(p), GLOSSY_TEXELS, 4)) for p in parts])
+        far_side = None
+        if any(p.far_side is not None for p in parts):
+            far_side = np.concatenate([p.far_side if p.far_side is not None
+                                       else np.zeros(len(p), bool) for p in parts])
         return cls(*(np.concatenate([getattr(p, f) for p in parts])
                      for f in ("position", "normal", "intensity", "generation", "rank")),
-                   glossy=glossy)
+                   glossy=glossy, far_side=far_side)
 
 
 @dataclass
@@ -604,13 +616,23 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
     rho_bar = float(np.clip(average_reflectance(geometry), 1e-3, 1.0))
     roulette = np.random.default_rng(settings.seed + 1).uniform(size=(count, settings.bounces))
     lobe_choice = np.random.default_rng(settings.seed + 2).uniform(size=(count, settings.bounces))
+    side_choice = np.random.default_rng(settings.seed + 3).uniform(size=(count, settings.bounces)) \
+        if geometry.has_translucency else None
     epsilon = 1e-5 * radius
     hits, survivors = first, count
     out: list[VPLs] = []
     for generation in range(1, settings.bounces + 1):
         diffuse, gloss, (rough, coat_share, coat_rough), emission = _lobes(hits, geometry)
-        out.append(VPLs(hits.position, hits.normal, hits.flux * diffuse / np.pi,
+        through = None if side_choice is None or hits.triangle is None \
+            else diffuse * geometry.translucency(hits.triangle)
+        reflected = diffuse if through is None else diffuse - through
+        if through is not None and emission is not None:  # the rough lobe reflects (1 − t)
+            emission[:, GLOSSY_LOBE_TEXELS:, :3] *= (reflected / np.maximum(diffuse, 1e-30)
+                                                      )[:, None]
+        out.append(VPLs(hits.position, hits.normal, hits.flux * reflected / np.pi,
                         np.full(len(hits.rank), generation), hits.rank, glossy=emission))
+        if through is not None:
+            out.append(_far_side_vpls(hits, through, generation, emission is not None))
         if generation == settings.bounces or len(hits.rank) == 0:
             break
         if settings.termination == "fractional":
@@ -625,7 +647,17 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
         k = 2 * (generation - 1)
         samples = directions[hits.rank, k:k + 2]
         direction = cosine_directions(hits.normal, samples)
-        flux = hits.flux * hits.albedo * weight[:, None]
+        side = hits.normal.copy()  # the side the path leaves by
+        carried = diffuse  # what a diffuse continuation keeps (per unit chance)
+        if through is not None:  # through to the far side, by the luminance share
+            p_through = np.clip(through @ LUMINANCE / np.maximum(diffuse @ LUMINANCE, 1e-30),
+                                0.0, 1.0)
+            crossing = side_choice[hits.rank, generation] < p_through
+            direction[crossing] *= -1.0
+            side[crossing] *= -1.0
+            carried = np.where(crossing[:, None], through / np.maximum(p_through, 1e-12)[:, None],
+                               reflected / np.maximum(1.0 - p_through, 1e-12)[:, None])
+        flux = hits.flux * (hits.albedo if through is None else carried) * weight[:, None]
         if gloss is not None:  # a diffuse or a glossy reflection, by their luminance
             total = np.maximum((diffuse + gloss) @ LUMINANCE, 1e-30)
             p_gloss = np.clip(gloss @ LUMINANCE / total, 0.0, 1.0)
@@ -636,15 +668,28 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
                 direction[glossy] = principled.sample_reflection(
                     hits.normal[glossy], hits.incoming[glossy],
                     np.where(on_coat, coat_rough[glossy], rough[glossy]), samples[glossy])
+                side[glossy] = hits.normal[glossy]
             lobe = np.where(glossy[:, None], gloss / np.maximum(p_gloss, 1e-12)[:, None],
-                            diffuse / np.maximum(1.0 - p_gloss, 1e-12)[:, None])
+                            carried / np.maximum(1.0 - p_gloss, 1e-12)[:, None])
             flux = hits.flux * lobe * weight[:, None]
         keep &= np.any(flux > 0, axis=1)
-        hits = trace_hits(tracer, geometry, (hits.position + hits.normal * epsilon)[keep],
-                      direction[keep], flux[keep], hits.rank[keep], epsilon)
+        hits = trace_hits(tracer, geometry, (hits.position + side * epsilon)[keep],
+                          direction[keep], flux[keep], hits.rank[keep], epsilon)
     if not out:
         return VPLs.empty()
     return VPLs.concatenate(out)
+
+
+def _far_side_vpls(hits: SurfaceHits, through: np.ndarray, generation: int,
+                   directional: bool) -> VPLs:
+    """The VPLs on the far side of the translucent surfaces among ``hits``: Lambertian
+    emitters of the light let through (``through`` per unit incident flux, (m, 3)) around the
+    reversed normal; with ``directional``, their (zero) directional emission."""
+    far = np.flatnonzero(np.any(through > 0, axis=1))
+    return VPLs(hits.position[far], -hits.normal[far], hits.flux[far] * through[far] / np.pi,
+                np.full(len(far), generation), hits.rank[far],
+                glossy=np.zeros((len(far), GLOSSY_TEXELS, 4)) if directional else None,
+                far_side=np.ones(len(far), bool))
 
 
 @dataclass(frozen=True)
