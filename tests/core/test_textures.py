@@ -330,3 +330,22 @@ def test_an_image_larger_than_the_gpus_textures_is_one_clear_error(renderer):
                   camera=top_down_camera(16))
     with pytest.raises(RenderError, match="larger than this GPU's textures"):
         renderer.render(scene, Settings(bounces=0, antialiasing=1))
+
+
+def test_an_eight_bit_image_wider_than_the_gpus_textures_still_renders(renderer):
+    """An 8-bit image packs four texels into one, so one up to four times the GPU's largest
+    texture wide fits (before stop 68 the upload refused it, though the packing took it):
+    rendered with its colour, sampled at its right end too."""
+    limit = int(renderer.ctx.info["GL_MAX_TEXTURE_SIZE"])
+    mesh = quad(1, 1)
+    mesh.uvs = ((mesh.positions[:, :2] + 1) / 2).astype(np.float32)
+    pixels = np.full((1, 2 * limit + 3, 4), 1.0, np.float32)
+    pixels[..., :3] = (0.2, 0.4, 0.6)
+    pixels[:, -(limit // 2):, :3] = (0.6, 0.4, 0.2)  # the right quarter (x > 0.5)
+    wide = Texture("wide", pixels, interpolation="Closest", eight_bit=True)
+    scene = Scene([Instance(mesh, np.eye(4), [Material("m", base_color_texture=wide)])], [],
+                  camera=top_down_camera(16))
+    frame, _ = renderer.render(scene, Settings(bounces=0, antialiasing=1))
+    colour = frame.passes["DiffCol"]
+    np.testing.assert_allclose(colour[8, 6, :3], (0.2, 0.4, 0.6), atol=0.01)
+    np.testing.assert_allclose(colour[8, 10, :3], (0.6, 0.4, 0.2), atol=0.01)

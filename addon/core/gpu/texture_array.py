@@ -69,9 +69,10 @@ def upload(ctx: moderngl.Context, textures: list[Texture]
     spans = [(-(-w // 4) if c is not None else w, h) for (w, h), c in zip(sizes, codes,
                                                                           strict=True)]
     limit = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
-    if any(w > limit for w, _ in sizes):
-        raise ValueError(f"an image of {max(w for w, _ in sizes)} pixels across is larger "
-                         f"than this GPU's textures ({limit}×{limit})")
+    for (w, h), (span, _) in zip(sizes, spans, strict=True):
+        if span > limit or h > limit:  # an 8-bit image's texels take a quarter of the width
+            raise ValueError(f"an image of {w}×{h} pixels is larger than this GPU's textures "
+                             f"({limit}×{limit}; 8-bit images up to {4 * limit} wide)")
     places, (width, height, pages) = pack(spans, limit)
     words = np.zeros((pages, height, width, 4), np.uint32)
     table = np.zeros((2, len(textures), 4), np.float32)
