@@ -597,6 +597,9 @@ def _shader(node, name: str, images: ImageReader) -> Material:
         b = _shader(_linked_shader(second_socket), name, images)
         if a.holdout or b.holdout:
             raise UnsupportedNodes(f"a Holdout shader inside '{node.bl_label}' is not supported")
+        by_ray = _ray_type_mix(node, a, b) if node.type == "MIX_SHADER" else None
+        if by_ray is not None:
+            return by_ray
         if node.type == "MIX_SHADER" and node.inputs["Fac"].is_linked and a.is_clear \
                 and b.is_clear:  # e.g. glass for camera rays, transparent for shadow rays
             return Material(name, (0.0, 0.0, 0.0), roughness=1.0, transmission=tuple(
@@ -753,6 +756,24 @@ def _mixed_translucency(a: Material, b: Material, wa: float, wb: float,
             + wb * np.array(b.base_color) * b.translucency
         share = np.divide(through, base, out=np.zeros(3), where=np.array(base) > 0)
     return tuple(float(v) for v in np.clip(share, 0.0, 1.0))
+
+
+RAY_TYPE_MIXES = {"Is Camera Ray": "camera_sees_through", "Is Shadow Ray": "shadow_rays_pass"}
+"""Light Path outputs a Mix Shader's Fac may take to show one kind of ray a white Transparent
+BSDF (its second slot) and the others its first shader: the Material flag that does so."""
+
+
+def _ray_type_mix(node, a: Material, b: Material) -> Material | None:
+    """A Mix Shader whose Fac is Light Path's Is Camera Ray or Is Shadow Ray and whose second
+    shader is a white Transparent BSDF: the first shader, which the camera sees through (a
+    hidden emitter) or shadow rays pass; None for other mixes (an unsupported link)."""
+    fac = node.inputs["Fac"]
+    if not fac.is_linked or fac.links[0].from_node.type != "LIGHT_PATH":
+        return None
+    flag = RAY_TYPE_MIXES.get(fac.links[0].from_socket.name)
+    if flag is None or not _is_transparent(b) or _is_transparent(a):
+        return None
+    return replace(a, **{flag: True})
 
 
 def _is_transparent(material: Material) -> bool:

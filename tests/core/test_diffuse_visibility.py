@@ -4,6 +4,8 @@ lit, and cast shadows."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -69,3 +71,23 @@ def test_an_emitter_hidden_from_diffuse_bounces_lights_nothing(renderer):
         frame, _ = renderer.render(floor_scene([], extra=[panel]), SETTINGS)
         light_on_floor.append(frame.passes["DiffDir"][20:44, 20:44].mean())
     assert light_on_floor[0] > 0.1 and light_on_floor[1] == 0.0
+
+
+def test_materials_hide_from_the_camera_or_shadow_rays_like_their_objects(renderer):
+    """A material the camera sees through (Material.camera_sees_through) or shadow rays pass
+    (shadow_rays_pass) renders as an object whose Camera or Shadow visibility is off."""
+    wall = red_wall().materials[0]
+    hidden = Instance(red_wall().mesh, red_wall().matrix,
+                      [replace(wall, camera_sees_through=True)])
+    passed = Instance(red_wall().mesh, red_wall().matrix, [replace(wall, shadow_rays_pass=True)])
+    by_object = {"camera": Instance(red_wall().mesh, red_wall().matrix, [wall],
+                                    visible_to_camera=False),
+                 "shadow": Instance(red_wall().mesh, red_wall().matrix, [wall],
+                                    cast_shadow=False)}
+    for kind, by_material in (("camera", hidden), ("shadow", passed)):
+        frames = [renderer.render(floor_scene([SUN], extra=[wall_instance]), SETTINGS)[0]
+                  for wall_instance in (by_material, by_object[kind])]
+        np.testing.assert_allclose(frames[0].passes["Combined"], frames[1].passes["Combined"],
+                                   atol=1e-6)
+    seen, _ = renderer.render(floor_scene([SUN], extra=[red_wall()]), SETTINGS)
+    assert not np.allclose(seen.passes["Combined"], frames[1].passes["Combined"], atol=1e-3)

@@ -573,8 +573,9 @@ class _MaterialTable:
               linking: tuple[int, int, int, int] = NO_LINKING) -> tuple[int, int]:
         """The first row and row count of a material list's block (added on first use) for
         instances of ``flags`` (Instance.flags): the rows of instances the camera does not see
-        are marked (column HIDDEN), those of holdouts (HOLDOUT) and those that cast no shadow
-        (SHADOWLESS) and those diffuse bounces pass (DIFFUSE_HIDDEN). ``linking``: the
+        are marked (column HIDDEN; and of materials it sees through), those of holdouts
+        (HOLDOUT) and those that cast no shadow (SHADOWLESS; and of materials shadow rays pass)
+        and those diffuse bounces pass (DIFFUSE_HIDDEN). ``linking``: the
         instances' receiver set, emission receivers, blocker set and emission blockers
         (Instance.linking)."""
         key = (*(id(m) for m in materials), *flags, *linking)
@@ -582,9 +583,11 @@ class _MaterialTable:
             self._first[key] = self.row_count
             rows = _material_rows(materials, self.warnings, self.textures, self.clamped)
             visible_to_camera, holdout, casts_shadow, visible_to_diffuse = flags
-            rows[:, HIDDEN] = 0.0 if visible_to_camera else 1.0
+            rows[:, HIDDEN] = [0.0 if visible_to_camera and not m.camera_sees_through
+                               else 1.0 for m in materials]
             rows[:, HOLDOUT] = [1.0 if holdout or m.holdout else 0.0 for m in materials]
-            rows[:, SHADOWLESS] = 0.0 if casts_shadow else 1.0
+            rows[:, SHADOWLESS] = [0.0 if casts_shadow and not m.shadow_rays_pass else 1.0
+                                   for m in materials]
             rows[:, DIFFUSE_HIDDEN] = 0.0 if visible_to_diffuse else 1.0
             self.blocks.append(rows)
             self.materials.extend(materials)

@@ -119,6 +119,9 @@ class Material:
     bump_distance: float | None = None  # a Bump node's Distance (negative: inverted)
     bump_filter_width: float = 0.1  # its Filter Width in pixels (4.3's default)
     holdout: bool = False  # a Holdout shader: a hole for the camera, black to light
+    camera_sees_through: bool = False  # the camera sees through it, other rays see it (a
+    # Transparent BSDF mixed in by Light Path's Is Camera Ray: a hidden emitter)
+    shadow_rays_pass: bool = False  # shadow rays pass it (by Is Shadow Ray)
     pass_index: int = 0  # Blender's material Pass Index (the IndexMA pass)
     aovs: tuple[tuple[str, tuple[float, float, float, float]], ...] = ()  # its AOV Output
     # nodes' names and (colour, value): frame/id_passes.py writes them
