@@ -119,3 +119,19 @@ def test_paths_cross_a_translucent_canopy_with_the_light_it_lets_through(rendere
             & (vpls.position[:, 2] < 0.25)
         counts[t] = vpls.intensity[under].sum()
     assert counts[0.0] < 0.05 * counts[1.0]
+
+
+@pytest.mark.parametrize("incremental", [False, True])
+def test_a_layered_translucent_leaf_lights_its_far_side(renderer, incremental):
+    """A translucent leaf that is also glossy, rough and coated (a Principled BSDF mixed with a
+    Translucent BSDF): every pixel finite, its far side lit by t of the sun with light paths
+    crossing it, in final renders and Incremental Instant Radiosity."""
+    leaf = Material("leaf", (0.5, 0.7, 0.3), roughness=0.4, specular_ior_level=0.5,
+                    diffuse_roughness=0.6, coat_weight=0.3, translucency=(0.4, 0.4, 0.4))
+    floor = Instance(quad(5, 5), np.eye(4), [leaf])
+    scene = Scene([floor], [sun(from_below=True)], World(), top_down_camera())
+    settings = Settings(bounces=2, antialiasing=1, vpl_count=256, incremental=incremental)
+    frame, _ = renderer.render(scene, settings)
+    assert all(np.isfinite(p).all() for p in frame.passes.values())
+    assert frame.passes["DiffDir"][CENTRE].mean() == pytest.approx(
+        0.4 * SUN_STRENGTH / math.pi, rel=0.05)
