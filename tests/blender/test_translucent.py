@@ -9,7 +9,7 @@ import numpy as np
 
 from tests.blender.rendering import (
     add_camera,
-    against,
+    assert_near_cycles,
     cycles_and_ours,
     open_scene,
     render_linear,
@@ -54,14 +54,8 @@ def test_a_diffuser_under_the_light_lets_its_light_through_as_in_cycles(blender,
         .default_value = 0.0
     reflecting = render_linear(scene, "VPL_GI", tmp_path / "reflecting.exr")
 
-    assert np.isfinite(ours).all()
-    energy, error = against(ours[..., :3], reference[..., :3])
-    wrong = against(reflecting[..., :3], reference[..., :3])
-    print(f"diffuser vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; reflecting only: "
-          f"energy {wrong[0]:+.4f} relRMSE {wrong[1]:.4f}")
-    assert abs(energy) < 0.03
-    assert error < 0.25
-    assert wrong[1] > 2 * error
+    assert_near_cycles("diffuser", ours[..., :3], reference[..., :3], (0.03, 0.25),
+                       reflecting[..., :3], "reflecting only", factor=2.0)
 
 
 def test_a_translucent_mix_keeps_each_colours_share(blender):
@@ -96,11 +90,5 @@ def test_sunlit_leaves_glow_from_below_as_in_cycles(blender, tmp_path):
     bpy.data.materials["Leaf"].node_tree.nodes["Mix Shader"].inputs["Fac"].default_value = 0.0
     reflecting = render_linear(scene, "VPL_GI", tmp_path / "reflecting.exr")
 
-    assert np.isfinite(ours).all()
-    energy, error = against(ours[..., :3], reference[..., :3])
-    wrong = against(reflecting[..., :3], reference[..., :3])
-    print(f"leaves from below vs Cycles: energy {energy:+.4f} relRMSE {error:.4f}; "
-          f"reflecting only: energy {wrong[0]:+.4f} relRMSE {wrong[1]:.4f}")
-    assert abs(energy) < 0.05
-    assert error < 0.25
-    assert wrong[1] > 2 * error
+    assert_near_cycles("leaves from below", ours[..., :3], reference[..., :3], (0.05, 0.25),
+                       reflecting[..., :3], "reflecting only", factor=2.0)
