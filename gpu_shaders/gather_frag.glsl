@@ -172,12 +172,22 @@ vec3 gather(vec3 world, vec3 normal, vec3 geometric, int max_generation, Lobe lo
     return irradiance * weight;
 }
 
-// The translucency of a triangle (-1: none), 0 without TRANSLUCENT.
+// The translucency of a triangle (0 for -1, no triangle, and without TRANSLUCENT).
 vec3 translucency_at(int triangle) {
 #ifdef TRANSLUCENT
     if (triangle >= 0) return translucency_of(triangle);
 #endif
     return vec3(0.0);
+}
+
+// The diffuse light on the far side of a translucent surface (the normal reversed, without a
+// glossy lobe; its shadows by rays, the shadow hints being the near side's).
+vec3 far_side(vec3 world, vec3 normal, vec3 geometric, int max_generation) {
+    vec3 unused;
+    g_far_side = true;
+    vec3 far = gather(world, -normal, -geometric, max_generation, NO_LOBE, unused);
+    g_far_side = false;
+    return far;
 }
 
 #ifdef BIAS_COMPENSATION
@@ -194,10 +204,7 @@ vec3 both_sides(vec3 world, vec3 normal, vec3 geometric, int max_generation, vec
     vec3 unused;
     vec3 near = gather(world, normal, geometric, max_generation, NO_LOBE, unused);
     if (through == vec3(0.0)) return near;
-    g_far_side = true;
-    vec3 far = gather(world, -normal, -geometric, max_generation, NO_LOBE, unused);
-    g_far_side = false;
-    return mix(near, far, through);
+    return mix(near, far_side(world, normal, geometric, max_generation), through);
 }
 
 // The hit's radiance: this batch's light gathered there, reflected by its albedo.
@@ -291,11 +298,8 @@ void main() {
     vec3 glossy;
     out_light = vec4(gather(world, normal.xyz, geometric, 1 << 30, lobe, glossy) / PI, 0.0);
     if (through != vec3(0.0)) {
-        g_far_side = true;
-        vec3 unused;
-        vec3 far = gather(world, -normal.xyz, -geometric, 1 << 30, NO_LOBE, unused) / PI;
-        g_far_side = false;
-        out_light.rgb = mix(out_light.rgb, far, through);
+        out_light.rgb = mix(out_light.rgb, far_side(world, normal.xyz, geometric, 1 << 30) / PI,
+                            through);
     }
 #ifdef GLOSSY
     out_glossy = vec4(glossy, 0.0);

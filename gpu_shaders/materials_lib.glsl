@@ -28,15 +28,22 @@ struct Material {
     vec4 translucency;
 };
 
+const int MATERIAL_TEXELS = 11;  // a row's texels (core/scene/geometry.py's MATERIAL_COLUMNS / 4)
+
 vec4 material_texel(int i) {
     int width = textureSize(u_materials, 0).x;
     return texelFetch(u_materials, ivec2(i % width, i / width), 0);
 }
 
-Material material_of(int triangle) {
+// The first texel of a triangle's material row.
+int material_row(int triangle) {
     int width = textureSize(u_triangle_materials, 0).x;
     int row = texelFetch(u_triangle_materials, ivec2(triangle % width, triangle / width), 0).r;
-    int first = 11 * row;
+    return MATERIAL_TEXELS * row;
+}
+
+Material material_of(int triangle) {
+    int first = material_row(triangle);
     return Material(material_texel(first), material_texel(first + 1),
                     material_texel(first + 2), material_texel(first + 3),
                     material_texel(first + 4), material_texel(first + 5),
@@ -47,9 +54,7 @@ Material material_of(int triangle) {
 
 // The share of the diffuse light a triangle lets through to its other side (Translucent BSDF).
 vec3 translucency_of(int triangle) {
-    int width = textureSize(u_triangle_materials, 0).x;
-    int row = texelFetch(u_triangle_materials, ivec2(triangle % width, triangle / width), 0).r;
-    return material_texel(11 * row + 10).rgb;
+    return material_texel(material_row(triangle) + 10).rgb;
 }
 
 #endif

@@ -657,7 +657,7 @@ def propagate(first: SurfaceHits, count: int, directions: np.ndarray, settings: 
             side[crossing] *= -1.0
             carried = np.where(crossing[:, None], through / np.maximum(p_through, 1e-12)[:, None],
                                reflected / np.maximum(1.0 - p_through, 1e-12)[:, None])
-        flux = hits.flux * (hits.albedo if through is None else carried) * weight[:, None]
+        flux = hits.flux * carried * weight[:, None]
         if gloss is not None:  # a diffuse or a glossy reflection, by their luminance
             total = np.maximum((diffuse + gloss) @ LUMINANCE, 1e-30)
             p_gloss = np.clip(gloss @ LUMINANCE / total, 0.0, 1.0)
